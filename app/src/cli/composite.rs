@@ -1,0 +1,8 @@
+//! `previz composite`.
+
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("composite is being written")
+}

@@ -1,0 +1,25 @@
+//! The command line: one file per subcommand, each with its clap `Args` and a `run` function.
+//! `main.rs` only parses and reports errors.
+
+use clap::{Parser, Subcommand};
+
+pub mod composite;
+
+#[derive(Parser, Debug)]
+#[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Composite a lit model over a background (no arguments: the bundled demo scene).
+    Composite(composite::Args),
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Composite(a) => composite::run(a),
+    }
+}

@@ -1,0 +1,12 @@
+//! Previz: composite a 3D model into a photograph or a live camera view, lit by the real sun,
+//! reflecting and colour-matched to the real surroundings.
+//!
+//! Conventions (see `../shared/DESIGN.md`): world frame ENU (+x East, +y North, +z Up), camera
+//! frame +x right, +y up, looking along −z; a pose rotates camera → world. Angles are degrees at
+//! the edges (CLI, files) and radians inside. Images are sRGB-encoded; shading is linear.
+
+pub mod cli;
+pub mod colour;
+pub mod output;
+pub mod render;
+pub mod scene;

@@ -1,0 +1,56 @@
+//! The wgpu device: headless (lavapipe in CI) or for a window surface.
+
+use anyhow::{Context, Result, anyhow};
+
+/// How to get a Vulkan driver on a machine without a GPU.
+pub const NO_ADAPTER_HELP: &str = "no GPU adapter found. On a machine without a GPU install the \
+software Vulkan driver lavapipe: `sudo apt-get install mesa-vulkan-drivers libvulkan1` \
+(Debian/Ubuntu), then run again";
+
+/// A device and queue, with what the adapter supports that we care about.
+pub struct Gpu {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// Whether GPU timestamp queries are available (timings in `--json` and `previz bench`).
+    pub timestamps: bool,
+}
+
+impl Gpu {
+    /// A device without a window. Honours `WGPU_BACKEND` / `WGPU_ADAPTER_NAME` from the environment.
+    pub fn headless() -> Result<Gpu> {
+        let mut desc = wgpu::InstanceDescriptor::from_env_or_default();
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL | wgpu::Backends::METAL;
+        }
+        let instance = wgpu::Instance::new(desc);
+        Self::with_instance(instance, None)
+    }
+
+    /// A device able to present to `surface` (or any device when `None`).
+    pub fn with_instance(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>) -> Result<Gpu> {
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: surface,
+        }))
+        .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let required_features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("previz"),
+            required_features,
+            required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+            ..Default::default()
+        }))
+        .context("the GPU adapter refused to create a device")?;
+        Ok(Gpu { instance, adapter, device, queue, timestamps })
+    }
+
+    /// The adapter's name and backend, for reports.
+    pub fn describe(&self) -> String {
+        let info = self.adapter.get_info();
+        format!("{} ({:?}, driver {})", info.name, info.backend, info.driver_info)
+    }
+}

@@ -1,0 +1,3 @@
+//! The renderer: wgpu device, pipelines and the passes of one frame.
+
+pub mod gpu;

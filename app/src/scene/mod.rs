@@ -1,0 +1,1 @@
+//! Scene inputs: models, environments (cube maps), backgrounds and the scene file.

@@ -22,7 +22,8 @@ fn triangle() -> Model {
 #[test]
 fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     let s = scene("width = 160\nheight = 120\n");
-    let inputs = Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let inputs =
+        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
     let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
     let before = gpu().device.get_internal_counters().hal;

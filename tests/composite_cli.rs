@@ -47,7 +47,12 @@ fn demo_with_no_arguments_writes_composite_png() {
     assert_eq!(img.dimensions(), (960, 640));
     // The truck stands in the lower middle of the frame and is not the background colour.
     let demo_bg = image::load_from_memory(include_bytes!("../assets/demo/background.jpg")).unwrap().to_rgb8();
-    let bg = image::imageops::resize(&image::imageops::crop_imm(&demo_bg, 0, 171, 1024, 683).to_image(), 960, 640, image::imageops::FilterType::Triangle);
+    let bg = image::imageops::resize(
+        &image::imageops::crop_imm(&demo_bg, 0, 171, 1024, 683).to_image(),
+        960,
+        640,
+        image::imageops::FilterType::Triangle,
+    );
     let changed = img.pixels().zip(bg.pixels()).filter(|(a, b)| a.0.iter().zip(b.0.iter()).any(|(x, y)| x.abs_diff(*y) > 40)).count();
     assert!(changed > 960 * 640 / 50, "only {changed} pixels differ from the background");
     std::fs::remove_dir_all(&dir).unwrap();
@@ -62,7 +67,22 @@ fn layers_and_json() {
     let env = data("cubemaps/pisa_ldr_png");
     let out = previz(
         &dir,
-        &["composite", "--model", bunny.to_str().unwrap(), "--env", env.to_str().unwrap(), "--width", "320", "--height", "200", "--layers", "layers", "--json", "-o", "out.png"],
+        &[
+            "composite",
+            "--model",
+            bunny.to_str().unwrap(),
+            "--env",
+            env.to_str().unwrap(),
+            "--width",
+            "320",
+            "--height",
+            "200",
+            "--layers",
+            "layers",
+            "--json",
+            "-o",
+            "out.png",
+        ],
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -129,10 +149,13 @@ fn bad_files_are_named() {
     std::fs::write(dir.join("bad.obj"), "v 1 2\nf 1 2 x\n").unwrap();
     // OBJ whose MTL names a texture that does not exist.
     std::fs::write(dir.join("tex.mtl"), "newmtl m\nKd 1 1 1\nmap_Kd missing_texture.png\n").unwrap();
-    std::fs::write(dir.join("tex.obj"), "mtllib tex.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n").unwrap();
+    std::fs::write(dir.join("tex.obj"), "mtllib tex.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+        .unwrap();
     // Cube folders: mismatched sizes and non-square faces.
     let faces = ["posx", "negx", "posy", "negy", "posz", "negz"];
-    for (name, size_of) in [("mismatched", (|i: usize| if i == 3 { (8, 8) } else { (16, 16) }) as fn(usize) -> (u32, u32)), ("nonsquare", |_| (16, 8))] {
+    for (name, size_of) in
+        [("mismatched", (|i: usize| if i == 3 { (8, 8) } else { (16, 16) }) as fn(usize) -> (u32, u32)), ("nonsquare", |_| (16, 8))]
+    {
         let d = dir.join(name);
         std::fs::create_dir(&d).unwrap();
         for (i, f) in faces.iter().enumerate() {

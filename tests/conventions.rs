@@ -74,7 +74,9 @@ fn render(toml: &str, env: CubeMap, layer: Layer) -> Rendered {
 
 #[test]
 fn environment_seen_by_the_camera_shows_the_right_faces() {
-    for (heading, pitch, face) in [(0.0, 0.0, 4), (90.0, 0.0, 0), (180.0, 0.0, 5), (270.0, 0.0, 1), (-90.0, 0.0, 1), (0.0, 89.0, 2), (0.0, -89.0, 3)] {
+    for (heading, pitch, face) in
+        [(0.0, 0.0, 4), (90.0, 0.0, 0), (180.0, 0.0, 5), (270.0, 0.0, 1), (-90.0, 0.0, 1), (0.0, 89.0, 2), (0.0, -89.0, 3)]
+    {
         let r = render(&format!("[camera]\nheading = {heading}\npitch = {pitch}\n"), solid_cube(FACES), Layer::Background);
         assert_eq!(nearest_face(patch(&r, 0.5, 0.5)), face, "heading {heading} pitch {pitch}");
     }

@@ -68,7 +68,9 @@ fn sphere_sun_from_behind_the_camera() {
 }
 
 fn bunny(method: &str, pitch: f64, name: &str) {
-    let t = format!("{SIZE}model = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\nmethod = \"{method}\"\n[camera]\npitch = {pitch}\n");
+    let t = format!(
+        "{SIZE}model = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\nmethod = \"{method}\"\n[camera]\npitch = {pitch}\n"
+    );
     assert_golden(name, &render(&t));
 }
 
@@ -126,8 +128,8 @@ fn truck_in_hdr_equirect() {
 // The built-in demo scene at golden size.
 #[test]
 fn demo_scene() {
-    let args = previz::cli::composite::Args { width: Some(480), height: Some(320), ..Default::default() };
-    let (s, demo) = previz::cli::composite::scene_from_args(&args).unwrap();
+    let args = previz::cli::composite::SceneArgs { width: Some(480), height: Some(320), ..Default::default() };
+    let (s, demo) = previz::cli::composite::scene_from_args(&args, None).unwrap();
     assert!(demo);
     let i = previz::cli::composite::load_inputs(&s, true).unwrap();
     assert_golden("demo", &render_with(&s, &i, Layer::Composite));

@@ -13,6 +13,22 @@ use std::time::Instant;
 #[command(after_help = "Every flag has a scene-file key (see README: Scene file); flags override the file, \
 --set overrides both. With no scene file, --model or --env, the built-in demo scene is used.")]
 pub struct Args {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output image  [key: output]
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage) and background.png into DIR
+    #[arg(long, value_name = "DIR")]
+    pub layers: Option<PathBuf>,
+    /// Print outputs, size, model pixel count, method and timings as JSON
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The flags that describe a scene (shared by `composite` and `bench frame`).
+#[derive(clap::Args, Debug, Default)]
+pub struct SceneArgs {
     /// Scene file (TOML). Relative paths in it are relative to its folder.
     pub scene: Option<PathBuf>,
     /// Model: .obj (with .mtl), .gltf or .glb  [key: model]
@@ -51,15 +67,6 @@ pub struct Args {
     /// Set any scene key, e.g. --set material.gloss=64 --set placement.rotation=[0,0,90]
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
-    /// Output image  [key: output]
-    #[arg(short = 'o', long = "output")]
-    pub output: Option<PathBuf>,
-    /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage) and background.png into DIR
-    #[arg(long, value_name = "DIR")]
-    pub layers: Option<PathBuf>,
-    /// Print outputs, size, model pixel count, method and timings as JSON
-    #[arg(long)]
-    pub json: bool,
 }
 
 /// Parse "X,Y,Z" into three numbers, naming the flag on error.
@@ -75,8 +82,8 @@ fn parse_vec3(flag: &str, s: &str) -> Result<[f64; 3]> {
     Ok(v)
 }
 
-/// The scene the arguments describe, and whether it is the built-in demo.
-pub fn scene_from_args(args: &Args) -> Result<(Scene, bool)> {
+/// The scene the arguments describe (plus an output path), and whether it is the built-in demo.
+pub fn scene_from_args(args: &SceneArgs, output: Option<&Path>) -> Result<(Scene, bool)> {
     let demo = args.scene.is_none() && args.model.is_none() && args.env.is_none();
     let mut b = match &args.scene {
         Some(path) => SceneBuilder::from_file(path)?,
@@ -97,7 +104,7 @@ pub fn scene_from_args(args: &Args) -> Result<(Scene, bool)> {
     if let Some(p) = &args.background {
         b.set("background", cwd_path(p)?)?;
     }
-    if let Some(p) = &args.output {
+    if let Some(p) = output {
         b.set("output", path_value(p))?;
     }
     if let Some(v) = args.width {
@@ -106,7 +113,8 @@ pub fn scene_from_args(args: &Args) -> Result<(Scene, bool)> {
     if let Some(v) = args.height {
         b.set("height", toml::Value::Integer(v.into()))?;
     }
-    for (key, v) in [("camera.vfov", args.vfov), ("camera.heading", args.heading), ("camera.pitch", args.pitch), ("camera.roll", args.roll)] {
+    for (key, v) in [("camera.vfov", args.vfov), ("camera.heading", args.heading), ("camera.pitch", args.pitch), ("camera.roll", args.roll)]
+    {
         if let Some(v) = v {
             b.set(key, toml::Value::Float(v)).with_context(|| format!("--{}", key.trim_start_matches("camera.")))?;
         }
@@ -226,7 +234,12 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
             sun_dir,
             sunlight: scene.sun.sunlight as f32 * sunlight_fade(sun_dir),
             daylight: scene.sun.daylight as f32,
-            material: MaterialTerms { ambient: m.ambient as f32, diffuse: m.diffuse as f32, specular: m.specular as f32, gloss: m.gloss.map(|g| g as f32) },
+            material: MaterialTerms {
+                ambient: m.ambient as f32,
+                diffuse: m.diffuse as f32,
+                specular: m.specular as f32,
+                gloss: m.gloss.map(|g| g as f32),
+            },
             reflection: scene.effects.reflection as f32,
             ior: scene.effects.ior as f32,
             shadow_opacity: scene.effects.shadow_opacity as f32,
@@ -254,7 +267,7 @@ fn ms(t: Instant) -> f64 {
 
 pub fn run(args: Args) -> Result<()> {
     let t_total = Instant::now();
-    let (scene, demo) = scene_from_args(&args)?;
+    let (scene, demo) = scene_from_args(&args.scene, args.output.as_deref())?;
     if let Some(dir) = &args.layers
         && !dir.is_dir()
     {

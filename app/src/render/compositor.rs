@@ -168,7 +168,15 @@ pub struct Compositor {
     timestamps: Option<Timestamps>,
 }
 
-fn target(device: &wgpu::Device, label: &str, w: u32, h: u32, format: wgpu::TextureFormat, samples: u32, usage: wgpu::TextureUsages) -> wgpu::Texture {
+fn target(
+    device: &wgpu::Device,
+    label: &str,
+    w: u32,
+    h: u32,
+    format: wgpu::TextureFormat,
+    samples: u32,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
@@ -229,7 +237,8 @@ impl Compositor {
         let device = &gpu.device;
         let pipelines = Pipelines::new(device);
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
-        let shadow = target(device, "shadow map", SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);
+        let shadow =
+            target(device, "shadow map", SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);
         let msaa = target(device, "msaa colour", width, height, COLOR_FORMAT, SAMPLES, attach);
         let depth = target(device, "depth", width, height, DEPTH_FORMAT, SAMPLES, attach);
         let resolve = target(device, "resolve", width, height, COLOR_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
@@ -282,7 +291,8 @@ impl Compositor {
             ],
         });
         let timestamps = gpu.timestamps.then(|| {
-            let set = device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("timestamps"), ty: wgpu::QueryType::Timestamp, count: 2 });
+            let set =
+                device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("timestamps"), ty: wgpu::QueryType::Timestamp, count: 2 });
             let resolve = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("timestamp resolve"),
                 size: 16,
@@ -356,7 +366,8 @@ impl Compositor {
             if face.len() != (size * size) as usize {
                 bail!("cube-map face {} has {} pixels, expected {size}x{size}", crate::scene::FACE_NAMES[layer], face.len());
             }
-            let halfs: Vec<half::f16> = face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect();
+            let halfs: Vec<half::f16> =
+                face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect();
             gpu.queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &texture,
@@ -369,7 +380,8 @@ impl Compositor {
                 wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 1 },
             );
         }
-        let view = texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() });
+        let view =
+            texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() });
         let priors = hemisphere_priors(cube, exposure);
         self.env_view_bg = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("env view"),
@@ -429,9 +441,14 @@ impl Compositor {
                 bail!("a mesh index ({bad}) points past its {n} vertices");
             }
             let vertices: Vec<Vertex> = (0..n)
-                .map(|i| Vertex { position: mesh.positions[i], normal: mesh.normals[i], uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]) })
+                .map(|i| Vertex {
+                    position: mesh.positions[i],
+                    normal: mesh.normals[i],
+                    uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
+                })
                 .collect();
-            let material = model.materials.get(mesh.material).ok_or_else(|| anyhow!("a mesh refers to missing material {}", mesh.material))?;
+            let material =
+                model.materials.get(mesh.material).ok_or_else(|| anyhow!("a mesh refers to missing material {}", mesh.material))?;
             let uniforms = MaterialUniforms {
                 albedo: [material.diffuse[0], material.diffuse[1], material.diffuse[2], if material.texture.is_some() { 1.0 } else { 0.0 }],
                 specular: [material.specular[0], material.specular[1], material.specular[2], material.shininess],
@@ -556,16 +573,18 @@ impl Compositor {
         let model_bg = self.model_bg.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let env_view_bg = self.env_view_bg.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let ts = self.timestamps.as_ref();
-        let last = |end: bool| {
+        // The first pass recorded writes the start timestamp, the composite pass the end.
+        let shadows = layer != Layer::Background;
+        let stamp = |begin: bool, end: bool| {
             ts.map(|t| wgpu::RenderPassTimestampWrites {
                 query_set: &t.set,
-                beginning_of_pass_write_index: (!end).then_some(0),
+                beginning_of_pass_write_index: begin.then_some(0),
                 end_of_pass_write_index: end.then_some(1),
             })
         };
 
-        // 2. Shadow pass: the model's depth seen from the sun.
-        {
+        // 2. Shadow pass: the model's depth seen from the sun (not needed for the background alone).
+        if shadows {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("shadow"),
                 color_attachments: &[],
@@ -574,7 +593,7 @@ impl Compositor {
                     depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: last(false),
+                timestamp_writes: stamp(true, false),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -598,7 +617,7 @@ impl Compositor {
                     ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
                 })],
                 depth_stencil_attachment: None,
-                timestamp_writes: None,
+                timestamp_writes: stamp(!shadows, false),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -622,7 +641,7 @@ impl Compositor {
                 depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
                 stencil_ops: None,
             }),
-            timestamp_writes: last(true),
+            timestamp_writes: stamp(!shadows && !self.background_from_env, true),
             occlusion_query_set: None,
             multiview_mask: None,
         });

@@ -60,7 +60,11 @@ fn depth_texture(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: ShaderStages::FRAGMENT,
-        ty: BindingType::Texture { sample_type: wgpu::TextureSampleType::Depth, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false },
+        ty: BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
         count: None,
     }
 }
@@ -94,7 +98,8 @@ fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeli
         bind_group_layouts: spec.layouts,
         immediate_size: 0,
     });
-    let targets = spec.blend.map(|blend| [Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend, write_mask: wgpu::ColorWrites::ALL })]);
+    let targets =
+        spec.blend.map(|blend| [Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend, write_mask: wgpu::ColorWrites::ALL })]);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(&label),
         layout: Some(&layout),
@@ -168,7 +173,14 @@ impl Pipelines {
 
         let env_view = pipeline(
             device,
-            PipelineSpec { technique: Technique::EnvView, layouts: &[Some(&env_view_layout)], vertex_buffers: &[], depth: None, samples: 1, blend: Some(None) },
+            PipelineSpec {
+                technique: Technique::EnvView,
+                layouts: &[Some(&env_view_layout)],
+                vertex_buffers: &[],
+                depth: None,
+                samples: 1,
+                blend: Some(None),
+            },
         );
         let background = pipeline(
             device,

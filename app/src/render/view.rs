@@ -56,7 +56,11 @@ pub fn model_matrix(bounds: (Vec3, Vec3), p: &Placement) -> Mat4 {
     let (lo, hi) = bounds;
     let base = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
     let rot = Mat4::from_rotation_z(p.rotation.z) * Mat4::from_rotation_y(p.rotation.y) * Mat4::from_rotation_x(p.rotation.x);
-    Mat4::from_translation(p.position) * rot * Mat4::from_scale(Vec3::splat(p.scale)) * model_to_world_axes() * Mat4::from_translation(-base)
+    Mat4::from_translation(p.position)
+        * rot
+        * Mat4::from_scale(Vec3::splat(p.scale))
+        * model_to_world_axes()
+        * Mat4::from_translation(-base)
 }
 
 /// Inverse transpose of the upper 3×3 of `m` (seed Eq. 4), as a 4×4 for the uniform.

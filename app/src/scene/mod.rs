@@ -105,8 +105,8 @@ pub fn cube_to_enu(c: Vec3) -> Vec3 {
     Vec3::new(c.x, c.z, c.y)
 }
 
-pub mod demo;
-pub mod file;
 pub mod background;
+pub mod demo;
 pub mod environment;
+pub mod file;
 pub mod model;

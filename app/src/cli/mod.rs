@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod composite;
+pub mod sun;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
@@ -16,10 +17,13 @@ pub struct Cli {
 pub enum Command {
     /// Composite a lit model over a background (no arguments: the bundled demo scene).
     Composite(composite::Args),
+    /// Sun position for a place and time (NREL SPA and cheaper algorithms), a photo, or a CSV.
+    Sun(sun::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
+        Command::Sun(a) => sun::run(a),
     }
 }

@@ -13,3 +13,4 @@ pub mod colour;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod sun;

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 
 pub mod bench;
 pub mod composite;
+pub mod sun;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
@@ -19,11 +20,14 @@ pub enum Command {
     Composite(composite::Args),
     /// Benchmarks (results recorded in docs/PERFORMANCE.md).
     Bench(bench::Args),
+    /// Sun position for a place and time (NREL SPA and cheaper algorithms), a photo, or a CSV.
+    Sun(sun::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Sun(a) => sun::run(a),
     }
 }

@@ -203,14 +203,6 @@ pub fn exposure(scene: &Scene, env: &CubeMap) -> f32 {
     (0.18 / (sum / n as f64).exp()) as f32
 }
 
-/// Smooth fade of direct sunlight with the sun's elevation: 1 above 2°, 0 below −2° (the solar
-/// disc and the refraction near the horizon), smoothstep between, so a setting sun never pops.
-pub fn sunlight_fade(sun_dir: Vec3) -> f32 {
-    let elevation = sun_dir.normalize_or(Vec3::Z).z.clamp(-1.0, 1.0).asin().to_degrees();
-    let t = ((elevation + 2.0) / 4.0).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
-}
-
 /// The frame parameters a scene describes, given the loaded model's bounds.
 pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
     let c = &scene.camera;
@@ -232,7 +224,8 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
         method: scene.method,
         lighting: Lighting {
             sun_dir,
-            sunlight: scene.sun.sunlight as f32 * sunlight_fade(sun_dir),
+            sunlight: scene.sun.sunlight as f32
+                * crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees())),
             daylight: scene.sun.daylight as f32,
             material: MaterialTerms {
                 ambient: m.ambient as f32,
@@ -333,24 +326,6 @@ pub fn run(args: Args) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn sunlight_fades_smoothly_through_the_horizon() {
-        let dir = |elev: f32| Vec3::new(0.0, elev.to_radians().cos(), elev.to_radians().sin());
-        assert_eq!(sunlight_fade(dir(10.0)), 1.0);
-        assert_eq!(sunlight_fade(dir(-10.0)), 0.0);
-        assert!((sunlight_fade(dir(0.0)) - 0.5).abs() < 1e-4);
-        // Monotone, no step larger than the smoothstep's maximum slope allows.
-        let mut prev = 0.0;
-        for i in 0..=400 {
-            let f = sunlight_fade(dir(-5.0 + i as f32 * 0.025));
-            assert!(f >= prev - 1e-6 && f - prev < 0.01);
-            prev = f;
-        }
-        // Straight down and a NaN-free result for the zero vector.
-        assert_eq!(sunlight_fade(-Vec3::Z), 0.0);
-        assert!(sunlight_fade(Vec3::ZERO).is_finite());
-    }
 
     #[test]
     fn sun_dir_flag_parsing() {

@@ -47,22 +47,18 @@ impl Entry {
     fn horizontal(self, case: &Case) -> Horizontal {
         match self {
             Entry::Algorithm(a) => a.horizontal(&case.site, case.jd, case.delta_t_s),
-            Entry::JulianAsPrinted => {
-                julian::horizontal_as_printed(case.jd, case.site.latitude_deg, case.site.longitude_deg)
-            }
+            Entry::JulianAsPrinted => julian::horizontal_as_printed(case.jd, case.site.latitude_deg, case.site.longitude_deg),
         }
     }
 
     fn evaluate_zenith(self, case: &Case) -> f64 {
         match self {
             Entry::Algorithm(a) => {
-                evaluate(a, &case.site, case.jd, case.delta_t_s, STANDARD_PRESSURE, STANDARD_TEMPERATURE)
-                    .apparent_zenith_deg
+                evaluate(a, &case.site, case.jd, case.delta_t_s, STANDARD_PRESSURE, STANDARD_TEMPERATURE).apparent_zenith_deg
             }
             Entry::JulianAsPrinted => {
                 let h = self.horizontal(case);
-                90.0 - h.elevation_deg
-                    - atmosphere::refraction_deg(h.elevation_deg, STANDARD_PRESSURE, STANDARD_TEMPERATURE)
+                90.0 - h.elevation_deg - atmosphere::refraction_deg(h.elevation_deg, STANDARD_PRESSURE, STANDARD_TEMPERATURE)
             }
         }
     }
@@ -154,14 +150,7 @@ pub fn to_csv(ms: &[Measurement]) -> String {
     let mut s = String::from("algorithm,first_year,last_year,cases,ns_per_eval,max_error_deg,rms_error_deg\n");
     for m in ms {
         let (a, b) = m.entry.valid_years();
-        s.push_str(&format!(
-            "{},{a},{b},{},{:.1},{:e},{:e}\n",
-            m.entry.name(),
-            m.cases,
-            m.ns_per_eval,
-            m.max_error_deg,
-            m.rms_error_deg
-        ));
+        s.push_str(&format!("{},{a},{b},{},{:.1},{:e},{:e}\n", m.entry.name(), m.cases, m.ns_per_eval, m.max_error_deg, m.rms_error_deg));
     }
     s
 }
@@ -190,13 +179,8 @@ mod tests {
         assert_eq!(errors_against_spa(Entry::Algorithm(Algorithm::Spa), &cases, || {}), (0.0, 0.0));
         let (max, rms) = errors_against_spa(Entry::Algorithm(Algorithm::Grena5), &cases, || {});
         assert!(max < 0.0027 && rms <= max && rms > 0.0, "{max} {rms}");
-        let csv = to_csv(&[Measurement {
-            entry: Entry::JulianAsPrinted,
-            cases: 3,
-            ns_per_eval: 12.34,
-            max_error_deg: 0.5,
-            rms_error_deg: 0.25,
-        }]);
+        let csv =
+            to_csv(&[Measurement { entry: Entry::JulianAsPrinted, cases: 3, ns_per_eval: 12.34, max_error_deg: 0.5, rms_error_deg: 0.25 }]);
         assert_eq!(csv.lines().nth(1), Some("julian-as-printed,1900,2100,3,12.3,5e-1,2.5e-1"));
     }
 }

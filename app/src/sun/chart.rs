@@ -23,9 +23,9 @@ const HEIGHT: u32 = 900;
 fn colour(entry: Entry) -> RGBColor {
     match entry {
         Entry::Algorithm(Algorithm::Spa) => RGBColor(0, 0, 0),
-        Entry::Algorithm(
-            Algorithm::Grena1 | Algorithm::Grena2 | Algorithm::Grena3 | Algorithm::Grena4 | Algorithm::Grena5,
-        ) => RGBColor(31, 119, 180),
+        Entry::Algorithm(Algorithm::Grena1 | Algorithm::Grena2 | Algorithm::Grena3 | Algorithm::Grena4 | Algorithm::Grena5) => {
+            RGBColor(31, 119, 180)
+        }
         Entry::Algorithm(Algorithm::Psa | Algorithm::Psa2020) => RGBColor(44, 160, 44),
         Entry::Algorithm(Algorithm::Julian) => RGBColor(214, 39, 40),
         Entry::JulianAsPrinted => RGBColor(148, 103, 189),
@@ -83,15 +83,9 @@ pub fn render(ms: &[Measurement]) -> Result<Vec<u8>> {
             } else {
                 (m.max_error_deg.max(1e-5), m.rms_error_deg.max(1e-5))
             };
-            chart
-                .draw_series(std::iter::once(PathElement::new(vec![(x, rms), (x, max)], c.stroke_width(2))))
-                .map_err(plot_err)?;
-            chart
-                .draw_series(std::iter::once(Circle::new((x, max), 7, c.filled())))
-                .map_err(plot_err)?;
-            chart
-                .draw_series(std::iter::once(TriangleMarker::new((x, rms), 8, c.stroke_width(2))))
-                .map_err(plot_err)?;
+            chart.draw_series(std::iter::once(PathElement::new(vec![(x, rms), (x, max)], c.stroke_width(2)))).map_err(plot_err)?;
+            chart.draw_series(std::iter::once(Circle::new((x, max), 7, c.filled()))).map_err(plot_err)?;
+            chart.draw_series(std::iter::once(TriangleMarker::new((x, rms), 8, c.stroke_width(2)))).map_err(plot_err)?;
             let label = if spa_row {
                 format!("spa (reference; stated ±{SPA_STATED_UNCERTAINTY_DEG}°, years {}..{})", spa::VALID_YEARS.0, spa::VALID_YEARS.1)
             } else {

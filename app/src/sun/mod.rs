@@ -83,11 +83,7 @@ impl Algorithm {
     pub fn valid_years(self) -> (i32, i32) {
         match self {
             Algorithm::Spa => spa::VALID_YEARS,
-            Algorithm::Grena1
-            | Algorithm::Grena2
-            | Algorithm::Grena3
-            | Algorithm::Grena4
-            | Algorithm::Grena5 => grena::VALID_YEARS,
+            Algorithm::Grena1 | Algorithm::Grena2 | Algorithm::Grena3 | Algorithm::Grena4 | Algorithm::Grena5 => grena::VALID_YEARS,
             Algorithm::Psa => psa::PSA_2001.valid_years,
             Algorithm::Psa2020 => psa::PSA_2020.valid_years,
             Algorithm::Julian => julian::VALID_YEARS,
@@ -274,14 +270,7 @@ pub fn position(input: &SunInput, algorithm: Algorithm) -> Result<SunPosition> {
 
 /// The position without validation: one algorithm evaluation plus the shared refraction. This
 /// is what the accuracy chart times.
-pub fn evaluate(
-    algorithm: Algorithm,
-    site: &Site,
-    jd: f64,
-    delta_t_s: f64,
-    pressure_mbar: f64,
-    temperature_c: f64,
-) -> SunPosition {
+pub fn evaluate(algorithm: Algorithm, site: &Site, jd: f64, delta_t_s: f64, pressure_mbar: f64, temperature_c: f64) -> SunPosition {
     let h = algorithm.horizontal(site, jd, delta_t_s);
     let refraction = atmosphere::refraction_deg(h.elevation_deg, pressure_mbar, temperature_c);
     SunPosition {

@@ -91,10 +91,7 @@ pub fn geocentric(jd: f64, delta_t_s: f64) -> Geocentric {
     let jce = (jde - JD_J2000) / 36_525.0;
     let jme = jce / 10.0;
 
-    let l_deg = wrap_360(
-        series(&[&tables::L0, &tables::L1, &tables::L2, &tables::L3, &tables::L4, &tables::L5], jme)
-            .to_degrees(),
-    );
+    let l_deg = wrap_360(series(&[&tables::L0, &tables::L1, &tables::L2, &tables::L3, &tables::L4, &tables::L5], jme).to_degrees());
     let b_deg = series(&[&tables::B0, &tables::B1], jme).to_degrees();
     let r_au = series(&[&tables::R0, &tables::R1, &tables::R2, &tables::R3, &tables::R4], jme);
     let theta_deg = wrap_360(l_deg + 180.0);
@@ -118,28 +115,22 @@ pub fn geocentric(jd: f64, delta_t_s: f64) -> Geocentric {
     let delta_epsilon_deg = deps / 36_000_000.0;
 
     let u = jme / 10.0;
-    let epsilon0_arcsec = [
-        84_381.448, -4680.93, -1.55, 1999.25, -51.38, -249.67, -39.05, 7.12, 27.87, 5.79, 2.45,
-    ]
-    .iter()
-    .rev()
-    .fold(0.0, |acc, k| acc * u + k);
+    let epsilon0_arcsec = [84_381.448, -4680.93, -1.55, 1999.25, -51.38, -249.67, -39.05, 7.12, 27.87, 5.79, 2.45]
+        .iter()
+        .rev()
+        .fold(0.0, |acc, k| acc * u + k);
     let epsilon_deg = epsilon0_arcsec / 3600.0 + delta_epsilon_deg;
 
     let delta_tau_deg = -20.4898 / (3600.0 * r_au);
     let lambda_deg = theta_deg + delta_psi_deg + delta_tau_deg;
 
-    let nu0_deg = wrap_360(
-        280.460_618_37 + 360.985_647_366_29 * (jd - JD_J2000) + 0.000_387_933 * jc * jc
-            - jc * jc * jc / 38_710_000.0,
-    );
+    let nu0_deg = wrap_360(280.460_618_37 + 360.985_647_366_29 * (jd - JD_J2000) + 0.000_387_933 * jc * jc - jc * jc * jc / 38_710_000.0);
     let (sin_eps, cos_eps) = epsilon_deg.to_radians().sin_cos();
     let nu_deg = nu0_deg + delta_psi_deg * cos_eps;
 
     let (sin_lambda, cos_lambda) = lambda_deg.to_radians().sin_cos();
     let beta = beta_deg.to_radians();
-    let alpha_deg =
-        wrap_360((sin_lambda * cos_eps - beta.tan() * sin_eps).atan2(cos_lambda).to_degrees());
+    let alpha_deg = wrap_360((sin_lambda * cos_eps - beta.tan() * sin_eps).atan2(cos_lambda).to_degrees());
     let delta_deg = (beta.sin() * cos_eps + beta.cos() * sin_eps * sin_lambda).asin().to_degrees();
 
     Geocentric {
@@ -206,9 +197,7 @@ pub fn equation_of_time_min(g: &Geocentric) -> f64 {
     let jme = g.jme;
     let m = wrap_360(
         280.466_456_7
-            + jme
-                * (360_007.698_277_9
-                    + jme * (0.030_320_28 + jme * (1.0 / 49_931.0 - jme * (1.0 / 15_300.0 + jme / 2_000_000.0)))),
+            + jme * (360_007.698_277_9 + jme * (0.030_320_28 + jme * (1.0 / 49_931.0 - jme * (1.0 / 15_300.0 + jme / 2_000_000.0)))),
     );
     let e = 4.0 * (m - 0.005_718_3 - g.alpha_deg + g.delta_psi_deg * g.epsilon_deg.to_radians().cos());
     // A.1: bring into ±20 min (the unwrapped value may be off by a whole day of 1440 min).
@@ -317,10 +306,7 @@ pub fn rise_transit_set(
             let denom = 360.0 * delta_p.to_radians().cos() * lat.cos() * h_p.to_radians().sin();
             jd0 + m + (h - h0_prime) / denom
         };
-        (
-            Some(event(in_window(m_transit - h0 / 360.0))),
-            Some(event(in_window(m_transit + h0 / 360.0))),
-        )
+        (Some(event(in_window(m_transit - h0 / 360.0))), Some(event(in_window(m_transit + h0 / 360.0))))
     } else {
         (None, None)
     };
@@ -418,10 +404,10 @@ mod tests {
         use solar_positioning::{Location, SolarPositions, time::JulianDate};
         for (jd, dt, lat, lon, elev) in [
             (jd(), 67.0, LAT, LON, ELEV),
-            (2_305_812.75, 120.0, -33.9, 18.4, 10.0),   // 1601
-            (2_816_788.1, 4400.0, 64.1, -21.9, 0.0),    // 3000
-            (2_460_483.0, 69.0, 89.5, 170.0, 2500.0),  // near the pole
-            (2_451_545.3, 63.8, 0.0, 180.0, 0.0),      // date line
+            (2_305_812.75, 120.0, -33.9, 18.4, 10.0), // 1601
+            (2_816_788.1, 4400.0, 64.1, -21.9, 0.0),  // 3000
+            (2_460_483.0, 69.0, 89.5, 170.0, 2500.0), // near the pole
+            (2_451_545.3, 63.8, 0.0, 180.0, 0.0),     // date line
         ] {
             let ours = horizontal(jd, dt, lat, lon, elev);
             let theirs = SolarPositions::new()

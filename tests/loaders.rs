@@ -217,7 +217,7 @@ fn icosphere_normals_from_the_crease_rule_are_radial() {
     let mut m = load_model(&data("meshes/icosphere-320.obj")).unwrap();
     assert_eq!(m.triangle_count(), 320);
     for mesh in &mut m.meshes {
-        previz::scene::normals::compute_crease_normals(mesh, 60.0);
+        previz::scene::normals::compute_crease_normals(mesh, 60.0).unwrap();
         for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
             let angle = v(*p).normalize().dot(v(*n)).clamp(-1.0, 1.0).acos().to_degrees();
             assert!(angle < 1.0, "normal {angle} deg off radial at {p:?}");

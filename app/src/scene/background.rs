@@ -42,6 +42,9 @@ pub fn fit(img: &Rgba8Image, width: u32, height: u32) -> Rgba8Image {
     if (img.width, img.height) == (width, height) {
         return img.clone();
     }
+    if img.width == 0 || img.height == 0 {
+        return Rgba8Image { width, height, pixels: [0, 0, 0, 255].repeat((width * height) as usize) };
+    }
     let scale = (width as f64 / img.width as f64).max(height as f64 / img.height as f64);
     let crop_w = ((width as f64 / scale).round() as u32).clamp(1, img.width);
     let crop_h = ((height as f64 / scale).round() as u32).clamp(1, img.height);

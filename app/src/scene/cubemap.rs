@@ -100,6 +100,9 @@ impl CubeMap {
         let (face, u, v) = cube_dir_to_face_uv(enu_to_cube(dir));
         let texels = &self.faces[face];
         let n = self.size as usize;
+        if texels.len() < n * n {
+            return [0.0; 3]; // a malformed map (fields are public); no panic
+        }
         let max = (n - 1) as f32;
         let x = (u * n as f32 - 0.5).clamp(0.0, max);
         let y = (v * n as f32 - 0.5).clamp(0.0, max);
@@ -214,6 +217,8 @@ mod tests {
         assert_eq!(cube.sample_enu(Vec3::splat(f32::NAN)), [0.0; 3]);
         assert_eq!(cube.face_mean(4), colours[4]);
         assert_eq!(cube.face_mean(9), [0.0; 3]);
+        let broken = CubeMap { size: 4, faces: Default::default() };
+        assert_eq!(broken.sample_enu(Vec3::X), [0.0; 3]);
     }
 
     #[test]

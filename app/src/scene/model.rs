@@ -91,7 +91,7 @@ fn finish_mesh(mesh: &mut Mesh, crease_deg: f32, what: &str) -> Result<Option<St
         return Ok((repaired > 0).then(|| format!("{what}: {repaired} zero or invalid normal(s) replaced by the mean of their faces")));
     }
     let reason = if mesh.normals.is_empty() { "no normals" } else { "normals on only some vertices" };
-    compute_crease_normals(mesh, crease_deg);
+    compute_crease_normals(mesh, crease_deg).with_context(|| what.to_string())?;
     let how = if crease_deg == 0.0 { "flat normals".to_string() } else { format!("smooth normals with a {crease_deg} deg crease angle") };
     Ok(Some(format!("{what}: {reason}; computed {how}")))
 }

@@ -12,6 +12,7 @@
 //! on noisy scans that splits far more vertices than the creases warrant.)
 
 use super::Mesh;
+use anyhow::{Result, bail};
 use glam::Vec3;
 use std::collections::HashMap;
 
@@ -42,9 +43,13 @@ fn position_key(p: [f32; 3]) -> [u32; 3] {
 ///
 /// `crease_deg` is the largest angle between two faces' normals that is still smoothed over
 /// (0 gives flat shading, 180 smooths everything). Triangles keep their winding; every normal
-/// is unit length. Corners of degenerate (zero-area) triangles take the mean of all faces
-/// around their position, or model up (+y) when there is none.
-pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) {
+/// is unit length. Corners of degenerate (zero-area) triangles take the normal of a
+/// neighbouring group, else the mean of all faces around their position, else model up (+y).
+/// An index outside the vertex list is an error (the mesh is left unchanged).
+pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) -> Result<()> {
+    if let Some(&i) = mesh.indices.iter().find(|&&i| i as usize >= mesh.positions.len()) {
+        bail!("index {i} out of range ({} vertices)", mesh.positions.len());
+    }
     let pos: Vec<Vec3> = mesh.positions.iter().map(|p| Vec3::from_array(*p)).collect();
     let tris: Vec<[usize; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0] as usize, t[1] as usize, t[2] as usize]).collect();
     let face_n: Vec<Vec3> = tris.iter().map(|&[a, b, c]| face_normal(pos[a], pos[b], pos[c])).collect();
@@ -163,6 +168,7 @@ pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) {
     mesh.uvs = uvs;
     mesh.normals = normals;
     mesh.indices = indices;
+    Ok(())
 }
 
 /// Union-find root with path halving.
@@ -206,7 +212,7 @@ mod tests {
     #[test]
     fn cube_is_split_into_flat_faces_at_default_crease() {
         let mut m = cube();
-        compute_crease_normals(&mut m, DEFAULT_CREASE_DEG);
+        compute_crease_normals(&mut m, DEFAULT_CREASE_DEG).unwrap();
         // 6 faces x 4 corners, each normal axis-aligned and pointing away from the centre.
         assert_eq!(m.positions.len(), 24);
         assert_eq!(m.indices.len(), 36);
@@ -223,7 +229,7 @@ mod tests {
         // Each cube corner touches three faces with a total angle of 90 deg each, so the angle-
         // weighted mean is the diagonal (+-1,+-1,+-1)/sqrt(3) by symmetry.
         let mut m = cube();
-        compute_crease_normals(&mut m, 180.0);
+        compute_crease_normals(&mut m, 180.0).unwrap();
         assert_eq!(m.positions.len(), 8);
         for (p, n) in m.positions.iter().zip(&m.normals) {
             let expect = (Vec3::from_array(*p) - Vec3::splat(0.5)).normalize();
@@ -245,7 +251,7 @@ mod tests {
         let mut m = Mesh { positions, indices, ..Default::default() };
         let face = |i: usize| face_normal(Vec3::ZERO, Vec3::from_array(m.positions[i]), Vec3::from_array(m.positions[i + 1]));
         assert!(face(1).dot(face(2)) > 60f32.to_radians().cos() && face(1).dot(face(4)) < 60f32.to_radians().cos());
-        compute_crease_normals(&mut m, 60.0);
+        compute_crease_normals(&mut m, 60.0).unwrap();
         let apex: Vec<u32> = (0..4).map(|t| m.indices[3 * t]).collect();
         assert!(apex.iter().all(|&i| i == apex[0]), "apex split: {apex:?}");
     }
@@ -256,7 +262,7 @@ mod tests {
         let positions = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.3]];
         let uvs = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.0, 0.5], [1.0, 1.0]];
         let mut m = Mesh { positions, uvs, indices: vec![0, 1, 2, 3, 5, 4], ..Default::default() };
-        compute_crease_normals(&mut m, 60.0);
+        compute_crease_normals(&mut m, 60.0).unwrap();
         // Vertices 1 and 3 share a position: their normals must agree although indices differ.
         let n1 = Vec3::from_array(m.normals[m.indices[1] as usize]);
         let n3 = Vec3::from_array(m.normals[m.indices[3] as usize]);
@@ -270,11 +276,15 @@ mod tests {
         let positions = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         // One sliver (collinear) triangle sharing positions with a proper one, one lone sliver.
         let mut m = Mesh { positions, indices: vec![0, 1, 4, 0, 1, 2, 3, 3, 3], ..Default::default() };
-        compute_crease_normals(&mut m, 60.0);
+        compute_crease_normals(&mut m, 60.0).unwrap();
         for n in &m.normals {
             assert!((Vec3::from_array(*n).length() - 1.0).abs() < 1e-6);
         }
         // The sliver's corner at the origin borrows the proper face's normal (+z).
         assert!(Vec3::from_array(m.normals[m.indices[3] as usize]).dot(Vec3::Z) > 0.999);
+        // Out-of-range index: error, mesh untouched.
+        let mut bad = Mesh { positions: vec![[0.0; 3]; 3], indices: vec![0, 1, 3], ..Default::default() };
+        assert!(compute_crease_normals(&mut bad, 60.0).is_err());
+        assert!(bad.normals.is_empty() && bad.indices == [0, 1, 3]);
     }
 }

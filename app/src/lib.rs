@@ -9,5 +9,7 @@ pub mod chart;
 pub mod cli;
 pub mod colour;
 pub mod output;
+pub mod pose;
 pub mod render;
 pub mod scene;
+pub mod sensors;

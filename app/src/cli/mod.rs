@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod composite;
+pub mod pose_stability;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
@@ -16,10 +17,14 @@ pub struct Cli {
 pub enum Command {
     /// Composite a lit model over a background (no arguments: the bundled demo scene).
     Composite(composite::Args),
+    /// Measure the pose filter on simulated sensors: sun jitter while held still, lag in a
+    /// turn, headings across 0/360°, pitch ±90°, magnetic disturbance (CSV + chart).
+    PoseStability(pose_stability::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
+        Command::PoseStability(a) => pose_stability::run(a),
     }
 }

@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench;
 pub mod composite;
 pub mod pose_stability;
 
@@ -17,6 +18,8 @@ pub struct Cli {
 pub enum Command {
     /// Composite a lit model over a background (no arguments: the bundled demo scene).
     Composite(composite::Args),
+    /// Benchmarks (results recorded in docs/PERFORMANCE.md).
+    Bench(bench::Args),
     /// Measure the pose filter on simulated sensors: sun jitter while held still, lag in a
     /// turn, headings across 0/360°, pitch ±90°, magnetic disturbance (CSV + chart).
     PoseStability(pose_stability::Args),
@@ -25,6 +28,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
+        Command::Bench(a) => bench::run(a),
         Command::PoseStability(a) => pose_stability::run(a),
     }
 }

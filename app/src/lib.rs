@@ -11,6 +11,8 @@ pub mod chart;
 pub mod cli;
 pub mod colour;
 pub mod output;
+pub mod pose;
 pub mod render;
 pub mod scene;
 pub mod sun;
+pub mod sensors;

@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 pub mod bench;
 pub mod composite;
 pub mod sun;
+pub mod pose_stability;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
@@ -22,6 +23,9 @@ pub enum Command {
     Bench(bench::Args),
     /// Sun position for a place and time (NREL SPA and cheaper algorithms), a photo, or a CSV.
     Sun(sun::Args),
+    /// Measure the pose filter on simulated sensors: sun jitter while held still, lag in a
+    /// turn, headings across 0/360°, pitch ±90°, magnetic disturbance (CSV + chart).
+    PoseStability(pose_stability::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -29,5 +33,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Composite(a) => composite::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Sun(a) => sun::run(a),
+        Command::PoseStability(a) => pose_stability::run(a),
     }
 }

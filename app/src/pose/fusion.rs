@@ -1,0 +1,681 @@
+//! Sensor fusion: a Mahony-style complementary filter on the rotation group.
+//!
+//! The state is a unit quaternion (device → ENU, true north once the location is known) and a
+//! gyroscope bias; no Euler angles, so any attitude, pitch ±90° included, is handled alike.
+//! Each gyroscope sample propagates the quaternion by the bias-corrected rate plus two
+//! corrections (Mahony, Hamel & Pflimlin 2008, "Nonlinear complementary filters on the special
+//! orthogonal group", IEEE TAC 53(5), eq. 32 "explicit complementary filter"):
+//!
+//! - tilt: `k_acc · (â × v̂)`, where â is the measured and v̂ the estimated up direction in the
+//!   device frame; readings whose magnitude is far from g (the phone accelerating) count less;
+//! - heading: `k_mag · δ · (q⁻¹ ẑ)`, where δ is the angle between the measured field's
+//!   horizontal direction and magnetic north as the model expects it (the declination).
+//!   Acting only about the world vertical, it never disturbs the tilt (the "decoupled"
+//!   magnetometer correction used by e.g. Madgwick's later AHRS work).
+//!
+//! The bias is the integral term, `k_bias`. A magnetometer reading whose magnitude or dip
+//! differs from the World Magnetic Model's (by more than the configured tolerances) marks a
+//! magnetic disturbance: heading then comes from the gyroscope alone until readings have agreed
+//! with the model again for `recover_after_s`.
+
+use super::frames::{DisplayRotation, angle_difference, camera_pose_from_device};
+use super::magnetic::{MagneticReference, magnetic_to_true};
+use super::tilt_compass::tilt_compass;
+use super::{HeadingSource, OrientationEstimator, Pose};
+use crate::sensors::{North, Reading};
+use anyhow::Result;
+use glam::{DQuat, DVec3};
+
+/// Standard gravity (m/s²).
+const G: f64 = crate::sensors::STANDARD_GRAVITY;
+
+/// When the magnetometer's reading is trusted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisturbanceConfig {
+    /// Off: every magnetometer reading is used (for comparisons).
+    pub enabled: bool,
+    /// Largest accepted |‖m‖ − F| / F against the model's total intensity.
+    pub magnitude_tolerance: f64,
+    /// Largest accepted difference between measured and modelled dip (radians).
+    pub dip_tolerance: f64,
+    /// Seconds of agreeing readings before the magnetometer is trusted again.
+    pub recover_after_s: f64,
+}
+
+impl Default for DisturbanceConfig {
+    fn default() -> Self {
+        DisturbanceConfig { enabled: true, magnitude_tolerance: 0.10, dip_tolerance: 5f64.to_radians(), recover_after_s: 1.0 }
+    }
+}
+
+/// Filter gains and settings. Gains are in 1/s: a correction removes an error with time
+/// constant 1/k.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FusionConfig {
+    pub k_acc: f64,
+    pub k_mag: f64,
+    /// Integral gain (1/s²) estimating the gyroscope bias; 0 disables bias estimation.
+    pub k_bias: f64,
+    /// Accelerometer readings with |‖a‖ − g| above this fraction of g are ignored; below it
+    /// their weight falls linearly from 1 (at ‖a‖ = g) to 0.
+    pub accel_tolerance: f64,
+    /// For the first `startup_s` seconds the gains are multiplied by `startup_gain` so the
+    /// initial estimate (one noisy reading) settles quickly.
+    pub startup_s: f64,
+    pub startup_gain: f64,
+    /// Output smoothing time constant (s); 0 = off. Applied to the pose, not the state.
+    pub smoothing_tau_s: f64,
+    /// Adaptive smoothing: full `smoothing_tau_s` while the phone turns slower than
+    /// `still_rate` (rad/s), none above twice that rate, linear in between.
+    pub adaptive_smoothing: bool,
+    pub still_rate: f64,
+    pub disturbance: DisturbanceConfig,
+    /// Accuracy model: tilt error floor (accelerometer bias, radians).
+    pub tilt_floor: f64,
+    /// Accuracy model: heading error floor with a good magnetometer (residual calibration).
+    pub heading_floor: f64,
+    /// Accuracy model: how fast heading error grows in gyro-only mode (rad/s).
+    pub gyro_drift: f64,
+    /// Use the platform's fused attitude readings (Android rotation vector, iOS CoreMotion)
+    /// instead of fusing the raw sensors.
+    pub use_platform_attitude: bool,
+}
+
+impl Default for FusionConfig {
+    /// The setting chosen with `previz pose-stability` (docs/PERFORMANCE-pose.md).
+    fn default() -> Self {
+        FusionConfig {
+            k_acc: 0.5,
+            k_mag: 0.2,
+            k_bias: 0.01,
+            accel_tolerance: 0.15,
+            startup_s: 1.0,
+            startup_gain: 10.0,
+            smoothing_tau_s: 0.0,
+            adaptive_smoothing: true,
+            still_rate: 8f64.to_radians(),
+            disturbance: DisturbanceConfig::default(),
+            tilt_floor: 0.5f64.to_radians(),
+            heading_floor: 2f64.to_radians(),
+            gyro_drift: 0.05f64.to_radians(),
+            use_platform_attitude: false,
+        }
+    }
+}
+
+/// Readings older than this (s) are not used for corrections.
+const FRESH_S: f64 = 0.25;
+/// A gap in gyroscope readings longer than this (s) restarts the integration.
+const MAX_GYRO_GAP_S: f64 = 0.5;
+/// Largest gyroscope bias the filter will believe (rad/s, about 6°/s).
+const MAX_BIAS: f64 = 0.1;
+/// Time constant (s) of the running innovation statistics behind the accuracy estimate.
+const INNOVATION_TAU_S: f64 = 2.0;
+/// Earth's field is 22–67 µT everywhere (WMM); without a model, readings outside a slightly
+/// wider band are disturbed.
+const EARTH_FIELD_RANGE_UT: (f64, f64) = (20.0, 70.0);
+
+/// The fusion filter. Feed readings in time order with [`OrientationEstimator::update`].
+#[derive(Clone, Debug)]
+pub struct OrientationFilter {
+    cfg: FusionConfig,
+    reference: Option<MagneticReference>,
+    /// The date used to evaluate the World Magnetic Model when a GPS fix arrives.
+    date: Option<chrono::NaiveDate>,
+    /// Device → ENU.
+    q: DQuat,
+    smoothed: DQuat,
+    initialised: bool,
+    init_t: f64,
+    heading_known: bool,
+    /// Declination already applied to `q`.
+    applied_declination: f64,
+    bias: DVec3,
+    t: f64,
+    gyro_t: Option<f64>,
+    gyro_seen: bool,
+    accel_step_t: Option<f64>,
+    accel: Option<(f64, DVec3)>,
+    mag: Option<(f64, DVec3)>,
+    disturbed: bool,
+    good_since: Option<f64>,
+    gyro_only_since: Option<f64>,
+    heading_sigma_at_loss: f64,
+    tilt_innov_var: f64,
+    heading_innov_var: f64,
+    rate: f64,
+    platform_accuracy: Option<f64>,
+    gps_position: Option<(f64, f64)>,
+}
+
+impl OrientationFilter {
+    pub fn new(cfg: FusionConfig) -> Self {
+        OrientationFilter {
+            cfg,
+            reference: None,
+            date: None,
+            q: DQuat::IDENTITY,
+            smoothed: DQuat::IDENTITY,
+            initialised: false,
+            init_t: 0.0,
+            heading_known: false,
+            applied_declination: 0.0,
+            bias: DVec3::ZERO,
+            t: 0.0,
+            gyro_t: None,
+            gyro_seen: false,
+            accel_step_t: None,
+            accel: None,
+            mag: None,
+            disturbed: false,
+            good_since: None,
+            gyro_only_since: None,
+            heading_sigma_at_loss: 0.0,
+            tilt_innov_var: 0.0,
+            heading_innov_var: 0.0,
+            rate: 0.0,
+            platform_accuracy: None,
+            gps_position: None,
+        }
+    }
+
+    pub fn config(&self) -> &FusionConfig {
+        &self.cfg
+    }
+
+    /// The date for the World Magnetic Model: with it, the first GPS fix (and any fix more than
+    /// about 10 km from the last one used) sets the magnetic reference.
+    pub fn set_date(&mut self, date: chrono::NaiveDate) {
+        self.date = Some(date);
+    }
+
+    /// Set the expected field directly (declination, dip, intensity). The current estimate is
+    /// turned so that its heading becomes true-north referenced at once.
+    pub fn set_reference(&mut self, reference: MagneticReference) {
+        let d = reference.declination;
+        if self.initialised {
+            let turn = DQuat::from_rotation_z(-(d - self.applied_declination));
+            self.q = (turn * self.q).normalize();
+            self.smoothed = (turn * self.smoothed).normalize();
+        }
+        self.applied_declination = d;
+        self.reference = Some(reference);
+    }
+
+    pub fn reference(&self) -> Option<&MagneticReference> {
+        self.reference.as_ref()
+    }
+
+    /// The estimated gyroscope bias (rad/s, device frame).
+    pub fn gyro_bias(&self) -> DVec3 {
+        self.bias
+    }
+
+    pub fn magnetic_disturbance(&self) -> bool {
+        self.disturbed
+    }
+
+    fn gain_scale(&self) -> f64 {
+        if self.t - self.init_t < self.cfg.startup_s { self.cfg.startup_gain } else { 1.0 }
+    }
+
+    fn up_in_device(&self) -> DVec3 {
+        self.q.inverse() * DVec3::Z
+    }
+
+    fn try_initialise(&mut self, t: f64) {
+        let Some((_, a)) = self.accel else { return };
+        let mag = self.mag.filter(|&(tm, _)| (t - tm).abs() < FRESH_S && !self.disturbed);
+        if let Some((_, m)) = mag
+            && let Ok(q) = tilt_compass(a, m)
+        {
+            self.q = magnetic_to_true(q, self.applied_declination);
+            self.heading_known = true;
+        } else {
+            // Tilt only: the shortest rotation taking device "up" to world up; heading unknown.
+            self.q = DQuat::from_rotation_arc(a.normalize(), DVec3::Z);
+        }
+        self.smoothed = self.q;
+        self.initialised = true;
+        self.init_t = t;
+    }
+
+    /// Whether a magnetometer reading agrees with the expected field.
+    fn field_agrees(&self, m: DVec3) -> bool {
+        let n = m.length();
+        match self.reference {
+            Some(r) => {
+                let up = if self.initialised {
+                    self.up_in_device()
+                } else {
+                    match self.accel {
+                        Some((_, a)) => a.normalize_or_zero(),
+                        None => return (n - r.total_ut).abs() <= self.cfg.disturbance.magnitude_tolerance * r.total_ut,
+                    }
+                };
+                let dip = (-m.dot(up) / n).clamp(-1.0, 1.0).asin();
+                (n - r.total_ut).abs() <= self.cfg.disturbance.magnitude_tolerance * r.total_ut
+                    && (dip - r.inclination).abs() <= self.cfg.disturbance.dip_tolerance
+            }
+            None => (EARTH_FIELD_RANGE_UT.0..=EARTH_FIELD_RANGE_UT.1).contains(&n),
+        }
+    }
+
+    fn on_mag(&mut self, t: f64, m: DVec3) {
+        let agrees = !self.cfg.disturbance.enabled || self.field_agrees(m);
+        if !agrees {
+            if !self.disturbed && self.heading_known {
+                self.heading_sigma_at_loss = self.heading_sigma_mag();
+                self.gyro_only_since = Some(t);
+            }
+            self.disturbed = true;
+            self.good_since = None;
+        } else if self.disturbed {
+            let since = *self.good_since.get_or_insert(t);
+            if t - since >= self.cfg.disturbance.recover_after_s {
+                self.disturbed = false;
+                self.good_since = None;
+                self.gyro_only_since = None;
+            }
+        }
+        self.mag = Some((t, m));
+        if self.initialised && !self.heading_known && !self.disturbed {
+            // First usable field after a tilt-only start: take the heading from it.
+            if let Some((_, a)) = self.accel
+                && let Ok(q) = tilt_compass(a, m)
+            {
+                self.q = magnetic_to_true(q, self.applied_declination);
+                self.smoothed = self.q;
+                self.heading_known = true;
+            }
+        }
+    }
+
+    fn on_gps(&mut self, lat: f64, lon: f64, alt: f64) {
+        let Some(date) = self.date else { return };
+        let moved_far = match self.gps_position {
+            // About 10 km: the field changes by far less than the magnetometer noise over it.
+            Some((la, lo)) => (lat - la).abs() > 0.09 || angle_difference(lon.to_radians(), lo.to_radians()).abs() > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01),
+            None => true,
+        };
+        if moved_far && let Ok(r) = MagneticReference::wmm(lat, lon, alt, date) {
+            self.gps_position = Some((lat, lon));
+            self.set_reference(r);
+        }
+    }
+
+    /// Propagate to time `t` with the measured rate `omega` (zero without a gyroscope), then
+    /// correct towards the latest accelerometer and magnetometer readings. Predicting first
+    /// and correcting after means exact readings give exactly the true orientation.
+    fn step(&mut self, t: f64, dt: f64, omega: DVec3, integrate_bias: bool) {
+        let rate = omega - if integrate_bias { self.bias } else { DVec3::ZERO };
+        self.rate = rate.length();
+        self.q = (self.q * DQuat::from_scaled_axis(rate * dt)).normalize();
+
+        let scale = self.gain_scale();
+        let mut correction = DVec3::ZERO;
+        let mut bias_error = DVec3::ZERO;
+        let innov_alpha = 1.0 - (-dt / INNOVATION_TAU_S).exp();
+
+        if let Some((ta, a)) = self.accel
+            && t - ta < FRESH_S
+        {
+            let n = a.length();
+            let dev = (n - G).abs() / (self.cfg.accel_tolerance * G);
+            let w = (1.0 - dev).max(0.0);
+            if w > 0.0 {
+                let e = (a / n).cross(self.up_in_device());
+                correction += self.cfg.k_acc * scale * w * e;
+                bias_error += w * e;
+                let angle = e.length().min(1.0).asin();
+                self.tilt_innov_var += innov_alpha * (angle * angle - self.tilt_innov_var);
+            }
+        }
+
+        if self.heading_known
+            && !self.disturbed
+            && let Some((tm, m)) = self.mag
+            && t - tm < FRESH_S
+        {
+            let mw = self.q * m;
+            let h = mw.x.hypot(mw.y);
+            // A field (almost) along the vertical carries no heading.
+            if h > 0.1 * m.length() {
+                let delta = angle_difference(mw.x.atan2(mw.y), self.applied_declination);
+                let z = self.up_in_device();
+                correction += self.cfg.k_mag * scale * delta * z;
+                bias_error += delta * z;
+                self.heading_innov_var += innov_alpha * (delta * delta - self.heading_innov_var);
+            }
+        }
+
+        if integrate_bias && self.cfg.k_bias > 0.0 {
+            self.bias -= self.cfg.k_bias * scale * bias_error * dt;
+            self.bias = self.bias.clamp_length_max(MAX_BIAS);
+        }
+        self.q = (self.q * DQuat::from_scaled_axis(correction * dt)).normalize();
+
+        let tau = self.smoothing_tau();
+        self.smoothed = if tau > 0.0 {
+            let alpha = 1.0 - (-dt / tau).exp();
+            let target = if self.smoothed.dot(self.q) < 0.0 { -self.q } else { self.q };
+            self.smoothed.slerp(target, alpha).normalize()
+        } else {
+            self.q
+        };
+    }
+
+    fn smoothing_tau(&self) -> f64 {
+        let tau = self.cfg.smoothing_tau_s;
+        if tau <= 0.0 || !self.cfg.adaptive_smoothing {
+            return tau.max(0.0);
+        }
+        let s = self.cfg.still_rate;
+        tau * (1.0 - ((self.rate - s) / s).clamp(0.0, 1.0))
+    }
+
+    /// Heading 1σ while the magnetometer is in use (radians).
+    fn heading_sigma_mag(&self) -> f64 {
+        let k = self.cfg.k_mag * self.gain_scale();
+        // Variance reduction of a first-order low-pass with gain α per step at about 50 Hz.
+        let alpha = (k * 0.02).min(1.0);
+        let filtered = self.heading_innov_var * alpha / (2.0 - alpha);
+        let decl = self.reference.map_or(0.0, |r| r.declination_sigma);
+        (self.cfg.heading_floor.powi(2) + filtered + decl * decl).sqrt()
+    }
+
+    fn tilt_sigma(&self) -> f64 {
+        let alpha = (self.cfg.k_acc * self.gain_scale() * 0.01).min(1.0);
+        (self.cfg.tilt_floor.powi(2) + self.tilt_innov_var * alpha / (2.0 - alpha)).sqrt()
+    }
+
+    fn heading_sigma(&self) -> f64 {
+        if !self.heading_known {
+            return std::f64::consts::PI;
+        }
+        match self.gyro_only_since {
+            Some(t0) => (self.heading_sigma_at_loss + self.cfg.gyro_drift * (self.t - t0)).min(std::f64::consts::PI),
+            None => self.heading_sigma_mag(),
+        }
+    }
+
+    fn heading_source(&self) -> HeadingSource {
+        if self.platform_accuracy.is_some() && self.cfg.use_platform_attitude {
+            HeadingSource::Platform
+        } else if !self.heading_known {
+            HeadingSource::Unknown
+        } else if self.disturbed {
+            HeadingSource::GyroOnly
+        } else {
+            HeadingSource::Magnetometer
+        }
+    }
+}
+
+impl OrientationEstimator for OrientationFilter {
+    fn update(&mut self, r: &Reading) -> Result<()> {
+        r.validate()?;
+        let t = r.t();
+        self.t = self.t.max(t);
+        match *r {
+            Reading::Accel { t, v } => {
+                self.accel = Some((t, v));
+                if !self.initialised {
+                    self.try_initialise(t);
+                } else if !self.gyro_seen && !self.cfg.use_platform_attitude {
+                    // No gyroscope: the same filter with zero rate (a plain complementary
+                    // filter of the compass), stepping on accelerometer readings.
+                    if let Some(t0) = self.accel_step_t {
+                        let dt = t - t0;
+                        if dt > 0.0 && dt < MAX_GYRO_GAP_S {
+                            self.step(t, dt, DVec3::ZERO, false);
+                        }
+                    }
+                    self.accel_step_t = Some(t);
+                }
+            }
+            Reading::Mag { t, v } => {
+                self.on_mag(t, v);
+                if !self.initialised {
+                    self.try_initialise(t);
+                }
+            }
+            Reading::Gyro { t, v } => {
+                self.gyro_seen = true;
+                if self.initialised && !self.cfg.use_platform_attitude {
+                    if let Some(t0) = self.gyro_t {
+                        let dt = t - t0;
+                        if dt > 0.0 && dt < MAX_GYRO_GAP_S {
+                            self.step(t, dt, v, true);
+                        }
+                    }
+                }
+                self.gyro_t = Some(t);
+            }
+            Reading::Gps(f) => self.on_gps(f.lat_deg, f.lon_deg, f.alt_m),
+            Reading::Attitude { q, north, heading_accuracy_rad, .. } => {
+                if self.cfg.use_platform_attitude {
+                    self.q = match north {
+                        North::Magnetic => magnetic_to_true(q.normalize(), self.applied_declination),
+                        North::True => q.normalize(),
+                    };
+                    self.smoothed = self.q;
+                    self.initialised = true;
+                    self.heading_known = true;
+                    self.platform_accuracy = Some(heading_accuracy_rad.unwrap_or(self.cfg.heading_floor));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn pose(&self, rotation: DisplayRotation) -> Option<Pose> {
+        if !self.initialised {
+            return None;
+        }
+        let (tilt, heading) = match (self.cfg.use_platform_attitude, self.platform_accuracy) {
+            (true, Some(acc)) => (self.cfg.tilt_floor, acc),
+            _ => (self.tilt_sigma(), self.heading_sigma()),
+        };
+        Some(Pose {
+            t: self.t,
+            q: camera_pose_from_device(self.smoothed, rotation).as_quat(),
+            accuracy_deg: tilt.hypot(heading).to_degrees() as f32,
+            heading_accuracy_deg: heading.to_degrees() as f32,
+            tilt_accuracy_deg: tilt.to_degrees() as f32,
+            heading_source: self.heading_source(),
+            magnetic_disturbance: self.disturbed,
+        })
+    }
+
+    fn device_orientation(&self) -> Option<DQuat> {
+        self.initialised.then_some(self.q)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pose::frames::{angle_between, from_heading_pitch_roll, heading_pitch_roll};
+
+    const FIELD: DVec3 = DVec3::new(-0.4, 19.5, -44.6);
+
+    /// Exact readings for a device rotating at a constant body rate from `q0` at `t0`. At
+    /// t0 = 0 the first sample is fed too; otherwise it continues a previous call ending at t0.
+    fn feed_rotation(f: &mut OrientationFilter, q0: DQuat, omega: DVec3, t0: f64, secs: f64, field: DVec3) -> DQuat {
+        let dt = 0.01;
+        let mut q = q0;
+        let n = (secs / dt).round() as usize;
+        for i in usize::from(t0 != 0.0)..=n {
+            let t = t0 + i as f64 * dt;
+            if i > 0 {
+                q = (q * DQuat::from_scaled_axis(omega * dt)).normalize();
+            }
+            f.update(&Reading::Accel { t, v: q.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+            f.update(&Reading::Mag { t, v: q.inverse() * field }).unwrap();
+            f.update(&Reading::Gyro { t, v: omega }).unwrap();
+        }
+        q
+    }
+
+    fn reference() -> MagneticReference {
+        MagneticReference::from_field_enu(FIELD, 0.005)
+    }
+
+    #[test]
+    fn exact_readings_track_rotations_through_the_poles() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        // Start flat on the table, screen up (camera looking straight down), then pitch over
+        // the vertical both ways and spin about an oblique axis.
+        let q0 = DQuat::from_rotation_z(0.3);
+        let q = feed_rotation(&mut f, q0, DVec3::ZERO, 0.0, 1.0, FIELD);
+        assert!(angle_between(f.device_orientation().unwrap(), q) < 1e-9);
+        let q = feed_rotation(&mut f, q, DVec3::new(1.2, 0.0, 0.0), 1.0, 3.0, FIELD);
+        assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 1e-6);
+        let q = feed_rotation(&mut f, q, DVec3::new(-0.3, 0.8, 0.5), 4.0, 4.0, FIELD);
+        assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 1e-6);
+        assert_eq!(f.pose(DisplayRotation::R0).unwrap().heading_source, HeadingSource::Magnetometer);
+    }
+
+    #[test]
+    fn learns_gyro_bias() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        let truth = from_heading_pitch_roll(1.0, 0.2, 0.0);
+        let bias = DVec3::new(0.01, -0.02, 0.015);
+        let dt = 0.01;
+        for i in 0..40_000 {
+            let t = i as f64 * dt;
+            f.update(&Reading::Accel { t, v: truth.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+            f.update(&Reading::Mag { t, v: truth.inverse() * FIELD }).unwrap();
+            f.update(&Reading::Gyro { t, v: bias }).unwrap();
+        }
+        // Steady state: the integral term has absorbed the bias, no residual error.
+        assert!((f.gyro_bias() - bias).length() < 1e-3, "{:?}", f.gyro_bias());
+        assert!(angle_between(f.device_orientation().unwrap(), truth).to_degrees() < 0.05);
+    }
+
+    #[test]
+    fn declination_from_reference_makes_true_heading() {
+        // Field 10° east of north: a device facing magnetic north faces true heading 10°.
+        let d = 10f64.to_radians();
+        let field = DVec3::new(d.sin() * 20.0, d.cos() * 20.0, -44.0);
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        // Camera looking at the horizon towards magnetic north, portrait.
+        let cam = from_heading_pitch_roll(d, 0.0, 0.0);
+        let dev = crate::pose::frames::device_from_camera_pose(cam, DisplayRotation::R0);
+        feed_rotation(&mut f, dev, DVec3::ZERO, 0.0, 0.5, field);
+        // Without a reference the heading is magnetic (0°).
+        let hpr = heading_pitch_roll(f.pose(DisplayRotation::R0).unwrap().q.as_dquat());
+        assert!(angle_difference(hpr.heading, 0.0).abs().to_degrees() < 1e-3, "{hpr:?}");
+        f.set_reference(MagneticReference::from_field_enu(field, 0.0));
+        let hpr = heading_pitch_roll(f.pose(DisplayRotation::R0).unwrap().q.as_dquat());
+        assert!(angle_difference(hpr.heading, d).abs().to_degrees() < 1e-3, "{hpr:?}");
+    }
+
+    #[test]
+    fn disturbance_switches_to_gyro_only_and_back() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        let q = DQuat::from_rotation_z(0.5) * DQuat::from_rotation_x(1.2);
+        let dt = 0.01;
+        let mut t = 0.0;
+        let mut feed = |f: &mut OrientationFilter, secs: f64, extra: DVec3| {
+            for _ in 0..(secs / dt) as usize {
+                t += dt;
+                f.update(&Reading::Accel { t, v: q.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+                f.update(&Reading::Mag { t, v: q.inverse() * (FIELD + extra) }).unwrap();
+                f.update(&Reading::Gyro { t, v: DVec3::ZERO }).unwrap();
+            }
+        };
+        feed(&mut f, 3.0, DVec3::ZERO);
+        let p = f.pose(DisplayRotation::R0).unwrap();
+        assert!(!p.magnetic_disturbance && p.heading_source == HeadingSource::Magnetometer);
+        let acc_before = p.heading_accuracy_deg;
+        // A steel object near the phone: 25 µT sideways for 5 s.
+        feed(&mut f, 5.0, DVec3::new(25.0, 0.0, 0.0));
+        let p = f.pose(DisplayRotation::R0).unwrap();
+        assert!(p.magnetic_disturbance && p.heading_source == HeadingSource::GyroOnly);
+        // Gyro-only: heading held (the gyro is perfect here), accuracy estimate grown.
+        assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 1e-6);
+        assert!(p.heading_accuracy_deg > acc_before);
+        // Field back to normal: trusted again after `recover_after_s`.
+        feed(&mut f, 0.5, DVec3::ZERO);
+        assert!(f.magnetic_disturbance());
+        feed(&mut f, 1.0, DVec3::ZERO);
+        assert!(!f.magnetic_disturbance());
+    }
+
+    #[test]
+    fn disturbance_ignored_when_detection_is_off() {
+        let cfg = FusionConfig { disturbance: DisturbanceConfig { enabled: false, ..Default::default() }, ..Default::default() };
+        let mut f = OrientationFilter::new(cfg);
+        f.set_reference(reference());
+        let q = DQuat::IDENTITY;
+        feed_rotation(&mut f, q, DVec3::ZERO, 0.0, 2.0, FIELD);
+        // 25 µT east added: the compass swings the heading towards the disturbed field.
+        feed_rotation(&mut f, q, DVec3::ZERO, 2.0, 10.0, FIELD + DVec3::new(25.0, 0.0, 0.0));
+        assert!(!f.magnetic_disturbance());
+        assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() > 20.0);
+    }
+
+    #[test]
+    fn nan_readings_are_rejected_without_changing_state() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        feed_rotation(&mut f, DQuat::IDENTITY, DVec3::ZERO, 0.0, 0.5, FIELD);
+        let before = f.device_orientation().unwrap();
+        assert!(f.update(&Reading::Gyro { t: 0.6, v: DVec3::new(f64::NAN, 0.0, 0.0) }).is_err());
+        assert!(f.update(&Reading::Accel { t: 0.6, v: DVec3::splat(f64::INFINITY) }).is_err());
+        assert!(f.update(&Reading::Mag { t: f64::NAN, v: FIELD }).is_err());
+        assert_eq!(f.device_orientation().unwrap(), before);
+        assert!(f.device_orientation().unwrap().is_finite());
+    }
+
+    #[test]
+    fn tilt_only_start_then_heading_when_the_field_arrives() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        let q = from_heading_pitch_roll(2.0, 0.1, 0.0);
+        f.update(&Reading::Accel { t: 0.0, v: q.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+        let p = f.pose(DisplayRotation::R0).unwrap();
+        assert_eq!(p.heading_source, HeadingSource::Unknown);
+        assert!(p.heading_accuracy_deg >= 179.0);
+        f.update(&Reading::Mag { t: 0.01, v: q.inverse() * FIELD }).unwrap();
+        assert!(angle_between(f.device_orientation().unwrap(), magnetic_to_true(q, -FIELD.x.atan2(FIELD.y))) < 1e-9);
+    }
+
+    #[test]
+    fn works_without_a_gyroscope() {
+        // Without gyroscope readings the filter is a complementary filter of the compass: it
+        // follows a change of orientation with the correction time constants.
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        let q1 = from_heading_pitch_roll(0.7, -0.4, 0.1);
+        let q2 = from_heading_pitch_roll(1.2, 0.1, -0.2);
+        let dt = 0.01;
+        for i in 0..3200 {
+            let t = i as f64 * dt;
+            let q = if t < 2.0 { q1 } else { q2 };
+            f.update(&Reading::Accel { t, v: q.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+            f.update(&Reading::Mag { t, v: q.inverse() * FIELD }).unwrap();
+            if i == 190 {
+                assert!(angle_between(f.device_orientation().unwrap(), q1) < 1e-9);
+            }
+        }
+        assert!(angle_between(f.device_orientation().unwrap(), q2).to_degrees() < 0.2);
+    }
+
+    #[test]
+    fn platform_attitude_with_magnetic_north_is_corrected() {
+        let cfg = FusionConfig { use_platform_attitude: true, ..Default::default() };
+        let mut f = OrientationFilter::new(cfg);
+        let d = 3f64.to_radians();
+        f.set_reference(MagneticReference::from_field_enu(DVec3::new(d.sin(), d.cos(), -2.0) * 20.0, 0.0));
+        f.update(&Reading::Attitude { t: 0.0, q: DQuat::IDENTITY, north: North::Magnetic, heading_accuracy_rad: Some(0.1) }).unwrap();
+        let p = f.pose(DisplayRotation::R0).unwrap();
+        assert_eq!(p.heading_source, HeadingSource::Platform);
+        assert!((p.heading_accuracy_deg - 0.1f32.to_degrees()).abs() < 1e-3);
+        let y = f.device_orientation().unwrap() * DVec3::Y;
+        assert!((y.x.atan2(y.y) - d).abs() < 1e-12);
+    }
+}

@@ -9,5 +9,6 @@ pub mod chart;
 pub mod cli;
 pub mod colour;
 pub mod output;
+pub mod priors;
 pub mod render;
 pub mod scene;

@@ -5,6 +5,7 @@
 //! frame +x right, +y up, looking along −z; a pose rotates camera → world. Angles are degrees at
 //! the edges (CLI, files) and radians inside. Images are sRGB-encoded; shading is linear.
 
+pub mod bench;
 pub mod chart;
 pub mod cli;
 pub mod colour;

@@ -7,9 +7,8 @@ use std::path::{Path, PathBuf};
 /// Write `bytes` to `path` atomically (temporary sibling + rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = temp_sibling(path);
-    let result = std::fs::write(&tmp, bytes)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .with_context(|| format!("cannot write {}", path.display()));
+    let result =
+        std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path)).with_context(|| format!("cannot write {}", path.display()));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
@@ -29,9 +28,7 @@ pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Resul
 fn encode_png(width: u32, height: u32, data: &[u8], ty: image::ExtendedColorType) -> Result<Vec<u8>> {
     use image::ImageEncoder;
     let mut buf = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut buf)
-        .write_image(data, width, height, ty)
-        .context("PNG encoding failed")?;
+    image::codecs::png::PngEncoder::new(&mut buf).write_image(data, width, height, ty).context("PNG encoding failed")?;
     Ok(buf)
 }
 
@@ -53,7 +50,11 @@ mod tests {
         let ok = dir.join("ok.bin");
         write_atomic(&ok, b"abc").unwrap();
         assert_eq!(std::fs::read(&ok).unwrap(), b"abc");
-        let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().ends_with(".partial")).collect();
+        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+            .collect();
         assert!(leftovers.is_empty());
         std::fs::remove_dir_all(&dir).unwrap();
     }

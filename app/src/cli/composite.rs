@@ -1,8 +1,361 @@
-//! `previz composite`.
+//! `previz composite`: composite a lit model over a background; with no arguments, the bundled
+//! demo scene.
 
-#[derive(clap::Args, Debug)]
-pub struct Args {}
+use crate::render::{Camera, Compositor, FrameParams, Layer, Lighting, MaterialTerms, Method, Placement, gpu::Gpu, view};
+use crate::scene::file::{Scene, SceneBuilder};
+use crate::scene::{CubeMap, Model, Rgba8Image, demo};
+use anyhow::{Context, Result, bail};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("composite is being written")
+#[derive(clap::Args, Debug, Default)]
+#[command(after_help = "Every flag has a scene-file key (see README: Scene file); flags override the file, \
+--set overrides both. With no scene file, --model or --env, the built-in demo scene is used.")]
+pub struct Args {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output image  [key: output]
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage) and background.png into DIR
+    #[arg(long, value_name = "DIR")]
+    pub layers: Option<PathBuf>,
+    /// Print outputs, size, model pixel count, method and timings as JSON
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The flags that describe a scene (shared by `composite` and `bench frame`).
+#[derive(clap::Args, Debug, Default)]
+pub struct SceneArgs {
+    /// Scene file (TOML). Relative paths in it are relative to its folder.
+    pub scene: Option<PathBuf>,
+    /// Model: .obj (with .mtl), .gltf or .glb  [key: model]
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Environment: a folder of six cube faces, or an equirectangular .hdr/.exr  [key: environment]
+    #[arg(long)]
+    pub env: Option<PathBuf>,
+    /// Background photograph (JPEG/PNG); default: the environment seen by the camera  [key: background]
+    #[arg(long)]
+    pub background: Option<PathBuf>,
+    /// Output width in pixels  [key: width]
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Output height in pixels  [key: height]
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Vertical field of view, degrees  [key: camera.vfov]
+    #[arg(long)]
+    pub vfov: Option<f64>,
+    /// Camera heading, degrees clockwise from true north  [key: camera.heading]
+    #[arg(long, allow_hyphen_values = true)]
+    pub heading: Option<f64>,
+    /// Camera pitch, degrees, up positive  [key: camera.pitch]
+    #[arg(long, allow_hyphen_values = true)]
+    pub pitch: Option<f64>,
+    /// Camera roll, degrees, clockwise positive  [key: camera.roll]
+    #[arg(long, allow_hyphen_values = true)]
+    pub roll: Option<f64>,
+    /// Direction to the sun in ENU as X,Y,Z (East, North, Up)  [key: sun.direction]
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub sun_dir: Option<String>,
+    /// Lighting method  [key: method]
+    #[arg(long, value_enum)]
+    pub method: Option<Method>,
+    /// Set any scene key, e.g. --set material.gloss=64 --set placement.rotation=[0,0,90]
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+/// Parse "X,Y,Z" into three numbers, naming the flag on error.
+fn parse_vec3(flag: &str, s: &str) -> Result<[f64; 3]> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        bail!("{flag} {s:?}: expected three comma-separated numbers X,Y,Z");
+    }
+    let mut v = [0.0; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        *slot = p.parse().with_context(|| format!("{flag} {s:?}: {p:?} is not a number"))?;
+    }
+    Ok(v)
+}
+
+/// The scene the arguments describe (plus an output path), and whether it is the built-in demo.
+pub fn scene_from_args(args: &SceneArgs, output: Option<&Path>) -> Result<(Scene, bool)> {
+    let demo = args.scene.is_none() && args.model.is_none() && args.env.is_none();
+    let mut b = match &args.scene {
+        Some(path) => SceneBuilder::from_file(path)?,
+        None if demo => SceneBuilder::from_toml(demo::SCENE_TOML, Path::new("."))?,
+        None => SceneBuilder::new(),
+    };
+    let path_value = |p: &Path| toml::Value::String(p.to_string_lossy().into_owned());
+    let cwd_path = |p: &PathBuf| -> Result<toml::Value> {
+        // Flags are relative to the current directory, not to the scene file.
+        Ok(path_value(&std::path::absolute(p).with_context(|| format!("bad path {}", p.display()))?))
+    };
+    if let Some(p) = &args.model {
+        b.set("model", cwd_path(p)?)?;
+    }
+    if let Some(p) = &args.env {
+        b.set("environment", cwd_path(p)?)?;
+    }
+    if let Some(p) = &args.background {
+        b.set("background", cwd_path(p)?)?;
+    }
+    if let Some(p) = output {
+        b.set("output", path_value(p))?;
+    }
+    if let Some(v) = args.width {
+        b.set("width", toml::Value::Integer(v.into()))?;
+    }
+    if let Some(v) = args.height {
+        b.set("height", toml::Value::Integer(v.into()))?;
+    }
+    for (key, v) in [("camera.vfov", args.vfov), ("camera.heading", args.heading), ("camera.pitch", args.pitch), ("camera.roll", args.roll)]
+    {
+        if let Some(v) = v {
+            b.set(key, toml::Value::Float(v)).with_context(|| format!("--{}", key.trim_start_matches("camera.")))?;
+        }
+    }
+    if let Some(s) = &args.sun_dir {
+        let v = parse_vec3("--sun-dir", s)?;
+        b.set("sun.direction", toml::Value::Array(v.iter().map(|x| toml::Value::Float(*x)).collect()))?;
+    }
+    if let Some(m) = args.method {
+        b.set("method", toml::Value::String(m.name().into()))?;
+    }
+    for s in &args.set {
+        b.set_str(s)?;
+    }
+    let scene = b.build().map_err(|e| {
+        let flag = flag_for_error(&format!("{e:#}"));
+        e.context(flag)
+    })?;
+    Ok((scene, demo))
+}
+
+/// Name the flag a scene-key error came from, so the message points at what the user typed.
+fn flag_for_error(msg: &str) -> String {
+    for (key, flag) in [
+        ("camera.vfov", "--vfov"),
+        ("camera.heading", "--heading"),
+        ("camera.pitch", "--pitch"),
+        ("camera.roll", "--roll"),
+        ("sun.direction", "--sun-dir"),
+        ("width", "--width"),
+        ("height", "--height"),
+    ] {
+        if msg.starts_with(key) {
+            return format!("invalid scene ({flag} or scene key {key})");
+        }
+    }
+    "invalid scene".into()
+}
+
+/// Everything loaded from disk (or the embedded demo) for a scene.
+pub struct Inputs {
+    pub model: Model,
+    pub env: CubeMap,
+    pub background: Option<Rgba8Image>,
+}
+
+/// Load the scene's model, environment and background.
+pub fn load_inputs(scene: &Scene, demo: bool) -> Result<Inputs> {
+    let model = match &scene.model {
+        Some(p) => crate::scene::model::load_model(p)?,
+        None => demo::model()?,
+    };
+    let env = match &scene.environment {
+        Some(p) => crate::scene::environment::load_environment(p)?,
+        None => demo::environment()?,
+    };
+    let background = match (&scene.background, demo) {
+        (Some(p), _) => Some(crate::scene::background::load_image(p)?),
+        (None, true) => Some(demo::background()?),
+        (None, false) => None,
+    };
+    let background = background.map(|b| crate::scene::background::fit(&b, scene.width, scene.height));
+    Ok(Inputs { model, env, background })
+}
+
+/// Exposure for the environment: the scene's, else 1 for 8-bit maps (all values ≤ 1) and, for
+/// HDR maps, the key-value rule of Reinhard et al. 2002 (log-average luminance → 0.18) over the
+/// horizontal faces.
+pub fn exposure(scene: &Scene, env: &CubeMap) -> f32 {
+    if let Some(e) = scene.env.exposure {
+        return e as f32;
+    }
+    let max = env.faces.iter().flatten().flat_map(|p| p.iter()).fold(0f32, |m, v| m.max(*v));
+    if max <= 1.0 {
+        return 1.0;
+    }
+    let (sum, n) = [0usize, 1, 4, 5]
+        .iter()
+        .flat_map(|&f| env.faces[f].iter())
+        .map(|p| f64::from(crate::colour::luminance_bt709(*p)))
+        .filter(|l| l.is_finite())
+        .fold((0f64, 0usize), |(s, n), l| (s + (1e-4 + l).ln(), n + 1));
+    if n == 0 {
+        return 1.0;
+    }
+    (0.18 / (sum / n as f64).exp()) as f32
+}
+
+/// Smooth fade of direct sunlight with the sun's elevation: 1 above 2°, 0 below −2° (the solar
+/// disc and the refraction near the horizon), smoothstep between, so a setting sun never pops.
+pub fn sunlight_fade(sun_dir: Vec3) -> f32 {
+    let elevation = sun_dir.normalize_or(Vec3::Z).z.clamp(-1.0, 1.0).asin().to_degrees();
+    let t = ((elevation + 2.0) / 4.0).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// The frame parameters a scene describes, given the loaded model's bounds.
+pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
+    let c = &scene.camera;
+    let pose = view::camera_pose((c.heading as f32).to_radians(), (c.pitch as f32).to_radians(), (c.roll as f32).to_radians());
+    let position = Vec3::new(0.0, 0.0, c.height as f32);
+    let vfov = (c.vfov as f32).to_radians();
+    let p = &scene.placement;
+    let auto = view::auto_placement(bounds, pose, position, vfov, p.size as f32, p.fill as f32);
+    let extent = (bounds.1 - bounds.0).max_element().max(f32::MIN_POSITIVE);
+    let placement = Placement {
+        position: p.position.map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32)).unwrap_or(auto.position),
+        rotation: Vec3::new(p.rotation[0] as f32, p.rotation[1] as f32, p.rotation[2] as f32) * (std::f32::consts::PI / 180.0),
+        scale: p.scale.map(|s| s as f32).unwrap_or(p.size as f32 / extent),
+    };
+    let sun_dir = Vec3::new(scene.sun.direction[0] as f32, scene.sun.direction[1] as f32, scene.sun.direction[2] as f32).normalize();
+    let m = &scene.material;
+    FrameParams {
+        camera: Camera { pose, position, vfov },
+        method: scene.method,
+        lighting: Lighting {
+            sun_dir,
+            sunlight: scene.sun.sunlight as f32 * sunlight_fade(sun_dir),
+            daylight: scene.sun.daylight as f32,
+            material: MaterialTerms {
+                ambient: m.ambient as f32,
+                diffuse: m.diffuse as f32,
+                specular: m.specular as f32,
+                gloss: m.gloss.map(|g| g as f32),
+            },
+            reflection: scene.effects.reflection as f32,
+            ior: scene.effects.ior as f32,
+            shadow_opacity: scene.effects.shadow_opacity as f32,
+            live_depth: scene.effects.live_depth as f32,
+        },
+        placement,
+    }
+}
+
+/// GPU resources for a scene and the parameters of its frame: what `run`, the tests and the
+/// benchmark share.
+pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
+    let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
+    compositor.set_environment(gpu, &inputs.env, exposure(scene, &inputs.env), (scene.env.heading as f32).to_radians())?;
+    compositor.set_model(gpu, &inputs.model)?;
+    compositor.set_background(gpu, inputs.background.as_ref())?;
+    let bounds = compositor.model_bounds().context("model bounds")?;
+    let params = frame_params(scene, bounds);
+    Ok((compositor, params))
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let t_total = Instant::now();
+    let (scene, demo) = scene_from_args(&args.scene, args.output.as_deref())?;
+    if let Some(dir) = &args.layers
+        && !dir.is_dir()
+    {
+        bail!("--layers {}: not an existing directory", dir.display());
+    }
+    let t_load = Instant::now();
+    let inputs = load_inputs(&scene, demo)?;
+    let load_ms = ms(t_load);
+
+    let t_upload = Instant::now();
+    let gpu = Gpu::headless()?;
+    let (mut compositor, params) = prepare(&gpu, &scene, &inputs)?;
+    let upload_ms = ms(t_upload);
+
+    let composite = compositor.render(&gpu, &params, Layer::Composite)?;
+    let model_layer = if args.json || args.layers.is_some() { Some(compositor.render(&gpu, &params, Layer::Model)?) } else { None };
+    let background_layer = if args.layers.is_some() { Some(compositor.render(&gpu, &params, Layer::Background)?) } else { None };
+
+    // Encode everything first, then write: an error leaves no output behind.
+    let mut outputs: Vec<(PathBuf, &crate::render::Rendered)> = vec![(scene.output.clone(), &composite)];
+    if let Some(dir) = &args.layers {
+        outputs.push((dir.join("composite.png"), &composite));
+        if let Some(m) = &model_layer {
+            outputs.push((dir.join("model_rgba.png"), m));
+        }
+        if let Some(b) = &background_layer {
+            outputs.push((dir.join("background.png"), b));
+        }
+    }
+    let mut written = Vec::new();
+    for (path, image) in &outputs {
+        if let Err(e) = crate::output::write_png_rgba8(path, image.width, image.height, &image.rgba) {
+            for p in &written {
+                let _ = std::fs::remove_file(p);
+            }
+            return Err(e);
+        }
+        written.push(path.clone());
+    }
+
+    if args.json {
+        let model_pixels = model_layer.as_ref().map(|m| m.rgba.chunks_exact(4).filter(|p| p[3] > 0).count()).unwrap_or(0);
+        let out = serde_json::json!({
+            "outputs": written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            "width": scene.width,
+            "height": scene.height,
+            "model_pixels": model_pixels,
+            "method": scene.method.name(),
+            "adapter": gpu.describe(),
+            "timings_ms": {
+                "load": load_ms,
+                "upload": upload_ms,
+                "gpu_render": composite.timings.gpu_ms,
+                "readback": composite.timings.readback_ms,
+                "total": ms(t_total),
+            },
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sunlight_fades_smoothly_through_the_horizon() {
+        let dir = |elev: f32| Vec3::new(0.0, elev.to_radians().cos(), elev.to_radians().sin());
+        assert_eq!(sunlight_fade(dir(10.0)), 1.0);
+        assert_eq!(sunlight_fade(dir(-10.0)), 0.0);
+        assert!((sunlight_fade(dir(0.0)) - 0.5).abs() < 1e-4);
+        // Monotone, no step larger than the smoothstep's maximum slope allows.
+        let mut prev = 0.0;
+        for i in 0..=400 {
+            let f = sunlight_fade(dir(-5.0 + i as f32 * 0.025));
+            assert!(f >= prev - 1e-6 && f - prev < 0.01);
+            prev = f;
+        }
+        // Straight down and a NaN-free result for the zero vector.
+        assert_eq!(sunlight_fade(-Vec3::Z), 0.0);
+        assert!(sunlight_fade(Vec3::ZERO).is_finite());
+    }
+
+    #[test]
+    fn sun_dir_flag_parsing() {
+        assert_eq!(parse_vec3("--sun-dir", "1, -2,3.5").unwrap(), [1.0, -2.0, 3.5]);
+        assert!(format!("{:#}", parse_vec3("--sun-dir", "1,2").unwrap_err()).contains("--sun-dir"));
+        assert!(format!("{:#}", parse_vec3("--sun-dir", "1,x,2").unwrap_err()).contains("--sun-dir"));
+    }
 }

@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench;
 pub mod composite;
 
 #[derive(Parser, Debug)]
@@ -16,10 +17,13 @@ pub struct Cli {
 pub enum Command {
     /// Composite a lit model over a background (no arguments: the bundled demo scene).
     Composite(composite::Args),
+    /// Benchmarks (results recorded in docs/PERFORMANCE.md).
+    Bench(bench::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
+        Command::Bench(a) => bench::run(a),
     }
 }

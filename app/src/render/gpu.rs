@@ -20,7 +20,7 @@ pub struct Gpu {
 impl Gpu {
     /// A device without a window. Honours `WGPU_BACKEND` / `WGPU_ADAPTER_NAME` from the environment.
     pub fn headless() -> Result<Gpu> {
-        let mut desc = wgpu::InstanceDescriptor::from_env_or_default();
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if std::env::var_os("WGPU_BACKEND").is_none() {
             desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL | wgpu::Backends::METAL;
         }
@@ -34,6 +34,7 @@ impl Gpu {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
             compatible_surface: surface,
+            apply_limit_buckets: false,
         }))
         .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);

@@ -104,3 +104,9 @@ pub fn enu_to_cube(d: Vec3) -> Vec3 {
 pub fn cube_to_enu(c: Vec3) -> Vec3 {
     Vec3::new(c.x, c.z, c.y)
 }
+
+pub mod background;
+pub mod demo;
+pub mod environment;
+pub mod file;
+pub mod model;

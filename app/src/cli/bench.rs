@@ -1,0 +1,83 @@
+//! `previz bench …`: measurements recorded in docs/PERFORMANCE.md.
+
+use crate::bench::frame;
+use crate::cli::composite::{SceneArgs, load_inputs, scene_from_args};
+use crate::render::gpu::Gpu;
+use anyhow::{Result, bail};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    pub what: What,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum What {
+    /// Per-frame CPU and GPU time of every lighting method and of the background-only floor,
+    /// medians after warm-up, ratios to the floor (all in one run).
+    Frame(FrameArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct FrameArgs {
+    /// The scene to render (same flags as `previz composite`; default: the demo scene).
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Measured frames per path (after warm-up).
+    #[arg(long, default_value_t = 50)]
+    pub frames: usize,
+    /// Warm-up frames per path, not measured.
+    #[arg(long, default_value_t = 5)]
+    pub warmup: usize,
+    /// Also write the rows as CSV.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Print the rows as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    match args.what {
+        What::Frame(a) => run_frame(a),
+    }
+}
+
+fn run_frame(a: FrameArgs) -> Result<()> {
+    if a.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let (scene, demo) = scene_from_args(&a.scene, None)?;
+    let inputs = load_inputs(&scene, demo)?;
+    let gpu = Gpu::headless()?;
+    let bar = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template("{msg:>22} {bar:40} {pos}/{len} frames")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let rows = frame::run(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
+    bar.finish_and_clear();
+    if let Some(path) = &a.csv {
+        let mut s = String::from("path,frames,cpu_encode_ms,gpu_ms,wall_ms,gpu_ratio,wall_ratio\n");
+        for r in &rows {
+            s += &format!("{},{},{},{},{},{},{}\n", r.path, r.frames, r.cpu_encode_ms, r.gpu_ms, r.wall_ms, r.gpu_ratio, r.wall_ratio);
+        }
+        crate::output::write_atomic(path, s.as_bytes())?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        println!(
+            "{}x{}, {} triangles, {} on {}; medians of {} frames after {} warm-up\n",
+            scene.width,
+            scene.height,
+            inputs.model.triangle_count(),
+            scene.method.name(),
+            gpu.describe(),
+            a.frames,
+            a.warmup
+        );
+        print!("{}", frame::markdown(&rows));
+    }
+    Ok(())
+}

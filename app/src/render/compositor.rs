@@ -1,0 +1,777 @@
+//! The compositor: GPU resources for one output size and the passes of one frame.
+//!
+//! Everything is created once (`Compositor::new`, `set_environment`, `set_model`,
+//! `set_background`); a frame only writes uniforms (and the camera image) and encodes passes,
+//! so per-frame work allocates no GPU resources.
+
+use super::Method;
+use super::pipelines::{COLOR_FORMAT, DEPTH_FORMAT, Pipelines, SAMPLES, SHADOW_MAP_SIZE, Vertex};
+use super::uniforms::{FrameUniforms, InstanceUniforms, MaterialUniforms};
+use super::view::{self, Placement};
+use crate::render::gpu::Gpu;
+use crate::scene::{CubeMap, Model, Rgba8Image};
+use anyhow::{Context, Result, anyhow, bail};
+use glam::{Mat4, Quat, Vec3};
+use std::time::Instant;
+
+/// What the hemisphere methods need from the environment (seed 000 §5.4), in linear light after
+/// exposure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HemispherePriors {
+    /// Mean colour of the up (+Y, sky) face.
+    pub sky: [f32; 3],
+    /// Mean colour of the down (−Y, ground) face.
+    pub ground: [f32; 3],
+    /// Hemisphere-occlusion light level: the bright end of the horizontal faces' luminance.
+    pub light: f32,
+    /// Hemisphere-occlusion shadow level: the dark end of the horizontal faces' luminance.
+    pub shadow: f32,
+}
+
+/// The Blinn-Phong material terms of Eq. 3 (scalars; colour comes from the material/texture).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialTerms {
+    /// a_c
+    pub ambient: f32,
+    /// d_c
+    pub diffuse: f32,
+    /// s_c
+    pub specular: f32,
+    /// g_f; `None` keeps each material's own exponent (MTL `Ns`).
+    pub gloss: Option<f32>,
+}
+
+/// The lights and effect strengths of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lighting {
+    /// Unit direction to the sun, world (ENU).
+    pub sun_dir: Vec3,
+    /// Sunlight intensity l_s (already faded through twilight by the caller).
+    pub sunlight: f32,
+    /// Daylight (ambient) intensity l_d.
+    pub daylight: f32,
+    pub material: MaterialTerms,
+    /// Mix of the reflection into the model, 0..1 (reflection methods).
+    pub reflection: f32,
+    /// Refractive index of the model's material (refraction methods); eta = 1 / ior.
+    pub ior: f32,
+    /// How dark the model's shadow makes the ground, 0..1.
+    pub shadow_opacity: f32,
+    /// Live-feed refraction: how far behind the surface (metres) the refracted ray meets the scene.
+    pub live_depth: f32,
+}
+
+/// The camera of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Orientation, camera → world.
+    pub pose: Quat,
+    /// Position in world (ENU), metres.
+    pub position: Vec3,
+    /// Vertical field of view, radians.
+    pub vfov: f32,
+}
+
+/// Everything that may change from frame to frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameParams {
+    pub camera: Camera,
+    pub method: Method,
+    pub lighting: Lighting,
+    pub placement: Placement,
+}
+
+/// Which image a render produces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layer {
+    /// Background, ground shadow and model.
+    Composite,
+    /// The model alone over transparent black: premultiplied RGBA, alpha = coverage.
+    Model,
+    /// The background alone.
+    Background,
+}
+
+/// Milliseconds spent in each stage of a render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Timings {
+    /// CPU: writing uniforms and encoding the passes.
+    pub encode_ms: f64,
+    /// GPU: first pass start to last pass end (timestamp queries); None if unsupported.
+    pub gpu_ms: Option<f64>,
+    /// CPU wall time from submit until the pixels are in memory.
+    pub readback_ms: f64,
+}
+
+/// A rendered RGBA8 image (sRGB-encoded; the model layer is premultiplied in linear light).
+pub struct Rendered {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<u8>,
+    pub timings: Timings,
+}
+
+struct MeshGpu {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    material: wgpu::BindGroup,
+}
+
+struct ModelGpu {
+    meshes: Vec<MeshGpu>,
+    bounds: (Vec3, Vec3),
+    /// Per-material gloss exponents, in mesh order, for `MaterialTerms::gloss == None`.
+    materials: Vec<(wgpu::Buffer, MaterialUniforms)>,
+}
+
+struct EnvGpu {
+    priors: HemispherePriors,
+    exposure: f32,
+    /// World heading (radians, clockwise from North) of the cube map's front (+Z) face.
+    heading: f32,
+}
+
+struct Timestamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    read: wgpu::Buffer,
+    period_ns: f32,
+}
+
+/// GPU state for compositing at one output size.
+pub struct Compositor {
+    pipelines: Pipelines,
+    width: u32,
+    height: u32,
+    frame_buf: wgpu::Buffer,
+    instance_buf: wgpu::Buffer,
+    ground_buf: wgpu::Buffer,
+    shadow_view: wgpu::TextureView,
+    msaa_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    resolve: wgpu::Texture,
+    resolve_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+    background: wgpu::Texture,
+    background_view: wgpu::TextureView,
+    background_from_env: bool,
+    white: wgpu::TextureView,
+    env: Option<EnvGpu>,
+    model: Option<ModelGpu>,
+    env_view_bg: Option<wgpu::BindGroup>,
+    background_bg: wgpu::BindGroup,
+    shadow_bg: wgpu::BindGroup,
+    ground_bg: wgpu::BindGroup,
+    model_bg: Option<wgpu::BindGroup>,
+    timestamps: Option<Timestamps>,
+}
+
+fn target(
+    device: &wgpu::Device,
+    label: &str,
+    w: u32,
+    h: u32,
+    format: wgpu::TextureFormat,
+    samples: u32,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: samples,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+fn uniform_buffer(device: &wgpu::Device, label: &str, size: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Upload an sRGB RGBA8 image as a sampled texture.
+fn upload_rgba8(gpu: &Gpu, label: &str, image: &Rgba8Image) -> wgpu::TextureView {
+    let texture = target(
+        &gpu.device,
+        label,
+        image.width,
+        image.height,
+        COLOR_FORMAT,
+        1,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+    );
+    write_rgba8(gpu, &texture, image);
+    texture.create_view(&Default::default())
+}
+
+fn write_rgba8(gpu: &Gpu, texture: &wgpu::Texture, image: &Rgba8Image) {
+    gpu.queue.write_texture(
+        texture.as_image_copy(),
+        &image.pixels,
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * image.width), rows_per_image: None },
+        wgpu::Extent3d { width: image.width, height: image.height, depth_or_array_layers: 1 },
+    );
+}
+
+fn check_size(width: u32, height: u32, gpu: &Gpu) -> Result<()> {
+    let max = gpu.device.limits().max_texture_dimension_2d;
+    if width == 0 || height == 0 || width > max || height > max {
+        bail!("image size {width}x{height} is outside 1..={max} pixels per side (this GPU's limit)");
+    }
+    Ok(())
+}
+
+impl Compositor {
+    /// Pipelines and targets for `width`×`height` output.
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
+        check_size(width, height, gpu)?;
+        let device = &gpu.device;
+        let pipelines = Pipelines::new(device);
+        let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let shadow =
+            target(device, "shadow map", SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);
+        let msaa = target(device, "msaa colour", width, height, COLOR_FORMAT, SAMPLES, attach);
+        let depth = target(device, "depth", width, height, DEPTH_FORMAT, SAMPLES, attach);
+        let resolve = target(device, "resolve", width, height, COLOR_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
+        let background = target(
+            device,
+            "background",
+            width,
+            height,
+            COLOR_FORMAT,
+            1,
+            attach | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
+        let padded_row = (4 * width).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(padded_row) * u64::from(height),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let frame_buf = uniform_buffer(device, "frame", std::mem::size_of::<FrameUniforms>());
+        let instance_buf = uniform_buffer(device, "instance", std::mem::size_of::<InstanceUniforms>());
+        let ground_buf = uniform_buffer(device, "ground plane", std::mem::size_of::<InstanceUniforms>());
+        let shadow_view = shadow.create_view(&Default::default());
+        let background_view = background.create_view(&Default::default());
+        let white = upload_rgba8(gpu, "white", &Rgba8Image { width: 1, height: 1, pixels: vec![255; 4] });
+        let background_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("background"),
+            layout: &pipelines.background_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&background_view) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&pipelines.linear_sampler) },
+            ],
+        });
+        let shadow_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow"),
+            layout: &pipelines.shadow_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: frame_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: instance_buf.as_entire_binding() },
+            ],
+        });
+        let ground_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ground"),
+            layout: &pipelines.ground_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: frame_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: ground_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&shadow_view) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&pipelines.shadow_sampler) },
+            ],
+        });
+        let timestamps = gpu.timestamps.then(|| {
+            let set =
+                device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("timestamps"), ty: wgpu::QueryType::Timestamp, count: 2 });
+            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp resolve"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamp read"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            Timestamps { set, resolve, read, period_ns: gpu.queue.get_timestamp_period() }
+        });
+        Ok(Compositor {
+            pipelines,
+            width,
+            height,
+            frame_buf,
+            instance_buf,
+            ground_buf,
+            shadow_view,
+            msaa_view: msaa.create_view(&Default::default()),
+            depth_view: depth.create_view(&Default::default()),
+            resolve_view: resolve.create_view(&Default::default()),
+            resolve,
+            readback,
+            padded_row,
+            background,
+            background_view,
+            background_from_env: true,
+            white,
+            env: None,
+            model: None,
+            env_view_bg: None,
+            background_bg,
+            shadow_bg,
+            ground_bg,
+            model_bg: None,
+            timestamps,
+        })
+    }
+
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Upload the environment cube map, scaled by `exposure` (linear light), and its priors.
+    /// `heading` (radians, clockwise from North) is the world direction of the map's front (+Z)
+    /// face: 0 for maps already aligned with North, a capture's reference heading otherwise.
+    pub fn set_environment(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
+        if !(exposure.is_finite() && exposure > 0.0) {
+            bail!("environment exposure must be a positive number, got {exposure}");
+        }
+        if !heading.is_finite() {
+            bail!("environment heading must be a finite angle");
+        }
+        let size = cube.size;
+        check_size(size, size, gpu)?;
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("environment"),
+            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 6 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba16Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        for (layer, face) in cube.faces.iter().enumerate() {
+            if face.len() != (size * size) as usize {
+                bail!("cube-map face {} has {} pixels, expected {size}x{size}", crate::scene::FACE_NAMES[layer], face.len());
+            }
+            let halfs: Vec<half::f16> =
+                face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect();
+            gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&halfs),
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(8 * size), rows_per_image: Some(size) },
+                wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 1 },
+            );
+        }
+        let view =
+            texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() });
+        let priors = hemisphere_priors(cube, exposure);
+        self.env_view_bg = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("env view"),
+            layout: &self.pipelines.env_view_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.frame_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&self.pipelines.linear_sampler) },
+            ],
+        }));
+        self.model_bg = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("model"),
+            layout: &self.pipelines.model_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.frame_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: self.instance_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&self.pipelines.linear_sampler) },
+                wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&self.background_view) },
+                wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::Sampler(&self.pipelines.linear_sampler) },
+                wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&self.shadow_view) },
+                wgpu::BindGroupEntry { binding: 7, resource: wgpu::BindingResource::Sampler(&self.pipelines.shadow_sampler) },
+            ],
+        }));
+        self.env = Some(EnvGpu { priors, exposure, heading });
+        Ok(())
+    }
+
+    /// The environment's hemisphere priors after exposure (None before `set_environment`).
+    pub fn priors(&self) -> Option<HemispherePriors> {
+        self.env.as_ref().map(|e| e.priors)
+    }
+
+    /// Upload a model: one vertex/index buffer and material bind group per mesh.
+    pub fn set_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
+        let bounds = model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
+        if !(bounds.0.is_finite() && bounds.1.is_finite()) {
+            bail!("the model has non-finite vertex positions");
+        }
+        use wgpu::util::DeviceExt;
+        let device = &gpu.device;
+        let mut textures = Vec::with_capacity(model.materials.len());
+        for m in &model.materials {
+            textures.push(m.texture.as_ref().map(|t| upload_rgba8(gpu, &m.name, t)));
+        }
+        let mut meshes = Vec::new();
+        let mut materials = Vec::new();
+        for mesh in &model.meshes {
+            if mesh.indices.is_empty() {
+                continue;
+            }
+            let n = mesh.positions.len();
+            if mesh.normals.len() != n || (!mesh.uvs.is_empty() && mesh.uvs.len() != n) {
+                bail!("a mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
+            }
+            if let Some(&bad) = mesh.indices.iter().find(|&&i| i as usize >= n) {
+                bail!("a mesh index ({bad}) points past its {n} vertices");
+            }
+            let vertices: Vec<Vertex> = (0..n)
+                .map(|i| Vertex {
+                    position: mesh.positions[i],
+                    normal: mesh.normals[i],
+                    uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
+                })
+                .collect();
+            let material =
+                model.materials.get(mesh.material).ok_or_else(|| anyhow!("a mesh refers to missing material {}", mesh.material))?;
+            let uniforms = MaterialUniforms {
+                albedo: [material.diffuse[0], material.diffuse[1], material.diffuse[2], if material.texture.is_some() { 1.0 } else { 0.0 }],
+                specular: [material.specular[0], material.specular[1], material.specular[2], material.shininess],
+                terms: [1.0, 1.0, 1.0, 0.0],
+            };
+            let material_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("material"),
+                contents: bytemuck::bytes_of(&uniforms),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+            let texture = textures[mesh.material].as_ref().unwrap_or(&self.white);
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("material"),
+                layout: &self.pipelines.material_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: material_buf.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(texture) },
+                    wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&self.pipelines.repeat_sampler) },
+                ],
+            });
+            meshes.push(MeshGpu {
+                vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("vertices"),
+                    contents: bytemuck::cast_slice(&vertices),
+                    usage: wgpu::BufferUsages::VERTEX,
+                }),
+                indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("indices"),
+                    contents: bytemuck::cast_slice(&mesh.indices),
+                    usage: wgpu::BufferUsages::INDEX,
+                }),
+                index_count: mesh.indices.len() as u32,
+                material: bind,
+            });
+            materials.push((material_buf, uniforms));
+        }
+        if meshes.is_empty() {
+            bail!("the model has no triangles");
+        }
+        self.model = Some(ModelGpu { meshes, bounds, materials });
+        Ok(())
+    }
+
+    /// The loaded model's bounds in model space.
+    pub fn model_bounds(&self) -> Option<(Vec3, Vec3)> {
+        self.model.as_ref().map(|m| m.bounds)
+    }
+
+    /// Use a photograph (or a camera frame) as the background, or `None` for the environment
+    /// seen by the camera. The image must already be the output size (see
+    /// `scene::background::fit`); a camera frame of the same size is re-uploaded with this call
+    /// each frame (one `write_texture`).
+    pub fn set_background(&mut self, gpu: &Gpu, image: Option<&Rgba8Image>) -> Result<()> {
+        match image {
+            None => self.background_from_env = true,
+            Some(img) => {
+                if (img.width, img.height) != (self.width, self.height) {
+                    bail!("background is {}x{}, the output is {}x{}", img.width, img.height, self.width, self.height);
+                }
+                if img.pixels.len() != (4 * img.width * img.height) as usize {
+                    bail!("background pixel buffer has the wrong length");
+                }
+                write_rgba8(gpu, &self.background, img);
+                self.background_from_env = false;
+            }
+        }
+        Ok(())
+    }
+
+    /// The uniform values for a frame (pure: no GPU access).
+    pub fn frame_uniforms(&self, p: &FrameParams) -> Result<(FrameUniforms, InstanceUniforms, InstanceUniforms)> {
+        let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        Ok(frame_uniforms(p, model.bounds, &env.priors, env.exposure, env.heading, self.width, self.height))
+    }
+
+    /// Render one image of `layer` and read it back.
+    pub fn render(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
+        let t0 = Instant::now();
+        let (frame, instance, ground) = self.frame_uniforms(p)?;
+        gpu.queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
+        gpu.queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&instance));
+        gpu.queue.write_buffer(&self.ground_buf, 0, bytemuck::bytes_of(&ground));
+        if let Some(model) = &self.model {
+            for (buf, base) in &model.materials {
+                let mut m = *base;
+                let t = p.lighting.material;
+                m.terms = [t.ambient, t.diffuse, t.specular, 0.0];
+                if let Some(g) = t.gloss {
+                    m.specular[3] = g;
+                }
+                gpu.queue.write_buffer(buf, 0, bytemuck::bytes_of(&m));
+            }
+        }
+        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        self.encode_frame(&mut encoder, layer)?;
+        encoder.copy_texture_to_buffer(
+            self.resolve.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(self.padded_row), rows_per_image: None },
+            },
+            wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
+        );
+        if let Some(ts) = &self.timestamps {
+            encoder.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
+            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &ts.read, 0, 16);
+        }
+        let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let t1 = Instant::now();
+        gpu.queue.submit([encoder.finish()]);
+        let rgba = self.read_pixels(gpu)?;
+        let gpu_ms = self.read_timestamps(gpu)?;
+        let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
+        Ok(Rendered { width: self.width, height: self.height, rgba, timings: Timings { encode_ms, gpu_ms, readback_ms } })
+    }
+
+    /// The passes of one frame, top-down (DESIGN.md "One frame"). The camera image was uploaded
+    /// by `set_background`; nothing here allocates GPU resources.
+    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer) -> Result<()> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let model_bg = self.model_bg.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let env_view_bg = self.env_view_bg.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let ts = self.timestamps.as_ref();
+        // The first pass recorded writes the start timestamp, the composite pass the end.
+        let shadows = layer != Layer::Background;
+        let stamp = |begin: bool, end: bool| {
+            ts.map(|t| wgpu::RenderPassTimestampWrites {
+                query_set: &t.set,
+                beginning_of_pass_write_index: begin.then_some(0),
+                end_of_pass_write_index: end.then_some(1),
+            })
+        };
+
+        // 2. Shadow pass: the model's depth seen from the sun (not needed for the background alone).
+        if shadows {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("shadow"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.shadow_view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: stamp(true, false),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipelines.shadow);
+            pass.set_bind_group(0, &self.shadow_bg, &[]);
+            for mesh in &model.meshes {
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            }
+        }
+
+        // 3a. The environment seen by the camera becomes the background when there is no photo.
+        if self.background_from_env {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("environment view"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.background_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: stamp(!shadows, false),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipelines.env_view);
+            pass.set_bind_group(0, env_view_bg, &[]);
+            pass.draw(0..3, 0..1);
+        }
+
+        // 3b-5. Background, ground shadow, model into the multisampled target.
+        let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("composite"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.msaa_view,
+                depth_slice: None,
+                resolve_target: Some(&self.resolve_view),
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Discard },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth_view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: stamp(!shadows && !self.background_from_env, true),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if layer != Layer::Model {
+            // 3b. Background pass: the camera image fills the target.
+            pass.set_pipeline(&self.pipelines.background);
+            pass.set_bind_group(0, &self.background_bg, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        if layer == Layer::Composite {
+            // 4. Ground pass: the shadow catcher darkens the background under the model.
+            pass.set_pipeline(&self.pipelines.ground);
+            pass.set_bind_group(0, &self.ground_bg, &[]);
+            pass.draw(0..6, 0..1);
+        }
+        if layer != Layer::Background {
+            // 5. Model pass: shading, reflection/refraction, one fragment shader.
+            pass.set_pipeline(&self.pipelines.model);
+            pass.set_bind_group(0, model_bg, &[]);
+            for mesh in &model.meshes {
+                pass.set_bind_group(1, &mesh.material, &[]);
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            }
+        }
+        Ok(())
+    }
+
+    fn read_pixels(&self, gpu: &Gpu) -> Result<Vec<u8>> {
+        let slice = self.readback.slice(..);
+        map_blocking(gpu, slice)?;
+        let data = slice.get_mapped_range().context("reading back the image failed")?;
+        let row = (4 * self.width) as usize;
+        let mut out = Vec::with_capacity(row * self.height as usize);
+        for chunk in data.chunks(self.padded_row as usize).take(self.height as usize) {
+            out.extend_from_slice(&chunk[..row]);
+        }
+        drop(data);
+        self.readback.unmap();
+        Ok(out)
+    }
+
+    fn read_timestamps(&self, gpu: &Gpu) -> Result<Option<f64>> {
+        let Some(ts) = &self.timestamps else { return Ok(None) };
+        let slice = ts.read.slice(..);
+        map_blocking(gpu, slice)?;
+        let data = slice.get_mapped_range().context("reading back the timestamps failed")?;
+        let t: &[u64] = bytemuck::cast_slice(&data);
+        let ms = t[1].saturating_sub(t[0]) as f64 * f64::from(ts.period_ns) / 1e6;
+        drop(data);
+        ts.read.unmap();
+        Ok(Some(ms))
+    }
+}
+
+fn map_blocking(gpu: &Gpu, slice: wgpu::BufferSlice<'_>) -> Result<()> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU failed")?;
+    rx.recv().context("the GPU readback was dropped")?.context("mapping the readback buffer failed")
+}
+
+fn mat(m: Mat4) -> [[f32; 4]; 4] {
+    m.to_cols_array_2d()
+}
+
+/// Uniforms of a frame: camera, model/ground transforms, sun shadow camera, lights, priors.
+pub fn frame_uniforms(
+    p: &FrameParams,
+    bounds: (Vec3, Vec3),
+    priors: &HemispherePriors,
+    exposure: f32,
+    env_heading: f32,
+    width: u32,
+    height: u32,
+) -> (FrameUniforms, InstanceUniforms, InstanceUniforms) {
+    let aspect = width as f32 / height as f32;
+    let model = view::model_matrix(bounds, &p.placement);
+    // World bounding sphere of the placed model.
+    let centre_model = 0.5 * (bounds.0 + bounds.1);
+    let centre = model.transform_point3(centre_model);
+    let radius = (0.5 * (bounds.1 - bounds.0).length() * p.placement.scale).max(1e-4);
+    let distance = (centre - p.camera.position).length();
+    let near = (distance - 4.0 * radius).max(distance * 1e-3).max(1e-3);
+    let far = (distance + 50.0 * radius).max(near * 2.0);
+    let proj = view::projection(p.camera.vfov, aspect, near, far);
+    let view_m = view::view_matrix(p.camera.pose, p.camera.position);
+    let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
+    let light = view::sun_view_proj(sun, centre, radius);
+    // The ground plane: a square under the model, large enough for long low-sun shadows.
+    let ground = Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::new(40.0 * radius, 40.0 * radius, 1.0));
+    let (hs, hc) = env_heading.sin_cos();
+    let frame = FrameUniforms {
+        view_proj: mat(proj * view_m),
+        view: mat(view_m),
+        light_view_proj: mat(light),
+        camera_pos: p.camera.position.extend(1.0).to_array(),
+        sun: sun.extend(p.lighting.sunlight).to_array(),
+        up: [0.0, 0.0, 1.0, p.lighting.daylight],
+        sky: [priors.sky[0], priors.sky[1], priors.sky[2], priors.light],
+        ground: [priors.ground[0], priors.ground[1], priors.ground[2], priors.shadow],
+        env: [hc, hs, exposure, 0.0],
+        params: [p.lighting.reflection, 1.0 / p.lighting.ior, p.lighting.shadow_opacity, p.lighting.live_depth],
+        viewport: [width as f32, height as f32, (0.5 * p.camera.vfov).tan(), aspect],
+        mode: [p.method.shader_id(), SHADOW_MAP_SIZE, 0, 0],
+    };
+    let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
+    let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
+    (frame, instance, ground)
+}
+
+/// Hemisphere priors of a cube map after exposure: sky/ground = mean colour of the +Y/−Y faces;
+/// occlusion light/shadow = 99th/1st percentile of BT.709 luminance over the four horizontal
+/// faces (robust against one bright pixel, unlike the seed's single-pixel max/min).
+pub fn hemisphere_priors(cube: &CubeMap, exposure: f32) -> HemispherePriors {
+    let mean = |face: &[[f32; 3]]| {
+        let n = face.len().max(1) as f64;
+        let s = face.iter().fold([0f64; 3], |a, p| [a[0] + f64::from(p[0]), a[1] + f64::from(p[1]), a[2] + f64::from(p[2])]);
+        [(s[0] / n) as f32 * exposure, (s[1] / n) as f32 * exposure, (s[2] / n) as f32 * exposure]
+    };
+    let mut lum: Vec<f32> = [0usize, 1, 4, 5]
+        .iter()
+        .flat_map(|&f| cube.faces[f].iter())
+        .map(|p| crate::colour::luminance_bt709(*p) * exposure)
+        .filter(|l| l.is_finite())
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let pct = |q: f32| if lum.is_empty() { 0.0 } else { lum[((lum.len() - 1) as f32 * q).round() as usize] };
+    HemispherePriors { sky: mean(&cube.faces[2]), ground: mean(&cube.faces[3]), light: pct(0.99), shadow: pct(0.01) }
+}

@@ -1,0 +1,49 @@
+//! The WGSL sources, one file per technique, each appended to the shared `frame.wgsl`.
+
+/// A render technique with its own shader file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Technique {
+    Background,
+    EnvView,
+    Shadow,
+    Ground,
+    Model,
+}
+
+impl Technique {
+    pub const ALL: [Technique; 5] = [Technique::Background, Technique::EnvView, Technique::Shadow, Technique::Ground, Technique::Model];
+
+    fn file(self) -> &'static str {
+        match self {
+            Technique::Background => include_str!("../../../shaders/background.wgsl"),
+            Technique::EnvView => include_str!("../../../shaders/env_view.wgsl"),
+            Technique::Shadow => include_str!("../../../shaders/shadow.wgsl"),
+            Technique::Ground => include_str!("../../../shaders/ground.wgsl"),
+            Technique::Model => include_str!("../../../shaders/model.wgsl"),
+        }
+    }
+}
+
+/// Shared structs and helpers, prepended to every technique.
+pub const FRAME_WGSL: &str = include_str!("../../../shaders/frame.wgsl");
+
+/// The complete WGSL module for a technique.
+pub fn source(t: Technique) -> String {
+    format!("{FRAME_WGSL}\n{}", t.file())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_shader_parses_and_validates() {
+        for t in Technique::ALL {
+            let src = source(t);
+            let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{t:?}: {}", e.emit_to_string(&src)));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{t:?}: {}", e.emit_to_string(&src)));
+        }
+    }
+}

@@ -1,0 +1,87 @@
+// Shared structs and helpers for every Previz pass. Each technique file is appended to this one
+// (see render::shaders); the Rust mirrors live in app/src/render/uniforms.rs and a test checks
+// their layout against naga's.
+//
+// Frames: world = ENU (+x East, +y North, +z Up), metres. Cube-map sampling directions are
+// world directions passed through enu_to_cube (the one convention, also in scene::enu_to_cube).
+
+struct Frame {
+    // world -> clip of the camera
+    view_proj: mat4x4<f32>,
+    // world -> camera (view space: +x right, +y up, looking along -z)
+    view: mat4x4<f32>,
+    // world -> clip of the sun's orthographic shadow camera (wgpu depth 0..1)
+    light_view_proj: mat4x4<f32>,
+    // camera position in world space (w unused)
+    camera_pos: vec4<f32>,
+    // xyz: unit direction to the sun (world); w: sunlight intensity l_s (0 below the horizon)
+    sun: vec4<f32>,
+    // xyz: world up; w: daylight intensity l_d
+    up: vec4<f32>,
+    // rgb: upper hemisphere (sky) colour, linear; w: hemisphere-occlusion light level
+    sky: vec4<f32>,
+    // rgb: lower hemisphere (ground) colour, linear; w: hemisphere-occlusion shadow level
+    ground: vec4<f32>,
+    // x: cos, y: sin of the environment's heading rotation; z: environment exposure; w: unused
+    env: vec4<f32>,
+    // x: reflection strength, y: relative refractive index (eta = n_outside / n_inside),
+    // z: shadow opacity on the ground, w: live-feed refraction depth (metres)
+    params: vec4<f32>,
+    // x, y: target size in pixels; z: tan(vfov / 2); w: aspect ratio
+    viewport: vec4<f32>,
+    // x: method (see render::Method), y: shadow map size, z, w: unused
+    mode: vec4<u32>,
+};
+
+// One model instance: model space -> world, and its normal matrix (inverse transpose, 3x3 in a 4x4).
+struct Instance {
+    model: mat4x4<f32>,
+    normal: mat4x4<f32>,
+};
+
+// ENU -> cube sampling space, after rotating the environment by its heading about Up.
+fn env_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
+    let c = frame.env.x;
+    let s = frame.env.y;
+    // Rotate azimuths by -heading: the world direction at the environment heading samples the
+    // cube map front (+Z, North in an unrotated map).
+    let r = vec3<f32>(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+    return vec3<f32>(r.x, r.z, r.y);
+}
+
+// A full-screen triangle: vertex index 0..3 -> clip position, uv with (0,0) top-left.
+struct FullScreen {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+};
+
+fn full_screen(index: u32) -> FullScreen {
+    var out: FullScreen;
+    let x = f32((index << 1u) & 2u);
+    let y = f32(index & 2u);
+    out.clip = vec4<f32>(x * 2.0 - 1.0, 1.0 - y * 2.0, 0.0, 1.0);
+    out.uv = vec2<f32>(x, y);
+    return out;
+}
+
+// Fraction of sunlight reaching world point p (1 = lit), 3x3 PCF over the sun's depth map.
+// Points outside the shadow camera's footprint are lit: every occluder (the model) is inside it.
+fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, p: vec3<f32>) -> f32 {
+    let clip = frame.light_view_proj * vec4<f32>(p, 1.0);
+    let ndc = clip.xyz / clip.w;
+    let uv = vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+    if (any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0))) {
+        return 1.0;
+    }
+    // Receivers beyond the far plane (the ground far behind the model) compare as depth 1.
+    let depth = min(ndc.z, 1.0) - 0.002;
+    let texel = 1.0 / f32(frame.mode.y);
+    var lit = 0.0;
+    for (var y = -1; y <= 1; y++) {
+        for (var x = -1; x <= 1; x++) {
+            let o = vec2<f32>(f32(x), f32(y)) * texel;
+            lit += textureSampleCompareLevel(map, smp, uv + o, depth);
+        }
+    }
+    return lit / 9.0;
+}

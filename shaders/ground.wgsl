@@ -1,0 +1,35 @@
+// Ground pass: an invisible shadow-catcher plane under the model. It darkens the background
+// where the model shadows the sun and leaves it untouched elsewhere.
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> plane: Instance;
+@group(0) @binding(2) var shadow_map: texture_depth_2d;
+@group(0) @binding(3) var shadow_smp: sampler_comparison;
+
+struct GroundOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+};
+
+@vertex
+fn vs_main(@builtin(vertex_index) index: u32) -> GroundOut {
+    // Two triangles covering the unit square [-1, 1]^2 at z = 0, placed by plane.model.
+    var corners = array<vec2<f32>, 6>(
+        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
+        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
+    );
+    let world = plane.model * vec4<f32>(corners[index], 0.0, 1.0);
+    var out: GroundOut;
+    out.world = world.xyz;
+    out.clip = frame.view_proj * world;
+    return out;
+}
+
+@fragment
+fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
+    let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world);
+    // The shadow removes the sun's share of the light; opacity says how large that share is.
+    let sun_up = select(0.0, 1.0, frame.sun.z > 0.0) * min(frame.sun.w, 1.0);
+    let alpha = frame.params.z * sun_up * (1.0 - visibility);
+    return vec4<f32>(0.0, 0.0, 0.0, alpha);
+}

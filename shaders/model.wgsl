@@ -1,0 +1,141 @@
+// Model pass: one fragment shader for every lighting method (seed 000 §5.3-5.5, Appendix D/E),
+// chosen at run time by frame.mode.x. All lighting happens in world space (ENU), in linear light.
+//
+// Methods (render::Method):
+//   0 blinn-phong           modified Blinn-Phong, Eq. 3: ambient a_c * l_d + sun (diffuse, specular) * l_s
+//   1 hemisphere            Eq. 3 with the ambient light from hemisphere lighting, Eq. 6
+//   2 hemisphere-occlusion  Eq. 3 with the ambient light from hemisphere occlusion (§5.4.2)
+//   3 cube-reflection       hemisphere-lit model mixed with the cube map seen in the reflection
+//   4 cube-refraction       transparent material, Eq. 7, refracting the cube map
+//   5 live-reflection       hemisphere-lit model mixed with the camera image as a mirror ball
+//   6 live-refraction       transparent material, Eq. 7, refracting the camera image (§5.5.3)
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> instance: Instance;
+@group(0) @binding(2) var env_tex: texture_cube<f32>;
+@group(0) @binding(3) var env_smp: sampler;
+@group(0) @binding(4) var background_tex: texture_2d<f32>;
+@group(0) @binding(5) var background_smp: sampler;
+@group(0) @binding(6) var shadow_map: texture_depth_2d;
+@group(0) @binding(7) var shadow_smp: sampler_comparison;
+
+struct Material {
+    // rgb: diffuse colour (linear); a: 1 when the diffuse texture is used
+    albedo: vec4<f32>,
+    // rgb: specular colour (linear); a: gloss exponent g_f
+    specular: vec4<f32>,
+    // x: ambient term a_c, y: diffuse term d_c, z: specular term s_c, w: unused
+    terms: vec4<f32>,
+};
+
+@group(1) @binding(0) var<uniform> material: Material;
+@group(1) @binding(1) var diffuse_tex: texture_2d<f32>;
+@group(1) @binding(2) var diffuse_smp: sampler;
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+};
+
+@vertex
+fn vs_main(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+) -> VertexOut {
+    var out: VertexOut;
+    let world = instance.model * vec4<f32>(position, 1.0);
+    out.world = world.xyz;
+    out.normal = (instance.normal * vec4<f32>(normal, 0.0)).xyz;
+    out.uv = uv;
+    out.clip = frame.view_proj * world;
+    return out;
+}
+
+// Eq. 6: blend factor of the upper hemisphere for a normal (1 = facing straight up).
+fn hemisphere_blend(n: vec3<f32>) -> f32 {
+    return 0.5 + 0.5 * dot(n, frame.up.xyz);
+}
+
+// The ambient light colour reaching a surface with normal n, per method.
+fn ambient_light(n: vec3<f32>, method: u32) -> vec3<f32> {
+    let a = hemisphere_blend(n);
+    if (method == 0u) {
+        return vec3<f32>(1.0);
+    }
+    if (method == 2u) {
+        // Hemisphere occlusion: greyscale light level above, shadow level below (§5.4.2).
+        return vec3<f32>(mix(frame.ground.w, frame.sky.w, a));
+    }
+    return mix(frame.ground.rgb, frame.sky.rgb, a);
+}
+
+// Screen uv (0,0 top-left) of a world point.
+fn screen_uv(p: vec3<f32>) -> vec2<f32> {
+    let clip = frame.view_proj * vec4<f32>(p, 1.0);
+    let ndc = clip.xy / clip.w;
+    return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+}
+
+// Blinn-Phong specular factor (Eq. 3); `two_sided` leaves the sign of N.H to the caller.
+fn specular_factor(n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> f32 {
+    let h = normalize(l + e);
+    return pow(max(dot(n, h), 0.0), max(material.specular.a, 1.0));
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let method = frame.mode.x;
+    var n = normalize(in.normal);
+    let e = normalize(frame.camera_pos.xyz - in.world); // towards the camera
+    let l = frame.sun.xyz;                                // towards the sun
+    let l_s = frame.sun.w;
+    let l_d = frame.up.w;
+
+    if (method == 4u || method == 6u) {
+        // Transparent material, Eq. 7: C = r_c + s_f. Two-sided: the normal is turned to face
+        // the viewer (by geometry, so it does not depend on the mesh's winding).
+        if (dot(n, e) < 0.0) {
+            n = -n;
+        }
+        let sf = specular_factor(n, l, e) * l_s * material.terms.z;
+        let t = refract(-e, n, frame.params.y);
+        var rc: vec3<f32>;
+        if (method == 4u) {
+            rc = textureSampleLevel(env_tex, env_smp, env_dir(frame, t), 0.0).rgb * frame.env.z;
+        } else {
+            // Where the refracted ray lands a little way behind the surface, seen by the camera.
+            let uv = screen_uv(in.world + t * frame.params.w);
+            rc = textureSampleLevel(background_tex, background_smp, clamp(uv, vec2<f32>(0.0), vec2<f32>(1.0)), 0.0).rgb;
+        }
+        return vec4<f32>(rc + vec3<f32>(sf), 1.0);
+    }
+
+    // Opaque, one-sided lighting (Eq. 3): factors are clamped at zero, so a surface facing away
+    // from the sun gets only ambient light.
+    var albedo = material.albedo.rgb;
+    if (material.albedo.a > 0.5) {
+        albedo = albedo * textureSample(diffuse_tex, diffuse_smp, in.uv).rgb;
+    }
+    let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
+    let df = max(dot(n, l), 0.0) * visibility;
+    let sf = specular_factor(n, l, e) * visibility * select(0.0, 1.0, dot(n, l) > 0.0);
+    let ambient = ambient_light(n, method) * material.terms.x * l_d;
+    let direct = material.terms.y * df * l_s;
+    var colour = albedo * (ambient + vec3<f32>(direct)) + material.specular.rgb * material.terms.z * sf * l_s;
+
+    if (method == 3u) {
+        let r = reflect(-e, n);
+        let env = textureSampleLevel(env_tex, env_smp, env_dir(frame, r), 0.0).rgb * frame.env.z;
+        colour = mix(colour, env, frame.params.x);
+    } else if (method == 5u) {
+        // Seed §5.5.3: the reflection vector in camera space indexes the camera image.
+        let r_view = (frame.view * vec4<f32>(reflect(-e, n), 0.0)).xyz;
+        let uv = vec2<f32>(r_view.x * 0.5 + 0.5, 0.5 - r_view.y * 0.5);
+        let live = textureSampleLevel(background_tex, background_smp, uv, 0.0).rgb;
+        colour = mix(colour, live, frame.params.x);
+    }
+    return vec4<f32>(colour, 1.0);
+}

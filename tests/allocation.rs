@@ -1,0 +1,50 @@
+//! Per-frame work allocates no GPU resources, and further frames reuse the pipelines. Alone in
+//! its own test binary: wgpu's counters are per device, and other tests would allocate.
+
+mod common;
+
+use common::{gpu, scene};
+use previz::cli::composite::{Inputs, prepare};
+use previz::render::Layer;
+use previz::scene::{CubeMap, Material, Mesh, Model};
+
+fn triangle() -> Model {
+    let mesh = Mesh {
+        positions: vec![[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]],
+        normals: vec![[0.0, 0.0, 1.0]; 3],
+        uvs: vec![[0.0, 0.0]; 3],
+        indices: vec![0, 1, 2],
+        material: 0,
+    };
+    Model { meshes: vec![mesh], materials: vec![Material::default()] }
+}
+
+#[test]
+fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
+    let s = scene("width = 160\nheight = 120\n");
+    let inputs =
+        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
+    compositor.render(gpu(), &params, Layer::Composite).unwrap();
+    let before = gpu().device.get_internal_counters().hal;
+    // The counters only count with wgpu's `counters` feature; without it this test would be empty.
+    assert!(before.buffers.read() > 0 && before.render_pipelines.read() > 0, "wgpu counters are not enabled");
+    for i in 0..5 {
+        params.camera.pose *= glam::Quat::from_rotation_y(0.1 * i as f32);
+        for layer in [Layer::Composite, Layer::Model, Layer::Background] {
+            compositor.render(gpu(), &params, layer).unwrap();
+        }
+    }
+    let after = gpu().device.get_internal_counters().hal;
+    for (name, a, b) in [
+        ("buffers", &before.buffers, &after.buffers),
+        ("textures", &before.textures, &after.textures),
+        ("texture views", &before.texture_views, &after.texture_views),
+        ("bind groups", &before.bind_groups, &after.bind_groups),
+        ("render pipelines", &before.render_pipelines, &after.render_pipelines),
+        ("shader modules", &before.shader_modules, &after.shader_modules),
+        ("samplers", &before.samplers, &after.samplers),
+    ] {
+        assert_eq!(a.read(), b.read(), "{name} changed across frames");
+    }
+}

@@ -1,0 +1,114 @@
+//! Shared test harness: one GPU device per test binary, scenes from TOML text, and golden-image
+//! comparison with NVIDIA FLIP.
+#![allow(dead_code)]
+
+use previz::cli::composite::{Inputs, load_inputs, prepare};
+use previz::render::{Layer, Rendered, gpu::Gpu};
+use previz::scene::file::{Scene, SceneBuilder};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// The shared test data folder (`../shared/data` beside the checkout).
+pub fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
+}
+
+pub fn gpu() -> &'static Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| Gpu::headless().expect("a Vulkan/GL adapter (lavapipe in CI)"))
+}
+
+/// A scene from TOML whose relative paths are relative to the shared data folder.
+pub fn scene(toml: &str) -> Scene {
+    SceneBuilder::from_toml(toml, &data("")).unwrap().build().unwrap()
+}
+
+pub fn inputs(scene: &Scene) -> Inputs {
+    load_inputs(scene, false).unwrap()
+}
+
+/// Render one layer of a scene with already-loaded inputs.
+pub fn render_with(scene: &Scene, inputs: &Inputs, layer: Layer) -> Rendered {
+    let (mut compositor, params) = prepare(gpu(), scene, inputs).unwrap();
+    compositor.render(gpu(), &params, layer).unwrap()
+}
+
+/// Render the composite of a scene given as TOML.
+pub fn render(toml: &str) -> Rendered {
+    let s = scene(toml);
+    let i = inputs(&s);
+    render_with(&s, &i, Layer::Composite)
+}
+
+/// Linear-ish helpers on the 8-bit result.
+pub fn pixel(r: &Rendered, x: u32, y: u32) -> [u8; 4] {
+    let i = 4 * (y * r.width + x) as usize;
+    [r.rgba[i], r.rgba[i + 1], r.rgba[i + 2], r.rgba[i + 3]]
+}
+
+/// Mean RGB (0..255) over a rectangle.
+pub fn mean_rgb(r: &Rendered, x0: u32, y0: u32, x1: u32, y1: u32) -> [f64; 3] {
+    let mut s = [0f64; 3];
+    let mut n = 0f64;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let p = pixel(r, x, y);
+            for c in 0..3 {
+                s[c] += f64::from(p[c]);
+            }
+            n += 1.0;
+        }
+    }
+    s.map(|v| v / n)
+}
+
+fn rgb(r: &Rendered) -> Vec<u8> {
+    r.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect()
+}
+
+fn failures_dir() -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/golden-failures");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Mean FLIP must stay at or below wgpu's own bar (0.02) and the 99th percentile below 0.3
+/// (at most 1% of pixels may differ visibly). `PREVIZ_BLESS=1` rewrites the golden instead —
+/// only ever on purpose, after looking at the new image.
+pub const MAX_MEAN_FLIP: f32 = 0.02;
+pub const MAX_P99_FLIP: f32 = 0.3;
+
+pub fn assert_golden(name: &str, r: &Rendered) {
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden").join(format!("{name}.png"));
+    if std::env::var_os("PREVIZ_BLESS").is_some_and(|v| v == "1") {
+        image::save_buffer(&golden, &rgb(r), r.width, r.height, image::ExtendedColorType::Rgb8).unwrap();
+        eprintln!("blessed {}", golden.display());
+        return;
+    }
+    let reference = image::open(&golden)
+        .unwrap_or_else(|e| panic!("golden {} unreadable ({e}); render it with PREVIZ_BLESS=1 and look at it", golden.display()))
+        .to_rgb8();
+    assert_eq!((reference.width(), reference.height()), (r.width, r.height), "{name}: size differs from the golden");
+    let actual = rgb(r);
+    let error = nv_flip::flip(
+        nv_flip::FlipImageRgb8::with_data(r.width, r.height, reference.as_raw()),
+        nv_flip::FlipImageRgb8::with_data(r.width, r.height, &actual),
+        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+    );
+    let mut pool = nv_flip::FlipPool::from_image(&error);
+    let mean = pool.mean();
+    let p99 = pool.get_percentile(0.99, false);
+    if mean > MAX_MEAN_FLIP || p99 > MAX_P99_FLIP {
+        let dir = failures_dir();
+        let actual_path = dir.join(format!("{name}-actual.png"));
+        let diff_path = dir.join(format!("{name}-diff.png"));
+        image::save_buffer(&actual_path, &actual, r.width, r.height, image::ExtendedColorType::Rgb8).unwrap();
+        let diff = error.apply_color_lut(&nv_flip::magma_lut());
+        image::save_buffer(&diff_path, &diff.to_vec(), r.width, r.height, image::ExtendedColorType::Rgb8).unwrap();
+        panic!(
+            "{name}: FLIP mean {mean:.4} (max {MAX_MEAN_FLIP}), p99 {p99:.4} (max {MAX_P99_FLIP}); wrote {} and {}",
+            actual_path.display(),
+            diff_path.display()
+        );
+    }
+}

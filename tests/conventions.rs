@@ -1,0 +1,165 @@
+//! Tests that would catch a wrong convention: cube-map face mapping seen through the camera and
+//! through reflection, the sun's side, the hemisphere's sky, camera tilt.
+
+mod common;
+
+use common::{mean_rgb, render_with, scene};
+use previz::cli::composite::Inputs;
+use previz::render::{Layer, Rendered};
+use previz::scene::{CubeMap, Material, Mesh, Model};
+
+/// Cube map whose faces are solid colours (linear), in wgpu order +X, −X, +Y, −Y, +Z, −Z.
+fn solid_cube(colours: [[f32; 3]; 6]) -> CubeMap {
+    let size = 8;
+    CubeMap { size, faces: colours.map(|c| vec![c; (size * size) as usize]) }
+}
+
+const RED: [f32; 3] = [1.0, 0.0, 0.0];
+const CYAN: [f32; 3] = [0.0, 1.0, 1.0];
+const GREEN: [f32; 3] = [0.0, 1.0, 0.0];
+const MAGENTA: [f32; 3] = [1.0, 0.0, 1.0];
+const BLUE: [f32; 3] = [0.0, 0.0, 1.0];
+const YELLOW: [f32; 3] = [1.0, 1.0, 0.0];
+/// +X East red, −X West cyan, +Y Up green, −Y Down magenta, +Z North blue, −Z South yellow.
+const FACES: [[f32; 3]; 6] = [RED, CYAN, GREEN, MAGENTA, BLUE, YELLOW];
+
+fn sphere() -> Model {
+    let mut mesh = Mesh::default();
+    let (stacks, slices) = (64u32, 128u32);
+    for i in 0..=stacks {
+        let theta = std::f32::consts::PI * i as f32 / stacks as f32;
+        for j in 0..=slices {
+            let phi = 2.0 * std::f32::consts::PI * j as f32 / slices as f32;
+            let n = [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()];
+            mesh.positions.push(n);
+            mesh.normals.push(n);
+        }
+    }
+    for i in 0..stacks {
+        for j in 0..slices {
+            let a = i * (slices + 1) + j;
+            let b = a + slices + 1;
+            mesh.indices.extend_from_slice(&[a, a + 1, b, a + 1, b + 1, b]);
+        }
+    }
+    Model { meshes: vec![mesh], materials: vec![Material { diffuse: [0.8, 0.8, 0.8], specular: [0.0; 3], ..Default::default() }] }
+}
+
+/// Which face colour a pixel shows (nearest of the six, in 8-bit sRGB).
+fn nearest_face(p: [f64; 3]) -> usize {
+    let dist = |c: [f32; 3]| (0..3).map(|i| (p[i] - 255.0 * f64::from(c[i])).powi(2)).sum::<f64>();
+    (0..6).min_by(|&a, &b| dist(FACES[a]).total_cmp(&dist(FACES[b]))).unwrap()
+}
+
+fn patch(r: &Rendered, fx: f64, fy: f64) -> [f64; 3] {
+    let x = (fx * f64::from(r.width)) as u32;
+    let y = (fy * f64::from(r.height)) as u32;
+    mean_rgb(r, x - 2, y - 2, x + 3, y + 3)
+}
+
+/// Apparent radius of the auto-placed unit sphere, as a fraction of the (square) image side:
+/// its bounding box's sphere (radius √3 · scale) spans `fill` of the field of view.
+fn sphere_radius() -> f64 {
+    let s = scene("width = 240\nheight = 240\n");
+    let vfov = s.camera.vfov.to_radians();
+    let scale = s.placement.size / 2.0;
+    let distance = 3f64.sqrt() * scale / (s.placement.fill * vfov * 0.5).tan();
+    ((scale / distance).asin().tan() / (vfov * 0.5).tan()) * 0.5
+}
+
+fn render(toml: &str, env: CubeMap, layer: Layer) -> Rendered {
+    let s = scene(&format!("width = 240\nheight = 240\n{toml}"));
+    render_with(&s, &Inputs { model: sphere(), env, background: None }, layer)
+}
+
+#[test]
+fn environment_seen_by_the_camera_shows_the_right_faces() {
+    for (heading, pitch, face) in
+        [(0.0, 0.0, 4), (90.0, 0.0, 0), (180.0, 0.0, 5), (270.0, 0.0, 1), (-90.0, 0.0, 1), (0.0, 89.0, 2), (0.0, -89.0, 3)]
+    {
+        let r = render(&format!("[camera]\nheading = {heading}\npitch = {pitch}\n"), solid_cube(FACES), Layer::Background);
+        assert_eq!(nearest_face(patch(&r, 0.5, 0.5)), face, "heading {heading} pitch {pitch}");
+    }
+    // Looking North with a wide lens: East (+X, red) at the right edge, West (cyan) at the left.
+    let r = render("[camera]\nvfov = 120.0\n", solid_cube(FACES), Layer::Background);
+    assert_eq!(nearest_face(patch(&r, 0.98, 0.5)), 0);
+    assert_eq!(nearest_face(patch(&r, 0.02, 0.5)), 1);
+    assert_eq!(nearest_face(patch(&r, 0.5, 0.02)), 2);
+    assert_eq!(nearest_face(patch(&r, 0.5, 0.98)), 3);
+}
+
+#[test]
+fn environment_heading_rotates_the_map() {
+    // A map whose front (+Z) faces East: looking East shows the front face.
+    let r = render("[camera]\nheading = 90.0\n[env]\nheading = 90.0\n", solid_cube(FACES), Layer::Background);
+    assert_eq!(nearest_face(patch(&r, 0.5, 0.5)), 4);
+}
+
+#[test]
+fn mirror_sphere_reflects_known_directions() {
+    // A perfect mirror looking North: the centre reflects the camera's own direction back
+    // (South, yellow); where the normal is 45° right (East-South) the reflection points East
+    // (red); 45° up -> Up (green); left -> West (cyan); down -> Down (magenta).
+    let r = render("method = \"cube-reflection\"\n[effects]\nreflection = 1.0\n", solid_cube(FACES), Layer::Model);
+    let (cx, cy) = (0.5, 0.5);
+    let off = sphere_radius() * 0.707;
+    assert_eq!(nearest_face(patch(&r, cx, cy)), 5, "centre");
+    assert_eq!(nearest_face(patch(&r, cx + off, cy)), 0, "right");
+    assert_eq!(nearest_face(patch(&r, cx - off, cy)), 1, "left");
+    assert_eq!(nearest_face(patch(&r, cx, cy - off)), 2, "top");
+    assert_eq!(nearest_face(patch(&r, cx, cy + off)), 3, "bottom");
+}
+
+/// Linear-light BT.709 luminance of an 8-bit sRGB colour.
+fn luma(p: [f64; 3]) -> f64 {
+    let lin = p.map(|c| f64::from(previz::colour::srgb_to_linear((c / 255.0) as f32)));
+    0.2126 * lin[0] + 0.7152 * lin[1] + 0.0722 * lin[2]
+}
+
+fn linear(p: [f64; 3]) -> [f64; 3] {
+    p.map(|c| f64::from(previz::colour::srgb_to_linear((c / 255.0) as f32)))
+}
+
+#[test]
+fn sun_from_the_left_lights_the_left_side() {
+    let grey = [[0.3; 3]; 6];
+    let off = 0.7 * sphere_radius();
+    // Camera looks North, so its left is West; the sun is 20° up and dominates the ambient.
+    let r = render("method = \"blinn-phong\"\n[sun]\ndirection = [-1.0, 0.0, 0.36]\ndaylight = 0.2\n", solid_cube(grey), Layer::Model);
+    let left = luma(patch(&r, 0.5 - off, 0.5));
+    let right = luma(patch(&r, 0.5 + off, 0.5));
+    assert!(left > 2.0 * right, "left {left} right {right}");
+    // And from the right (East) the other way round.
+    let r = render("method = \"blinn-phong\"\n[sun]\ndirection = [1.0, 0.0, 0.36]\ndaylight = 0.2\n", solid_cube(grey), Layer::Model);
+    let left = luma(patch(&r, 0.5 - off, 0.5));
+    let right = luma(patch(&r, 0.5 + off, 0.5));
+    assert!(right > 2.0 * left, "left {left} right {right}");
+}
+
+#[test]
+fn hemisphere_sky_colour_dominates_upward_normals_at_any_tilt() {
+    let grey = [0.2; 3];
+    let env = || solid_cube([grey, grey, RED, BLUE, grey, grey]);
+    let base = "method = \"hemisphere\"\n[sun]\nsunlight = 0.0\n";
+    let off = 0.8 * sphere_radius();
+    // In linear light the blend a = 0.5 + 0.5 cos(angle to Up) is 0.9 at 0.8 of the radius
+    // (cos = 0.8), so the sky's red is 9 times the ground's blue there.
+    let dominated = |p: [f64; 3], by: usize, over: usize| {
+        let l = linear(p);
+        l[by] > 4.0 * l[over]
+    };
+    let r = render(base, env(), Layer::Model);
+    let (top, bottom) = (patch(&r, 0.5, 0.5 - off), patch(&r, 0.5, 0.5 + off));
+    assert!(dominated(top, 0, 2), "top {top:?}");
+    assert!(dominated(bottom, 2, 0), "bottom {bottom:?}");
+    // Roll the camera 90° clockwise: world Up appears at the image's left.
+    let r = render(&format!("{base}[camera]\nroll = 90.0\n"), env(), Layer::Model);
+    let (left, right) = (patch(&r, 0.5 - off, 0.5), patch(&r, 0.5 + off, 0.5));
+    assert!(dominated(left, 0, 2), "left {left:?}");
+    assert!(dominated(right, 2, 0), "right {right:?}");
+    // Pitch down 60° (looking down on the sphere): the image centre now shows a normal 60°
+    // from Up (a = 0.75: red three times blue), still sky-dominated.
+    let r = render(&format!("{base}[camera]\npitch = -60.0\n"), env(), Layer::Model);
+    let centre = linear(patch(&r, 0.5, 0.5));
+    assert!(centre[0] > 2.0 * centre[2], "pitched {centre:?}");
+}

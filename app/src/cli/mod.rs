@@ -4,7 +4,9 @@
 use clap::{Parser, Subcommand};
 
 pub mod bench;
+pub mod colour_transfer;
 pub mod composite;
+pub mod priors;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
@@ -19,11 +21,18 @@ pub enum Command {
     Composite(composite::Args),
     /// Benchmarks (results recorded in docs/PERFORMANCE.md).
     Bench(bench::Args),
+    /// Give TARGET the colour statistics of SOURCE (Reinhard / CIELAB-approx / MKL /
+    /// brightness-contrast); `colour-transfer bench` measures every method.
+    ColourTransfer(colour_transfer::Args),
+    /// Print the colour priors of an environment (and a model); `priors bench` times CPU vs GPU.
+    Priors(priors::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::ColourTransfer(a) => colour_transfer::run(a),
+        Command::Priors(a) => priors::run(a),
     }
 }

@@ -11,6 +11,7 @@ use super::lab::{LabSpace, rgb_to_lab};
 use super::report::{Raster, SpeedPoint, montage, speed_accuracy_chart};
 use super::stats::ColourStats;
 use super::transfer::Method;
+use crate::bench::median;
 use crate::render::gpu::Gpu;
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result};
@@ -104,11 +105,6 @@ pub fn accuracy(result: &[[f32; 3]], source: &ColourStats, source_points: &[DVec
     })
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() { f64::NAN } else { v[v.len() / 2] }
-}
-
 /// `image` resized to `FRAME` (bilinear).
 pub fn to_frame(image: &Rgba8Image) -> Result<Rgba8Image> {
     let img = image::RgbaImage::from_raw(image.width, image.height, image.pixels.clone()).context("image buffer has the wrong size")?;
@@ -146,13 +142,13 @@ pub fn run(pairs: &[PairSpec], gpu: Option<&Gpu>, repeats: u32, mut tick: impl F
                     // One warm-up frame, then `repeats` timed frames in one submission.
                     pass.run(gpu, &target, &cc, 1)?;
                     let (image, times) = pass.run(gpu, &target, &cc, repeats)?;
-                    (times.map(median), Some(accuracy(&counted_linear(&image, false), &source_stats, &source_points)?))
+                    (times.map(|t| median(&t)), Some(accuracy(&counted_linear(&image, false), &source_stats, &source_points)?))
                 }
                 _ => (None, None),
             };
             methods.push(MethodRow {
                 method,
-                cpu_ms: median(times),
+                cpu_ms: median(&times),
                 gpu_ms,
                 cpu,
                 gpu: gpu_acc,

@@ -198,7 +198,7 @@ pub fn robust_mkl(cov_s: DMat3, cov_t: DMat3) -> DMat3 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::colour::stats::ColourStats;
     use glam::Vec3;

@@ -203,7 +203,7 @@ impl PriorsReducer {
             bail!("no pixels to take statistics of");
         }
         let bytes = input.words.len() as u64 * 4;
-        let limit = u64::from(gpu.device.limits().max_storage_buffer_binding_size);
+        let limit = gpu.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             bail!("input of {} MiB exceeds the GPU's storage-buffer limit of {} MiB; use the CPU priors", bytes >> 20, limit >> 20);
         }

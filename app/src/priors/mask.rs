@@ -136,7 +136,7 @@ mod tests {
         assert_eq!(count(&c), 0);
         // Out-of-range indices are skipped, not a panic.
         let m = mesh(vec![[0.1, 0.1], [0.2, 0.1], [0.1, 0.2]], vec![0, 1, 9]);
-        assert!(!mark_uv_coverage(&m, 4, 4, &mut vec![false; 16]));
+        assert!(!mark_uv_coverage(&m, 4, 4, &mut [false; 16]));
     }
 
     #[test]

@@ -8,10 +8,6 @@ fn previz(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_previz")).current_dir(dir).env("XDG_RUNTIME_DIR", "/tmp/xdg").args(args).output().unwrap()
 }
 
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
-}
-
 fn tempdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("previz-colour-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -46,10 +42,20 @@ fn json(out: &Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
-fn lab(v: &serde_json::Value, which: &str) -> ([f64; 3], [f64; 3]) {
-    let m = &v[which]["stats"]["lab_mean"];
-    let s = &v[which]["lab_sigma"];
-    ([0, 1, 2].map(|i| m[i].as_f64().unwrap()), [0, 1, 2].map(|i| s[i].as_f64().unwrap()))
+/// Mean and σ per channel of `which`'s statistics in the space the method matches: log lαβ
+/// (reinhard, mkl) or lαβ without the log (cielab-approx), derived from the JSON.
+fn lab(v: &serde_json::Value, which: &str, log: bool) -> ([f64; 3], [f64; 3]) {
+    use glam::{DMat3, DVec3};
+    let st = &v[which]["stats"];
+    let vec3 = |x: &serde_json::Value| DVec3::from_array([0, 1, 2].map(|i| x[i].as_f64().unwrap()));
+    let mat3 = |x: &serde_json::Value| DMat3::from_cols(vec3(&x[0]), vec3(&x[1]), vec3(&x[2]));
+    let (m, c) = if log {
+        (vec3(&st["lab_mean"]), mat3(&st["lab_cov"]))
+    } else {
+        let p = previz::colour::lab::rgb_to_linear_lab_matrix();
+        (p * vec3(&st["rgb_mean"]), p * mat3(&st["rgb_cov"]) * p.transpose())
+    };
+    (m.to_array(), [0, 1, 2].map(|i| c.col(i)[i].sqrt()))
 }
 
 fn make_pair(dir: &Path) -> (PathBuf, PathBuf) {
@@ -66,12 +72,27 @@ fn transfer_matches_source_statistics_for_every_method() {
     let dir = tempdir("ok");
     let (s, t) = make_pair(&dir);
     for method in ["reinhard", "mkl", "cielab-approx"] {
-        let out = previz(&dir, &["colour-transfer", "--source", s.to_str().unwrap(), "--target", t.to_str().unwrap(), "-o", "out.png", "--method", method, "--json"]);
+        let out = previz(
+            &dir,
+            &[
+                "colour-transfer",
+                "--source",
+                s.to_str().unwrap(),
+                "--target",
+                t.to_str().unwrap(),
+                "-o",
+                "out.png",
+                "--method",
+                method,
+                "--json",
+            ],
+        );
         let v = json(&out);
         assert_eq!(v["sizes_differ"], true);
-        let (ms, ss) = lab(&v, "source");
-        let (mt, _) = lab(&v, "target");
-        let (mr, sr) = lab(&v, "result");
+        let log = method != "cielab-approx";
+        let (ms, ss) = lab(&v, "source", log);
+        let (mt, _) = lab(&v, "target", log);
+        let (mr, sr) = lab(&v, "result", log);
         // The result moved to the source: its mean is far closer than the target's was, and
         // (8-bit rounding and clipping aside) its σ matches.
         for i in 0..3 {
@@ -82,7 +103,10 @@ fn transfer_matches_source_statistics_for_every_method() {
         assert_eq!((img.width(), img.height()), (24, 20));
     }
     // Strength 0 reproduces the target exactly.
-    let out = previz(&dir, &["colour-transfer", "--source", s.to_str().unwrap(), "--target", t.to_str().unwrap(), "-o", "same.png", "--strength", "0"]);
+    let out = previz(
+        &dir,
+        &["colour-transfer", "--source", s.to_str().unwrap(), "--target", t.to_str().unwrap(), "-o", "same.png", "--strength", "0"],
+    );
     assert!(out.status.success());
     assert_eq!(image::open(dir.join("same.png")).unwrap().to_rgba8(), image::open(&t).unwrap().to_rgba8());
     // The human-readable form says the sizes differ and that this is fine.
@@ -99,7 +123,20 @@ fn report_and_green_screen() {
     png(&t, 16, 8, |x, _| if x < 8 { [30, 50, 200, 255] } else { [0, 255, 0, 255] });
     let out = previz(
         &dir,
-        &["colour-transfer", "--source", s.to_str().unwrap(), "--target", t.to_str().unwrap(), "-o", "out.png", "--green-screen", "--report", "report.png", "--method", "mkl"],
+        &[
+            "colour-transfer",
+            "--source",
+            s.to_str().unwrap(),
+            "--target",
+            t.to_str().unwrap(),
+            "-o",
+            "out.png",
+            "--green-screen",
+            "--report",
+            "report.png",
+            "--method",
+            "mkl",
+        ],
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let r = image::open(dir.join("report.png")).unwrap();
@@ -127,20 +164,55 @@ fn bad_input_fails_cleanly() {
     png(&green, 8, 8, |_, _| [0, 255, 0, 255]);
     let before = files(&dir);
     let run = |args: &[&str]| previz(&dir, args);
-    assert_clean_failure(&run(&["colour-transfer", "--source", broken.to_str().unwrap(), "--target", &t, "-o", "o.png"]), &dir, &before, &["SOURCE", "broken.png"]);
-    assert_clean_failure(&run(&["colour-transfer", "--source", &s, "--target", empty.to_str().unwrap(), "-o", "o.png"]), &dir, &before, &["TARGET", "empty.png"]);
-    assert_clean_failure(&run(&["colour-transfer", "--source", &s, "--target", "missing.png", "-o", "o.png"]), &dir, &before, &["missing.png"]);
-    assert_clean_failure(&run(&["colour-transfer", "--source", &s, "--target", clear.to_str().unwrap(), "-o", "o.png"]), &dir, &before, &["TARGET", "transparent"]);
-    assert_clean_failure(&run(&["colour-transfer", "--source", clear.to_str().unwrap(), "--target", &t, "-o", "o.png"]), &dir, &before, &["SOURCE", "transparent"]);
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", broken.to_str().unwrap(), "--target", &t, "-o", "o.png"]),
+        &dir,
+        &before,
+        &["SOURCE", "broken.png"],
+    );
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", &s, "--target", empty.to_str().unwrap(), "-o", "o.png"]),
+        &dir,
+        &before,
+        &["TARGET", "empty.png"],
+    );
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", &s, "--target", "missing.png", "-o", "o.png"]),
+        &dir,
+        &before,
+        &["missing.png"],
+    );
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", &s, "--target", clear.to_str().unwrap(), "-o", "o.png"]),
+        &dir,
+        &before,
+        &["TARGET", "transparent"],
+    );
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", clear.to_str().unwrap(), "--target", &t, "-o", "o.png"]),
+        &dir,
+        &before,
+        &["SOURCE", "transparent"],
+    );
     assert_clean_failure(
         &run(&["colour-transfer", "--source", &s, "--target", green.to_str().unwrap(), "-o", "o.png", "--green-screen"]),
         &dir,
         &before,
         &["TARGET", "green"],
     );
-    assert_clean_failure(&run(&["colour-transfer", "--source", &s, "--target", &t, "-o", "o.png", "--strength", "1.5"]), &dir, &before, &["strength"]);
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", &s, "--target", &t, "-o", "o.png", "--strength", "1.5"]),
+        &dir,
+        &before,
+        &["strength"],
+    );
     // The report cannot be written: no OUT either.
-    assert_clean_failure(&run(&["colour-transfer", "--source", &s, "--target", &t, "-o", "o.png", "--report", "no/such/dir/r.png"]), &dir, &before, &["r.png"]);
+    assert_clean_failure(
+        &run(&["colour-transfer", "--source", &s, "--target", &t, "-o", "o.png", "--report", "no/such/dir/r.png"]),
+        &dir,
+        &before,
+        &["r.png"],
+    );
     // OUT cannot be written.
     assert_clean_failure(&run(&["colour-transfer", "--source", &s, "--target", &t, "-o", "no/such/dir/o.png"]), &dir, &before, &["o.png"]);
     // Without a subcommand the three paths are required.

@@ -209,7 +209,9 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     let chart = bench::chart(&report)?;
     // The single-colour figure against two environments.
     let mut figures = Vec::new();
-    for (name, face, colour) in [("park2", "cubemaps/humus_Park2/posz.jpg", [200u8, 40, 30]), ("bridge2", "cubemaps/humus_Bridge2/posx.jpg", [60, 90, 200])] {
+    for (name, face, colour) in
+        [("park2", "cubemaps/humus_Park2/posz.jpg", [200u8, 40, 30]), ("bridge2", "cubemaps/humus_Bridge2/posx.jpg", [60, 90, 200])]
+    {
         let env = load_rgba8(&args.data.join(face))?;
         let stats = image_stats(&env, false, "environment")?;
         figures.push((format!("colour-single-colour-{name}.png"), bench::single_colour_figure(&env, &stats, colour)?));

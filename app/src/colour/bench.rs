@@ -169,7 +169,8 @@ pub fn summary(report: &BenchReport) -> Vec<(Method, f64, Option<f64>, f64, f64,
             let rows: Vec<&MethodRow> = report.pairs.iter().flat_map(|p| p.methods.iter().filter(move |r| r.method == m)).collect();
             let n = rows.len().max(1) as f64;
             let avg = |f: &dyn Fn(&MethodRow) -> f64| rows.iter().map(|r| f(r)).sum::<f64>() / n;
-            let gpu = if rows.iter().all(|r| r.gpu_ms.is_some()) && !rows.is_empty() { Some(avg(&|r| r.gpu_ms.unwrap_or(0.0))) } else { None };
+            let gpu =
+                if rows.iter().all(|r| r.gpu_ms.is_some()) && !rows.is_empty() { Some(avg(&|r| r.gpu_ms.unwrap_or(0.0))) } else { None };
             (
                 m,
                 avg(&|r| r.cpu_ms),
@@ -190,8 +191,20 @@ fn uncorrected_mean(report: &BenchReport) -> f64 {
 pub fn markdown(report: &BenchReport) -> String {
     use std::fmt::Write;
     let mut s = String::new();
-    let _ = writeln!(s, "Frame {}×{}, median of {} runs; device: {}.\n", report.frame.0, report.frame.1, report.repeats, report.device.as_deref().unwrap_or("none (CPU only)"));
-    let _ = writeln!(s, "Averaged over {} image pairs (accuracy in log lαβ; SW = sliced Wasserstein-2 to the source; uncorrected SW = {:.4}):\n", report.pairs.len(), uncorrected_mean(report));
+    let _ = writeln!(
+        s,
+        "Frame {}×{}, median of {} runs; device: {}.\n",
+        report.frame.0,
+        report.frame.1,
+        report.repeats,
+        report.device.as_deref().unwrap_or("none (CPU only)")
+    );
+    let _ = writeln!(
+        s,
+        "Averaged over {} image pairs (accuracy in log lαβ; SW = sliced Wasserstein-2 to the source; uncorrected SW = {:.4}):\n",
+        report.pairs.len(),
+        uncorrected_mean(report)
+    );
     let _ = writeln!(s, "| method | GPU ms/frame | CPU ms/frame | CPU/GPU | SW to source | mean abs Δμ | mean abs Δσ |");
     let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|");
     for (m, cpu, gpu, sw, dm, ds) in summary(report) {
@@ -288,18 +301,21 @@ pub fn single_colour_figure(environment: &Rgba8Image, environment_stats: &Colour
     let lut = super::stats::srgb8_to_linear_table();
     let texture_stats = ColourStats::from_linear(&[albedo_srgb.map(|c| lut[c as usize])])?;
     let env_tile = {
-        let img = image::RgbaImage::from_raw(environment.width, environment.height, environment.pixels.clone()).context("environment image has the wrong size")?;
+        let img = image::RgbaImage::from_raw(environment.width, environment.height, environment.pixels.clone())
+            .context("environment image has the wrong size")?;
         let r = image::imageops::resize(&img, size, size, image::imageops::FilterType::Triangle);
         Rgba8Image { width: size, height: size, pixels: r.into_raw() }
     };
     let fix = |cc: ColourCorrection| apply(&sphere, &cc, false).image;
-    let ours = |m: Method| fix(ColourCorrection::new(m, 1.0, environment_stats, &texture_stats));
+    let ours_at = |m: Method, strength: f32| fix(ColourCorrection::new(m, strength, environment_stats, &texture_stats));
+    let ours = |m: Method| ours_at(m, 1.0);
     let tiles = [
         ("environment (one face)", env_tile),
         ("model, uncorrected", sphere.clone()),
         ("seed Eq. 11b", fix(seed_eq11b(environment_stats, &texture_stats))),
         ("Reinhard, unguarded", fix(unguarded_reinhard(environment_stats, &texture_stats))),
         ("reinhard (ours)", ours(Method::Reinhard)),
+        ("reinhard, strength 0.5", ours_at(Method::Reinhard, 0.5)),
         ("cielab-approx (ours)", ours(Method::CielabApprox)),
         ("mkl (ours)", ours(Method::Mkl)),
         ("brightness-contrast", ours(Method::BrightnessContrast)),

@@ -37,7 +37,12 @@ pub fn counts(p: &[u8], green_screen: bool) -> bool {
 /// Linear RGB of the pixels that count.
 pub fn counted_linear(image: &Rgba8Image, green_screen: bool) -> Vec<[f32; 3]> {
     let lut = srgb8_to_linear_table();
-    image.pixels.chunks_exact(4).filter(|p| counts(p, green_screen)).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect()
+    image
+        .pixels
+        .chunks_exact(4)
+        .filter(|p| counts(p, green_screen))
+        .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
+        .collect()
 }
 
 /// Statistics of the pixels that count; errors name `what` and say why none are left.
@@ -108,7 +113,8 @@ mod tests {
     fn apply_keeps_uncounted_pixels_and_alpha() {
         let src = img(vec![[200, 50, 50, 255], [150, 30, 20, 255], [250, 90, 70, 255]]);
         let tgt = img(vec![[20, 60, 200, 255], [0, 255, 0, 255], [40, 80, 160, 7], [9, 9, 9, 0]]);
-        let cc = ColourCorrection::new(Method::Reinhard, 1.0, &image_stats(&src, false, "s").unwrap(), &image_stats(&tgt, true, "t").unwrap());
+        let cc =
+            ColourCorrection::new(Method::Reinhard, 1.0, &image_stats(&src, false, "s").unwrap(), &image_stats(&tgt, true, "t").unwrap());
         let out = apply(&tgt, &cc, true);
         let px: Vec<&[u8]> = out.image.pixels.chunks(4).collect();
         assert_eq!(px[1], &[0, 255, 0, 255]);

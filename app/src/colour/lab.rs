@@ -47,18 +47,12 @@ const INV_SQRT2: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// LMS (log or not) → lαβ: diag(1/√3, 1/√6, 1/√2) · [[1,1,1],[1,1,−2],[1,−1,0]]
 /// (Reinhard et al. 2001, §2).
-pub const LMS_TO_LAB: [[f64; 3]; 3] = [
-    [INV_SQRT3, INV_SQRT3, INV_SQRT3],
-    [INV_SQRT6, INV_SQRT6, -2.0 * INV_SQRT6],
-    [INV_SQRT2, -INV_SQRT2, 0.0],
-];
+pub const LMS_TO_LAB: [[f64; 3]; 3] =
+    [[INV_SQRT3, INV_SQRT3, INV_SQRT3], [INV_SQRT6, INV_SQRT6, -2.0 * INV_SQRT6], [INV_SQRT2, -INV_SQRT2, 0.0]];
 
 /// lαβ → LMS: [[1,1,1],[1,1,−1],[1,−2,0]] · diag(√3/3, √6/6, √2/2) (Reinhard et al. 2001, §2).
-pub const LAB_TO_LMS: [[f64; 3]; 3] = [
-    [INV_SQRT3, INV_SQRT6, INV_SQRT2],
-    [INV_SQRT3, INV_SQRT6, -INV_SQRT2],
-    [INV_SQRT3, -2.0 * INV_SQRT6, 0.0],
-];
+pub const LAB_TO_LMS: [[f64; 3]; 3] =
+    [[INV_SQRT3, INV_SQRT6, INV_SQRT2], [INV_SQRT3, INV_SQRT6, -INV_SQRT2], [INV_SQRT3, -2.0 * INV_SQRT6, 0.0]];
 
 /// Which lαβ: with the log (Reinhard 2001) or without (Reinhard 2004 / seed Eq. 11a).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -170,11 +164,7 @@ mod tests {
     #[test]
     fn reproduces_published_matrices() {
         // Reinhard et al. 2001, printed LMS → RGB (4 decimals).
-        assert_rows_close(
-            mat3_f64(&LMS_TO_RGB),
-            [[4.4679, -3.5873, 0.1193], [-1.2186, 2.3809, -0.1624], [0.0497, -0.2439, 1.2045]],
-            5e-4,
-        );
+        assert_rows_close(mat3_f64(&LMS_TO_RGB), [[4.4679, -3.5873, 0.1193], [-1.2186, 2.3809, -0.1624], [0.0497, -0.2439, 1.2045]], 5e-4);
         // Reinhard et al. 2004 / seed 000 Eq. 11a: RGB → lαβ without the log, and its inverse.
         assert_rows_close(
             rgb_to_linear_lab_matrix(),

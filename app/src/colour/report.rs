@@ -166,7 +166,13 @@ pub fn speed_accuracy_chart(points: &[SpeedPoint], baseline: f64, subtitle: &str
                 .draw_series(pts.iter().map(|p| Text::new(p.label.clone(), (p.ms, p.distance), ("sans-serif", 14).into_font())))
                 .map_err(err)?;
         }
-        chart.configure_series_labels().label_font(("sans-serif", 15)).background_style(WHITE.mix(0.85)).border_style(BLACK).draw().map_err(err)?;
+        chart
+            .configure_series_labels()
+            .label_font(("sans-serif", 15))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(err)?;
         root.present().map_err(err)?;
     }
     Ok(Raster { width, height, rgb })

@@ -35,10 +35,7 @@ pub fn cube_from_face_files(files: &[std::path::PathBuf; 6], size: u32) -> Resul
         let hdr = matches!(img, image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_));
         let rgb = img.to_rgb32f();
         let rgb = image::imageops::resize(&rgb, size, size, image::imageops::FilterType::Triangle);
-        *face = rgb
-            .pixels()
-            .map(|p| if hdr { p.0 } else { p.0.map(crate::colour::srgb_to_linear) })
-            .collect();
+        *face = rgb.pixels().map(|p| if hdr { p.0 } else { p.0.map(crate::colour::srgb_to_linear) }).collect();
     }
     Ok(CubeMap { size, faces })
 }
@@ -126,7 +123,10 @@ pub fn default_inputs(data: &Path) -> Result<(CubeMap, Rgba8Image)> {
 pub fn markdown(rows: &[PriorsRow], device: &str, repeats: u32) -> String {
     use std::fmt::Write;
     let mut s = format!("Device: {device}; median of {repeats} runs.\n\n");
-    let _ = writeln!(s, "| input | pixels | CPU ms | GPU ms (wall, incl. upload + readback) | GPU ms (passes, timestamps) | CPU / GPU wall | max rel. difference |");
+    let _ = writeln!(
+        s,
+        "| input | pixels | CPU ms | GPU ms (wall, incl. upload + readback) | GPU ms (passes, timestamps) | CPU / GPU wall | max rel. difference |"
+    );
     let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|");
     for r in rows {
         let passes = r.gpu_ms.map(|g| format!("{g:.2}")).unwrap_or_else(|| "–".into());

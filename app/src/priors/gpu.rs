@@ -6,7 +6,7 @@
 //! 8-bit images — so it must fit the device's `max_storage_buffer_binding_size` (128 MiB by
 //! default: cube maps up to 6×1024²); bigger inputs are an error, use the CPU functions.
 
-use super::{EnvironmentPriors, ModelPriors, ModelPriorSource, TexelCounts};
+use super::{EnvironmentPriors, ModelPriorSource, ModelPriors, TexelCounts};
 use crate::colour::correction::COLOUR_CORRECT_WGSL;
 use crate::colour::gpu::{GpuTimer, read_buffer};
 use crate::colour::stats::{ColourStats, LuminanceStats, PERCENTILE_HI, PERCENTILE_LO, percentile_rank};
@@ -106,7 +106,9 @@ impl GpuInput {
         for (tex, meshes) in super::model_textures(model) {
             let (used, c) = super::texture_mask(tex, &meshes)?;
             super::add_counts(&mut counts, c);
-            words.extend(tex.pixels.chunks_exact(4).zip(&used).map(|(p, &u)| u32::from_le_bytes([p[0], p[1], p[2], if u { 255 } else { 0 }])));
+            words.extend(
+                tex.pixels.chunks_exact(4).zip(&used).map(|(p, &u)| u32::from_le_bytes([p[0], p[1], p[2], if u { 255 } else { 0 }])),
+            );
         }
         let n = words.len() as u32;
         Ok((GpuInput { words, format: 1, main: 0..n, up: 0..0, down: 0..0, main_count: counts.used }, counts))
@@ -146,11 +148,18 @@ pub fn reduce_source() -> String {
 impl PriorsReducer {
     pub fn new(gpu: &Gpu) -> PriorsReducer {
         let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("priors_reduce.wgsl"), source: wgpu::ShaderSource::Wgsl(reduce_source().into()) });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("priors_reduce.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(reduce_source().into()),
+        });
         let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -159,7 +168,11 @@ impl PriorsReducer {
                 wgpu::BindGroupLayoutEntry {
                     binding: 0,
                     visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
                     count: None,
                 },
                 storage(1, true),
@@ -168,7 +181,11 @@ impl PriorsReducer {
                 storage(4, false),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("priors reduce"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("priors reduce"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
         let pipelines = ENTRY_POINTS
             .iter()
             .map(|e| {
@@ -182,7 +199,9 @@ impl PriorsReducer {
                 })
             })
             .collect();
-        let buffer = |label, size, usage| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+        let buffer = |label, size, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        };
         use wgpu::BufferUsages as U;
         PriorsReducer {
             layout,
@@ -343,7 +362,13 @@ fn stats_from_result(r: &[f32], count: u64) -> ColourStats {
         rgb_cov: sym(r, 18),
         lab_mean: triple(r, 4),
         lab_cov: sym(r, 24),
-        luminance: LuminanceStats { min: f64::from(r[8]), mean: f64::from(r[7]), max: f64::from(r[9]), p_lo: f64::from(r[30]), p_hi: f64::from(r[31]) },
+        luminance: LuminanceStats {
+            min: f64::from(r[8]),
+            mean: f64::from(r[7]),
+            max: f64::from(r[9]),
+            p_lo: f64::from(r[30]),
+            p_hi: f64::from(r[31]),
+        },
     }
 }
 
@@ -364,7 +389,20 @@ mod tests {
         let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("ReduceParams")).unwrap();
         let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("not a struct") };
         assert_eq!(*span as usize, std::mem::size_of::<ReduceParams>());
-        let names = ["main_begin", "main_end", "up_begin", "up_end", "down_begin", "down_end", "format", "k_lo", "k_hi", "lum_floor", "_pad0", "_pad1"];
+        let names = [
+            "main_begin",
+            "main_end",
+            "up_begin",
+            "up_end",
+            "down_begin",
+            "down_end",
+            "format",
+            "k_lo",
+            "k_hi",
+            "lum_floor",
+            "_pad0",
+            "_pad1",
+        ];
         assert_eq!(members.len(), names.len());
         for (i, (m, name)) in members.iter().zip(names).enumerate() {
             assert_eq!(m.name.as_deref(), Some(name));
@@ -388,7 +426,13 @@ mod tests {
             }
         }
         let (gl, cl) = (g.luminance, c.luminance);
-        for (name, a, b) in [("min", gl.min, cl.min), ("mean", gl.mean, cl.mean), ("max", gl.max, cl.max), ("p_lo", gl.p_lo, cl.p_lo), ("p_hi", gl.p_hi, cl.p_hi)] {
+        for (name, a, b) in [
+            ("min", gl.min, cl.min),
+            ("mean", gl.mean, cl.mean),
+            ("max", gl.max, cl.max),
+            ("p_lo", gl.p_lo, cl.p_lo),
+            ("p_hi", gl.p_hi, cl.p_hi),
+        ] {
             assert!(close(a, b), "luminance {name}: gpu {a} cpu {b}");
         }
     }
@@ -430,7 +474,11 @@ mod tests {
         let pixels: Vec<u8> = (0..w * h)
             .flat_map(|i| {
                 let (x, y) = (i % w, i / w);
-                if x == 3 && y == 4 { [0, 255, 0, 255] } else { [(x * 6) as u8, (y * 8) as u8, ((x * y) % 256) as u8, if x == 5 { 0 } else { 255 }] }
+                if x == 3 && y == 4 {
+                    [0, 255, 0, 255]
+                } else {
+                    [(x * 6) as u8, (y * 8) as u8, ((x * y) % 256) as u8, if x == 5 { 0 } else { 255 }]
+                }
             })
             .collect();
         let tex = Rgba8Image { width: w, height: h, pixels };
@@ -441,7 +489,8 @@ mod tests {
         assert_stats_agree(&g.stats, &cpu.stats);
         // A frame: all pixels with alpha > 0, green included.
         let lut = crate::colour::stats::srgb8_to_linear_table();
-        let lin: Vec<[f32; 3]> = tex.pixels.chunks(4).filter(|p| p[3] > 0).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect();
+        let lin: Vec<[f32; 3]> =
+            tex.pixels.chunks(4).filter(|p| p[3] > 0).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect();
         let cpu = ColourStats::from_linear(&lin).unwrap();
         let g = reducer.frame(&gpu, &tex).unwrap();
         assert_stats_agree(&g.main, &cpu);

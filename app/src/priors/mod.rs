@@ -199,7 +199,13 @@ pub fn model_texels(model: &Model) -> Result<(Vec<[f32; 3]>, TexelCounts)> {
     for (tex, meshes) in model_textures(model) {
         let (used, c) = texture_mask(tex, &meshes)?;
         add_counts(&mut counts, c);
-        texels.extend(tex.pixels.chunks_exact(4).zip(&used).filter(|(_, u)| **u).map(|(p, _)| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]));
+        texels.extend(
+            tex.pixels
+                .chunks_exact(4)
+                .zip(&used)
+                .filter(|(_, u)| **u)
+                .map(|(p, _)| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]),
+        );
     }
     Ok((texels, counts))
 }

@@ -159,8 +159,8 @@ pub fn run(args: Args) -> Result<()> {
             "green_screen": args.green_screen,
             "encoding": "statistics of linear-light RGB: rgb_* linear RGB, lab_* log lαβ (Reinhard 2001), luminance BT.709 Y",
             "sizes_differ": sizes_differ,
-            "clipped_pixels": result.clipped,
-            "clipped_fraction": if counted > 0.0 { result.clipped as f64 / counted } else { 0.0 },
+            "out_of_gamut_pixels": result.out_of_gamut,
+            "out_of_gamut_fraction": if counted > 0.0 { result.out_of_gamut as f64 / counted } else { 0.0 },
             "source": image_report(source_path, source.width, source.height, source_stats),
             "target": image_report(target_path, target.width, target.height, target_stats),
             "result": image_report(out, result.image.width, result.image.height, result_stats),
@@ -182,8 +182,12 @@ pub fn run(args: Args) -> Result<()> {
                 s.lab_mean[0], s.lab_mean[1], s.lab_mean[2], sg[0], sg[1], sg[2], s.luminance.mean
             );
         }
-        if result.clipped > 0 {
-            println!("{} pixels ({:.2} %) had a channel above 1 and were clipped", result.clipped, 100.0 * result.clipped as f64 / counted);
+        if result.out_of_gamut > 0 {
+            println!(
+                "{} pixels ({:.2} %) left the gamut (a channel below 0 or above 1) and were clipped",
+                result.out_of_gamut,
+                100.0 * result.out_of_gamut as f64 / counted
+            );
         }
         if let Some(path) = &args.report {
             println!("wrote {}", path.display());

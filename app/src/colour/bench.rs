@@ -68,8 +68,8 @@ pub struct MethodRow {
     pub cpu: Accuracy,
     /// Accuracy of the GPU result (8-bit output of the shader).
     pub gpu: Option<Accuracy>,
-    /// Fraction of pixels with a channel above 1 before clipping (CPU).
-    pub clipped_fraction: f64,
+    /// Fraction of pixels out of gamut after the correction (a channel below 0 or above 1).
+    pub out_of_gamut_fraction: f64,
 }
 
 /// All methods on one pair.
@@ -152,7 +152,7 @@ pub fn run(pairs: &[PairSpec], gpu: Option<&Gpu>, repeats: u32, mut tick: impl F
                 gpu_ms,
                 cpu,
                 gpu: gpu_acc,
-                clipped_fraction: result.clipped as f64 / (target.width * target.height) as f64,
+                out_of_gamut_fraction: result.out_of_gamut as f64 / (target.width * target.height) as f64,
             });
             tick(&format!("{} {}", pair.name, method.name()));
         }

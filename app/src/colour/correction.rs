@@ -98,9 +98,13 @@ pub fn correct_unclipped(rgb: Vec3, cc: &ColourCorrection) -> Vec3 {
 /// The model's colour correction (WGSL `colour_correct`): negatives clamped to 0, then
 /// `mix(input, corrected, strength)`.
 pub fn correct(rgb: Vec3, cc: &ColourCorrection) -> Vec3 {
-    let corrected = correct_unclipped(rgb, cc).max(Vec3::ZERO);
+    finish(rgb, correct_unclipped(rgb, cc), cc)
+}
+
+/// The last step of [`correct`] given the unclipped correction `raw` of `rgb`.
+pub fn finish(rgb: Vec3, raw: Vec3, cc: &ColourCorrection) -> Vec3 {
     let s = cc.strength.clamp(0.0, 1.0);
-    rgb + (corrected - rgb) * s
+    rgb + (raw.max(Vec3::ZERO) - rgb) * s
 }
 
 #[cfg(test)]

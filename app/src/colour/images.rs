@@ -5,7 +5,7 @@
 //! with the green-screen option, not pure (0,255,0). Pixels that do not count are copied to the
 //! output unchanged.
 
-use super::correction::{ColourCorrection, correct};
+use super::correction::{ColourCorrection, correct_unclipped, finish};
 use super::stats::{ColourStats, srgb8_to_linear_table};
 use crate::priors::mask::is_green_screen;
 use crate::scene::Rgba8Image;
@@ -63,30 +63,33 @@ pub fn image_stats(image: &Rgba8Image, green_screen: bool, what: &str) -> Result
 /// The result of correcting an image.
 pub struct Corrected {
     pub image: Rgba8Image,
-    /// Pixels that had a channel outside 0..1 after correction (clipped when encoding).
-    pub clipped: u64,
+    /// Pixels out of gamut after the correction: a channel below 0 (clamped to 0 by the
+    /// correction itself) or, after the strength mix, above 1 (clipped when encoding).
+    pub out_of_gamut: u64,
 }
 
 /// Apply `cc` to every counted pixel of `image` (linear light), clip per channel to 0..1 and
-/// encode back to sRGB; other pixels are copied. Alpha is kept.
+/// encode back to sRGB; other pixels are copied. Alpha is kept. Same maths as the shader's
+/// `colour_correct` (negatives clamped inside the correction, then the strength mix).
 pub fn apply(image: &Rgba8Image, cc: &ColourCorrection, green_screen: bool) -> Corrected {
     let lut = srgb8_to_linear_table();
     let mut out = image.pixels.clone();
-    let mut clipped = 0u64;
+    let mut out_of_gamut = 0u64;
     for p in out.chunks_exact_mut(4) {
         if !counts(p, green_screen) {
             continue;
         }
         let c = glam::Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]);
-        let r = correct(c, cc);
-        if r.max_element() > 1.0 {
-            clipped += 1;
+        let raw = correct_unclipped(c, cc);
+        let r = finish(c, raw, cc);
+        if (cc.strength > 0.0 && raw.min_element() < 0.0) || r.max_element() > 1.0 {
+            out_of_gamut += 1;
         }
         for ch in 0..3 {
             p[ch] = (super::linear_to_srgb(r[ch]) * 255.0).round() as u8;
         }
     }
-    Corrected { image: Rgba8Image { width: image.width, height: image.height, pixels: out }, clipped }
+    Corrected { image: Rgba8Image { width: image.width, height: image.height, pixels: out }, out_of_gamut }
 }
 
 #[cfg(test)]

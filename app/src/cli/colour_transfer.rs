@@ -200,7 +200,7 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out_dir).with_context(|| format!("cannot create {}", args.out_dir.display()))?;
     let pairs = bench::default_pairs(&args.data);
     let gpu = if args.no_gpu { None } else { Some(crate::render::gpu::Gpu::headless()?) };
-    let steps = (pairs.len() * Method::ALL.len()) as u64;
+    let steps = (pairs.len() * bench::METHODS.len()) as u64;
     let bar = indicatif::ProgressBar::new(steps).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );

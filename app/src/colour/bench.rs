@@ -247,9 +247,10 @@ pub fn markdown(report: &BenchReport) -> String {
 pub fn chart(report: &BenchReport) -> Result<Raster> {
     let mut points = Vec::new();
     for (m, cpu, gpu, sw, _, _) in summary(report) {
-        points.push(SpeedPoint { label: format!("  {}", m.name()), ms: cpu, distance: sw, gpu: false });
+        let label_above = matches!(m, Method::None | Method::Reinhard);
+        points.push(SpeedPoint { label: m.name().to_string(), ms: cpu, distance: sw, gpu: false, label_above });
         if let Some(g) = gpu {
-            points.push(SpeedPoint { label: format!("  {}", m.name()), ms: g, distance: sw, gpu: true });
+            points.push(SpeedPoint { label: m.name().to_string(), ms: g, distance: sw, gpu: true, label_above });
         }
     }
     let device = report.device.as_deref().map(|d| d.split(" (").next().unwrap_or(d).to_string()).unwrap_or_else(|| "CPU only".into());

@@ -120,6 +120,8 @@ pub struct SpeedPoint {
     pub distance: f64,
     /// true: GPU shader; false: CPU tool.
     pub gpu: bool,
+    /// Put the label above the point (to separate points that coincide).
+    pub label_above: bool,
 }
 
 /// Scatter of distance (y) against cost per frame (x, log scale); `baseline` (the uncorrected
@@ -163,7 +165,10 @@ pub fn speed_accuracy_chart(points: &[SpeedPoint], baseline: f64, subtitle: &str
                 .label(if gpu { "GPU shader (lavapipe)" } else { "CPU tool" })
                 .legend(move |(x, y)| Circle::new((x + 10, y), 6, colour.filled()));
             chart
-                .draw_series(pts.iter().map(|p| Text::new(p.label.clone(), (p.ms, p.distance), ("sans-serif", 14).into_font())))
+                .draw_series(pts.iter().map(|p| {
+                    EmptyElement::at((p.ms, p.distance))
+                        + Text::new(p.label.clone(), (8, if p.label_above { -22 } else { 6 }), ("sans-serif", 14).into_font())
+                }))
                 .map_err(err)?;
         }
         chart

@@ -27,6 +27,10 @@ fn vs_main(@builtin(vertex_index) index: u32) -> GroundOut {
 
 @fragment
 fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
+    // Seen from below (the camera under the plane) there is no ground to shadow.
+    if (frame.camera_pos.z <= plane.model[3].z) {
+        return vec4<f32>(0.0);
+    }
     let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world);
     // The shadow removes the sun's share of the light; opacity says how large that share is.
     let sun_up = select(0.0, 1.0, frame.sun.z > 0.0) * min(frame.sun.w, 1.0);

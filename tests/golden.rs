@@ -111,7 +111,7 @@ fn live_feed_refraction_and_reflection() {
 #[test]
 fn spider_textured_multi_material() {
     let t = format!(
-        "{SIZE}model = \"textured_models/spider/spider.obj\"\nenvironment = \"cubemaps/humus_Bridge2\"\nmethod = \"hemisphere\"\n[camera]\npitch = -30.0\n[sun]\ndirection = [-0.145, 0.976, 0.160]\n"
+        "{SIZE}model = \"textured_models/spider/spider.obj\"\nenvironment = \"cubemaps/humus_Bridge2\"\nmethod = \"hemisphere\"\n[camera]\npitch = -30.0\n[sun]\ndirection = [0.4, -1.0, 0.6]\n"
     );
     assert_golden("spider_textured", &render(&t));
 }

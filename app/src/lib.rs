@@ -6,6 +6,7 @@
 //! the edges (CLI, files) and radians inside. Images are sRGB-encoded; shading is linear.
 
 pub mod bench;
+pub mod camera;
 pub mod chart;
 pub mod cli;
 pub mod colour;
@@ -13,3 +14,4 @@ pub mod output;
 pub mod priors;
 pub mod render;
 pub mod scene;
+pub mod sun;

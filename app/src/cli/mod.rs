@@ -7,6 +7,7 @@ pub mod bench;
 pub mod colour_transfer;
 pub mod composite;
 pub mod priors;
+pub mod sun;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]
@@ -26,6 +27,8 @@ pub enum Command {
     ColourTransfer(colour_transfer::Args),
     /// Print the colour priors of an environment (and a model); `priors bench` times CPU vs GPU.
     Priors(priors::Args),
+    /// Sun position for a place and time (NREL SPA and cheaper algorithms), a photo, or a CSV.
+    Sun(sun::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -34,5 +37,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(a) => bench::run(a),
         Command::ColourTransfer(a) => colour_transfer::run(a),
         Command::Priors(a) => priors::run(a),
+        Command::Sun(a) => sun::run(a),
     }
 }

@@ -527,6 +527,15 @@ impl Compositor {
 
     /// Render one image of `layer` and read it back.
     pub fn render(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let result = self.render_unchecked(gpu, p, layer);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            bail!("the GPU rejected the frame: {e}");
+        }
+        result
+    }
+
+    fn render_unchecked(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
         let t0 = Instant::now();
         let (frame, instance, ground) = self.frame_uniforms(p)?;
         gpu.queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
@@ -576,7 +585,7 @@ impl Compositor {
         // The first pass recorded writes the start timestamp, the composite pass the end.
         let shadows = layer != Layer::Background;
         let stamp = |begin: bool, end: bool| {
-            ts.map(|t| wgpu::RenderPassTimestampWrites {
+            ts.filter(|_| begin || end).map(|t| wgpu::RenderPassTimestampWrites {
                 query_set: &t.set,
                 beginning_of_pass_write_index: begin.then_some(0),
                 end_of_pass_write_index: end.then_some(1),

@@ -46,6 +46,9 @@ impl Gpu {
             ..Default::default()
         }))
         .context("the GPU adapter refused to create a device")?;
+        // Errors are caught with error scopes where work is submitted; anything that escapes
+        // them is reported rather than aborting the process (wgpu's default handler panics).
+        device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| eprintln!("GPU error: {e}")));
         Ok(Gpu { instance, adapter, device, queue, timestamps })
     }
 

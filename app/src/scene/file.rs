@@ -138,7 +138,7 @@ impl Default for CameraSection {
 
 impl Default for SunSection {
     fn default() -> Self {
-        SunSection { direction: [0.5, -0.5, 0.707], sunlight: 1.0, daylight: 0.6 }
+        SunSection { direction: [0.5, -0.5, 0.707], sunlight: 0.8, daylight: 0.5 }
     }
 }
 

@@ -12,6 +12,7 @@ pub mod cli;
 pub mod colour;
 pub mod output;
 pub mod pose;
+pub mod priors;
 pub mod render;
 pub mod scene;
 pub mod sun;

@@ -4,7 +4,9 @@
 use clap::{Parser, Subcommand};
 
 pub mod bench;
+pub mod colour_transfer;
 pub mod composite;
+pub mod priors;
 pub mod sun;
 pub mod pose_stability;
 
@@ -21,6 +23,11 @@ pub enum Command {
     Composite(composite::Args),
     /// Benchmarks (results recorded in docs/PERFORMANCE.md).
     Bench(bench::Args),
+    /// Give TARGET the colour statistics of SOURCE (Reinhard / CIELAB-approx / MKL /
+    /// brightness-contrast); `colour-transfer bench` measures every method.
+    ColourTransfer(colour_transfer::Args),
+    /// Print the colour priors of an environment (and a model); `priors bench` times CPU vs GPU.
+    Priors(priors::Args),
     /// Sun position for a place and time (NREL SPA and cheaper algorithms), a photo, or a CSV.
     Sun(sun::Args),
     /// Measure the pose filter on simulated sensors: sun jitter while held still, lag in a
@@ -32,6 +39,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::ColourTransfer(a) => colour_transfer::run(a),
+        Command::Priors(a) => priors::run(a),
         Command::Sun(a) => sun::run(a),
         Command::PoseStability(a) => pose_stability::run(a),
     }

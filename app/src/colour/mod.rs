@@ -1,4 +1,20 @@
-//! Colour spaces: sRGB transfer, luminance. CPU reference of what the shaders do.
+//! Colour spaces and colour correction: sRGB transfer, luminance, Reinhard lαβ, brightness /
+//! contrast and statistical colour transfer. The CPU reference of what
+//! `shaders/colour_correct.wgsl` does (tests compare the two); see docs/colour.md.
+//!
+//! Encoding: every function here takes and returns linear-light RGB unless its name says sRGB.
+
+pub mod bench;
+pub mod correction;
+pub mod distance;
+pub mod gpu;
+pub mod images;
+pub mod intensity;
+pub mod lab;
+pub mod linalg;
+pub mod report;
+pub mod stats;
+pub mod transfer;
 
 /// sRGB-encoded value (0..1) to linear light (IEC 61966-2-1).
 pub fn srgb_to_linear(c: f32) -> f32 {

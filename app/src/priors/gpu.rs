@@ -1,0 +1,512 @@
+//! The priors on the GPU: compute-shader reductions (`shaders/priors_reduce.wgsl`) over a cube
+//! map, a texture or a camera frame. Same definitions and encodings as the CPU reference
+//! ([`ColourStats::from_linear`]); a test checks they agree to 1e-3.
+//!
+//! Limits: the input is one storage buffer — 16 bytes per pixel for float cube maps, 4 for
+//! 8-bit images — so it must fit the device's `max_storage_buffer_binding_size` (128 MiB by
+//! default: cube maps up to 6×1024²); bigger inputs are an error, use the CPU functions.
+
+use super::{EnvironmentPriors, ModelPriorSource, ModelPriors, TexelCounts};
+use crate::colour::correction::COLOUR_CORRECT_WGSL;
+use crate::colour::gpu::{GpuTimer, read_buffer};
+use crate::colour::stats::{ColourStats, LuminanceStats, PERCENTILE_HI, PERCENTILE_LO, percentile_rank};
+use crate::render::gpu::Gpu;
+use crate::scene::{CubeMap, Model, Rgba8Image};
+use anyhow::{Result, bail};
+
+/// The reduction's own WGSL; compiled after [`COLOUR_CORRECT_WGSL`].
+pub const PRIORS_REDUCE_WGSL: &str = include_str!("../../../shaders/priors_reduce.wgsl");
+
+/// Workgroups per pass, histogram bins per level, floats per partial row, result length, as in
+/// the WGSL.
+const GROUPS: u64 = 256;
+const BINS: u64 = 1024;
+const ACC: u64 = 18;
+const RESULT_LEN: u64 = 32;
+const HIST_WORDS: u64 = 3 * BINS + 8;
+
+/// Luminances below this are histogrammed as this value (log2(0) = −∞). Percentiles below it
+/// come back as about this value instead of the exact one (an absolute error under 1e-6).
+pub const LUM_FLOOR: f32 = 1e-6;
+
+/// Mirror of the WGSL `struct ReduceParams`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ReduceParams {
+    pub main_begin: u32,
+    pub main_end: u32,
+    pub up_begin: u32,
+    pub up_end: u32,
+    pub down_begin: u32,
+    pub down_end: u32,
+    /// 0: f32 RGB + weight per pixel; 1: RGBA8 sRGB, alpha 0 = skip.
+    pub format: u32,
+    pub k_lo: u32,
+    pub k_hi: u32,
+    pub lum_floor: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+/// Pixels packed for the GPU.
+pub struct GpuInput {
+    /// The storage words.
+    pub words: Vec<u32>,
+    /// 0 or 1, see [`ReduceParams::format`].
+    pub format: u32,
+    /// Pixel index ranges: main (full statistics), up, down (mean only; empty when unused).
+    pub main: std::ops::Range<u32>,
+    pub up: std::ops::Range<u32>,
+    pub down: std::ops::Range<u32>,
+    /// Used pixels in the main region (known while packing; sets the percentile ranks).
+    pub main_count: u64,
+}
+
+impl GpuInput {
+    /// A cube map: horizontal faces, then +Y, then −Y, as f32 with weights (non-finite pixels
+    /// get weight 0, negative channels are clamped to 0 — the same as the CPU `sanitize`).
+    pub fn from_cube(cube: &CubeMap) -> Result<GpuInput> {
+        super::check_cube(cube)?;
+        let n = cube.faces[0].len() as u32;
+        let mut words = Vec::with_capacity(cube.faces.iter().map(|f| f.len() * 4).sum());
+        let mut main_count = 0u64;
+        let order = super::HORIZONTAL_FACES.iter().chain([super::UP_FACE, super::DOWN_FACE].iter());
+        for (k, &f) in order.enumerate() {
+            for p in &cube.faces[f] {
+                match crate::colour::stats::sanitize(*p) {
+                    Some(c) => {
+                        words.extend(c.map(f32::to_bits));
+                        words.push(1f32.to_bits());
+                        if k < 4 {
+                            main_count += 1;
+                        }
+                    }
+                    None => words.extend([0, 0, 0, 0]),
+                }
+            }
+        }
+        Ok(GpuInput { words, format: 0, main: 0..4 * n, up: 4 * n..5 * n, down: 5 * n..6 * n, main_count })
+    }
+
+    /// An sRGB image (a camera frame): every pixel with alpha > 0 is used.
+    pub fn from_image(image: &Rgba8Image) -> Result<GpuInput> {
+        let n = image.width as usize * image.height as usize;
+        if n == 0 || image.pixels.len() != n * 4 {
+            bail!("image is {}x{} with {} bytes: no pixels or wrong size", image.width, image.height, image.pixels.len());
+        }
+        let words: Vec<u32> = image.pixels.chunks_exact(4).map(|p| u32::from_le_bytes([p[0], p[1], p[2], p[3]])).collect();
+        let main_count = image.pixels.chunks_exact(4).filter(|p| p[3] > 0).count() as u64;
+        Ok(GpuInput { words, format: 1, main: 0..n as u32, up: 0..0, down: 0..0, main_count })
+    }
+
+    /// A model's textures, texels outside the priors' mask given alpha 0.
+    pub fn from_model(model: &Model) -> Result<(GpuInput, TexelCounts)> {
+        let mut words = Vec::new();
+        let mut counts = TexelCounts::default();
+        for (tex, meshes) in super::model_textures(model) {
+            let (used, c) = super::texture_mask(tex, &meshes)?;
+            super::add_counts(&mut counts, c);
+            words.extend(
+                tex.pixels.chunks_exact(4).zip(&used).map(|(p, &u)| u32::from_le_bytes([p[0], p[1], p[2], if u { 255 } else { 0 }])),
+            );
+        }
+        let n = words.len() as u32;
+        Ok((GpuInput { words, format: 1, main: 0..n, up: 0..0, down: 0..0, main_count: counts.used }, counts))
+    }
+}
+
+/// What one reduction returns.
+pub struct GpuReduction {
+    pub main: ColourStats,
+    /// Mean linear RGB of the up and down regions (zeros when the region is empty).
+    pub up_mean: [f64; 3],
+    pub down_mean: [f64; 3],
+    /// GPU time of the six passes, ms (None without timestamp queries).
+    pub gpu_ms: Option<f64>,
+}
+
+/// The compute pipelines and buffers of the reduction; make once, reuse per frame.
+pub struct PriorsReducer {
+    layout: wgpu::BindGroupLayout,
+    pipelines: Vec<wgpu::ComputePipeline>,
+    params: wgpu::Buffer,
+    partials: wgpu::Buffer,
+    result: wgpu::Buffer,
+    hist: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    pixels: Option<(wgpu::Buffer, u64)>,
+    timer: Option<GpuTimer>,
+}
+
+const ENTRY_POINTS: [&str; 6] = ["first_moments", "finish_first", "second_moments", "finish_second", "fine_histogram", "finish_fine"];
+
+/// The full WGSL of the reduction.
+pub fn reduce_source() -> String {
+    format!("{COLOUR_CORRECT_WGSL}\n{PRIORS_REDUCE_WGSL}")
+}
+
+impl PriorsReducer {
+    pub fn new(gpu: &Gpu) -> PriorsReducer {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("priors_reduce.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(reduce_source().into()),
+        });
+        let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("priors reduce"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage(1, true),
+                storage(2, false),
+                storage(3, false),
+                storage(4, false),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("priors reduce"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipelines = ENTRY_POINTS
+            .iter()
+            .map(|e| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(e),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(e),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            })
+            .collect();
+        let buffer = |label, size, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        };
+        use wgpu::BufferUsages as U;
+        PriorsReducer {
+            layout,
+            pipelines,
+            params: buffer("reduce params", std::mem::size_of::<ReduceParams>() as u64, U::UNIFORM | U::COPY_DST),
+            partials: buffer("reduce partials", GROUPS * ACC * 4, U::STORAGE),
+            result: buffer("reduce result", RESULT_LEN * 4, U::STORAGE | U::COPY_SRC),
+            hist: buffer("reduce histogram", HIST_WORDS * 4, U::STORAGE | U::COPY_DST | U::COPY_SRC),
+            readback: buffer("reduce readback", (RESULT_LEN + HIST_WORDS) * 4, U::MAP_READ | U::COPY_DST),
+            pixels: None,
+            timer: GpuTimer::new(gpu, 1),
+        }
+    }
+
+    /// Run the reduction over `input`.
+    pub fn reduce(&mut self, gpu: &Gpu, input: &GpuInput) -> Result<GpuReduction> {
+        if input.main_count == 0 {
+            bail!("no pixels to take statistics of");
+        }
+        let bytes = input.words.len() as u64 * 4;
+        let limit = gpu.device.limits().max_storage_buffer_binding_size;
+        if bytes > limit {
+            bail!("input of {} MiB exceeds the GPU's storage-buffer limit of {} MiB; use the CPU priors", bytes >> 20, limit >> 20);
+        }
+        let device = &gpu.device;
+        if self.pixels.as_ref().is_none_or(|(_, size)| *size < bytes) {
+            let size = bytes.max(16);
+            let buf = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("reduce pixels"),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.pixels = Some((buf, size));
+        }
+        let Some((pixels, _)) = &self.pixels else { bail!("internal: no pixel buffer") };
+        gpu.queue.write_buffer(pixels, 0, bytemuck::cast_slice(&input.words));
+        let params = ReduceParams {
+            main_begin: input.main.start,
+            main_end: input.main.end,
+            up_begin: input.up.start,
+            up_end: input.up.end,
+            down_begin: input.down.start,
+            down_end: input.down.end,
+            format: input.format,
+            k_lo: percentile_rank(PERCENTILE_LO, input.main_count) as u32,
+            k_hi: percentile_rank(PERCENTILE_HI, input.main_count) as u32,
+            lum_floor: LUM_FLOOR,
+            ..Default::default()
+        };
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("priors reduce"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: pixels.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: self.partials.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: self.result.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: self.hist.as_entire_binding() },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.hist, 0, None);
+        let last = self.pipelines.len() - 1;
+        for (i, pipeline) in self.pipelines.iter().enumerate() {
+            // One GPU time for the whole reduction: begin of the first pass, end of the last.
+            let timestamp_writes = self.timer.as_ref().and_then(|t| t.compute_writes(0)).and_then(|mut w| {
+                if i != 0 {
+                    w.beginning_of_pass_write_index = None;
+                }
+                if i != last {
+                    w.end_of_pass_write_index = None;
+                }
+                (i == 0 || i == last).then_some(w)
+            });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(ENTRY_POINTS[i]), timestamp_writes });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            let groups = if i % 2 == 0 { GROUPS as u32 } else { 1 };
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut encoder, 1);
+        }
+        encoder.copy_buffer_to_buffer(&self.result, 0, &self.readback, 0, RESULT_LEN * 4);
+        encoder.copy_buffer_to_buffer(&self.hist, 0, &self.readback, RESULT_LEN * 4, HIST_WORDS * 4);
+        gpu.queue.submit([encoder.finish()]);
+        let raw = read_buffer(gpu, &self.readback)?;
+        let r: &[f32] = bytemuck::cast_slice(&raw[..(RESULT_LEN * 4) as usize]);
+        let h: &[u32] = bytemuck::cast_slice(&raw[(RESULT_LEN * 4) as usize..]);
+        let histogram_count = u64::from(h[(3 * BINS + 4) as usize]);
+        if histogram_count != input.main_count {
+            bail!("GPU reduction counted {histogram_count} pixels, expected {}", input.main_count);
+        }
+        let gpu_ms = match &self.timer {
+            Some(t) => t.read_ms(gpu, 1)?.first().copied(),
+            None => None,
+        };
+        Ok(GpuReduction { main: stats_from_result(r, input.main_count), up_mean: triple(r, 11), down_mean: triple(r, 15), gpu_ms })
+    }
+
+    /// Environment priors on the GPU.
+    pub fn environment(&mut self, gpu: &Gpu, cube: &CubeMap) -> Result<EnvironmentPriors> {
+        let input = GpuInput::from_cube(cube)?;
+        for (range, name) in [(&input.up, "+Y (up)"), (&input.down, "-Y (down)")] {
+            let n = range.len();
+            let dead = input.words[range.start as usize * 4..range.end as usize * 4].chunks(4).filter(|p| p[3] == 0).count();
+            if dead == n {
+                bail!("the {name} face of the cube map has no finite pixels");
+            }
+        }
+        if input.main_count == 0 {
+            bail!("the horizontal faces of the cube map have no finite pixels");
+        }
+        let r = self.reduce(gpu, &input)?;
+        Ok(EnvironmentPriors { up_mean: r.up_mean, down_mean: r.down_mean, horizontal: r.main })
+    }
+
+    /// Model priors on the GPU (the diffuse-colour fallback of untextured models is computed on
+    /// the CPU: a handful of values).
+    pub fn model(&mut self, gpu: &Gpu, model: &Model) -> Result<ModelPriors> {
+        if model.triangle_count() == 0 || super::model_textures(model).is_empty() {
+            return super::model_priors(model);
+        }
+        let (input, counts) = GpuInput::from_model(model)?;
+        if counts.used == 0 {
+            return Err(super::no_texels_error(counts));
+        }
+        let r = self.reduce(gpu, &input)?;
+        Ok(ModelPriors { source: ModelPriorSource::Textures, texels: counts, stats: r.main })
+    }
+
+    /// Statistics of a camera frame (sRGB; alpha 0 pixels skipped) on the GPU.
+    pub fn frame(&mut self, gpu: &Gpu, frame: &Rgba8Image) -> Result<GpuReduction> {
+        self.reduce(gpu, &GpuInput::from_image(frame)?)
+    }
+}
+
+/// Environment priors on the GPU, convenience for one-off use (makes the pipelines each call).
+pub fn environment_priors(gpu: &Gpu, cube: &CubeMap) -> Result<EnvironmentPriors> {
+    PriorsReducer::new(gpu).environment(gpu, cube)
+}
+
+fn triple(r: &[f32], at: usize) -> [f64; 3] {
+    [f64::from(r[at]), f64::from(r[at + 1]), f64::from(r[at + 2])]
+}
+
+fn sym(r: &[f32], at: usize) -> [[f64; 3]; 3] {
+    let v = |k: usize| f64::from(r[at + k]);
+    [[v(0), v(1), v(2)], [v(1), v(3), v(4)], [v(2), v(4), v(5)]]
+}
+
+fn stats_from_result(r: &[f32], count: u64) -> ColourStats {
+    ColourStats {
+        count,
+        rgb_mean: triple(r, 1),
+        rgb_cov: sym(r, 18),
+        lab_mean: triple(r, 4),
+        lab_cov: sym(r, 24),
+        luminance: LuminanceStats {
+            min: f64::from(r[8]),
+            mean: f64::from(r[7]),
+            max: f64::from(r[9]),
+            p_lo: f64::from(r[30]),
+            p_hi: f64::from(r[31]),
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::priors::tests::{half_quad_model, solid_cube};
+
+    fn gpu() -> Gpu {
+        std::fs::create_dir_all("/tmp/xdg").ok();
+        Gpu::headless().unwrap()
+    }
+
+    #[test]
+    fn wgsl_validates_and_params_layout_matches_naga() {
+        let module = naga::front::wgsl::parse_str(&reduce_source()).unwrap();
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all()).validate(&module).unwrap();
+        let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("ReduceParams")).unwrap();
+        let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("not a struct") };
+        assert_eq!(*span as usize, std::mem::size_of::<ReduceParams>());
+        let names = [
+            "main_begin",
+            "main_end",
+            "up_begin",
+            "up_end",
+            "down_begin",
+            "down_end",
+            "format",
+            "k_lo",
+            "k_hi",
+            "lum_floor",
+            "_pad0",
+            "_pad1",
+        ];
+        assert_eq!(members.len(), names.len());
+        for (i, (m, name)) in members.iter().zip(names).enumerate() {
+            assert_eq!(m.name.as_deref(), Some(name));
+            assert_eq!(m.offset as usize, 4 * i, "{name}");
+        }
+    }
+
+    /// |a − b| ≤ 1e-3 · max(1, |b|).
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-3 * b.abs().max(1.0)
+    }
+
+    fn assert_stats_agree(g: &ColourStats, c: &ColourStats) {
+        assert_eq!(g.count, c.count);
+        for i in 0..3 {
+            assert!(close(g.rgb_mean[i], c.rgb_mean[i]), "rgb mean {i}: {} vs {}", g.rgb_mean[i], c.rgb_mean[i]);
+            assert!(close(g.lab_mean[i], c.lab_mean[i]), "lab mean {i}: {} vs {}", g.lab_mean[i], c.lab_mean[i]);
+            for j in 0..3 {
+                assert!(close(g.rgb_cov[i][j], c.rgb_cov[i][j]), "rgb cov {i}{j}: {} vs {}", g.rgb_cov[i][j], c.rgb_cov[i][j]);
+                assert!(close(g.lab_cov[i][j], c.lab_cov[i][j]), "lab cov {i}{j}: {} vs {}", g.lab_cov[i][j], c.lab_cov[i][j]);
+            }
+        }
+        let (gl, cl) = (g.luminance, c.luminance);
+        for (name, a, b) in [
+            ("min", gl.min, cl.min),
+            ("mean", gl.mean, cl.mean),
+            ("max", gl.max, cl.max),
+            ("p_lo", gl.p_lo, cl.p_lo),
+            ("p_hi", gl.p_hi, cl.p_hi),
+        ] {
+            assert!(close(a, b), "luminance {name}: gpu {a} cpu {b}");
+        }
+    }
+
+    /// A synthetic HDR-ish environment: gradients, a bright "sun" spot, a few black and NaN
+    /// pixels, so that min, max and percentiles all differ.
+    fn synthetic_cube(size: u32) -> CubeMap {
+        let mut cube = solid_cube(size, [[0.0; 3]; 6]);
+        for (f, face) in cube.faces.iter_mut().enumerate() {
+            for (i, p) in face.iter_mut().enumerate() {
+                let (x, y) = ((i as u32 % size) as f32 / size as f32, (i as u32 / size) as f32 / size as f32);
+                *p = [0.05 + 0.6 * x * (f as f32 + 1.0) / 6.0, 0.1 + 0.5 * y, 0.2 + 0.3 * ((x * 7.0 + y * 3.0).sin() * 0.5 + 0.5)];
+            }
+        }
+        cube.faces[0][5] = [5000.0, 4800.0, 4000.0];
+        cube.faces[1][3] = [0.0; 3];
+        cube.faces[4][7] = [f32::NAN, 0.0, 0.0];
+        cube.faces[5][9] = [-1.0, 0.5, 0.5];
+        cube
+    }
+
+    #[test]
+    fn gpu_environment_priors_agree_with_cpu() {
+        let gpu = gpu();
+        let cube = synthetic_cube(48);
+        let cpu = crate::priors::environment_priors(&cube).unwrap();
+        let g = environment_priors(&gpu, &cube).unwrap();
+        assert_stats_agree(&g.horizontal, &cpu.horizontal);
+        for i in 0..3 {
+            assert!(close(g.up_mean[i], cpu.up_mean[i]) && close(g.down_mean[i], cpu.down_mean[i]));
+        }
+    }
+
+    #[test]
+    fn gpu_model_and_frame_priors_agree_with_cpu() {
+        let gpu = gpu();
+        let mut reducer = PriorsReducer::new(&gpu);
+        let (w, h) = (40u32, 30u32);
+        let pixels: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (x, y) = (i % w, i / w);
+                if x == 3 && y == 4 {
+                    [0, 255, 0, 255]
+                } else {
+                    [(x * 6) as u8, (y * 8) as u8, ((x * y) % 256) as u8, if x == 5 { 0 } else { 255 }]
+                }
+            })
+            .collect();
+        let tex = Rgba8Image { width: w, height: h, pixels };
+        let model = half_quad_model(tex.clone());
+        let cpu = crate::priors::model_priors(&model).unwrap();
+        let g = reducer.model(&gpu, &model).unwrap();
+        assert_eq!(g.texels, cpu.texels);
+        assert_stats_agree(&g.stats, &cpu.stats);
+        // A frame: all pixels with alpha > 0, green included.
+        let lut = crate::colour::stats::srgb8_to_linear_table();
+        let lin: Vec<[f32; 3]> =
+            tex.pixels.chunks(4).filter(|p| p[3] > 0).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect();
+        let cpu = ColourStats::from_linear(&lin).unwrap();
+        let g = reducer.frame(&gpu, &tex).unwrap();
+        assert_stats_agree(&g.main, &cpu);
+    }
+
+    #[test]
+    fn gpu_flat_input_and_errors() {
+        let gpu = gpu();
+        let cube = solid_cube(8, [[0.3, 0.3, 0.3]; 6]);
+        let g = environment_priors(&gpu, &cube).unwrap();
+        let cpu = crate::priors::environment_priors(&cube).unwrap();
+        assert_stats_agree(&g.horizontal, &cpu.horizontal);
+        let mut reducer = PriorsReducer::new(&gpu);
+        let transparent = Rgba8Image { width: 2, height: 2, pixels: vec![0; 16] };
+        assert!(reducer.frame(&gpu, &transparent).is_err());
+        let empty = Rgba8Image { width: 0, height: 0, pixels: vec![] };
+        assert!(reducer.frame(&gpu, &empty).is_err());
+    }
+}

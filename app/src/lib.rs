@@ -15,5 +15,5 @@ pub mod pose;
 pub mod priors;
 pub mod render;
 pub mod scene;
-pub mod sun;
 pub mod sensors;
+pub mod sun;

@@ -6,9 +6,9 @@ use clap::{Parser, Subcommand};
 pub mod bench;
 pub mod colour_transfer;
 pub mod composite;
+pub mod pose_stability;
 pub mod priors;
 pub mod sun;
-pub mod pose_stability;
 
 #[derive(Parser, Debug)]
 #[command(name = "previz", version, about = "AR compositing: a 3D model lit by the real sun, over a photograph or a live camera")]

@@ -295,7 +295,11 @@ impl OrientationFilter {
         let Some(date) = self.date else { return };
         let moved_far = match self.gps_position {
             // About 10 km: the field changes by far less than the magnetometer noise over it.
-            Some((la, lo)) => (lat - la).abs() > 0.09 || angle_difference(lon.to_radians(), lo.to_radians()).abs() > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01),
+            Some((la, lo)) => {
+                (lat - la).abs() > 0.09
+                    || angle_difference(lon.to_radians(), lo.to_radians()).abs()
+                        > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01)
+            }
             None => true,
         };
         if moved_far && let Ok(r) = MagneticReference::wmm(lat, lon, alt, date) {

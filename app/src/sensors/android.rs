@@ -71,7 +71,8 @@ impl AndroidSensors {
         let package = CString::new(package).context("package name contains a NUL byte")?;
         // SAFETY: plain NDK calls with valid arguments; every pointer is checked for null.
         unsafe {
-            let manager = NonNull::new(ffi::ASensorManager_getInstanceForPackage(package.as_ptr())).context("ASensorManager_getInstanceForPackage returned null")?;
+            let manager = NonNull::new(ffi::ASensorManager_getInstanceForPackage(package.as_ptr()))
+                .context("ASensorManager_getInstanceForPackage returned null")?;
             let mut looper = ffi::ALooper_forThread();
             if looper.is_null() {
                 looper = ffi::ALooper_prepare(ffi::ALOOPER_PREPARE_ALLOW_NON_CALLBACKS as i32);

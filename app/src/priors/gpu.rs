@@ -509,4 +509,24 @@ mod tests {
         let empty = Rgba8Image { width: 0, height: 0, pixels: vec![] };
         assert!(reducer.frame(&gpu, &empty).is_err());
     }
+
+    #[test]
+    fn gpu_priors_of_a_real_model_and_cube_map_agree_with_cpu() {
+        let gpu = gpu();
+        let mut reducer = PriorsReducer::new(&gpu);
+        let spot = crate::priors::tests::spot();
+        let (g, c) = (reducer.model(&gpu, &spot).unwrap(), crate::priors::model_priors(&spot).unwrap());
+        assert_eq!(g.texels, c.texels);
+        assert_stats_agree(&g.stats, &c.stats);
+        let env = crate::scene::environment::load_environment(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/data/cubemaps/pisa_hdr"
+        )))
+        .unwrap();
+        let (g, c) = (reducer.environment(&gpu, &env).unwrap(), crate::priors::environment_priors(&env).unwrap());
+        assert_stats_agree(&g.horizontal, &c.horizontal);
+        for i in 0..3 {
+            assert!(close(g.up_mean[i], c.up_mean[i]) && close(g.down_mean[i], c.down_mean[i]));
+        }
+    }
 }

@@ -330,4 +330,31 @@ pub(crate) mod tests {
         assert!((p.stats.rgb_mean[2] - 0.3).abs() < 1e-7);
         assert!(model_priors(&Model::default()).is_err());
     }
+
+    /// Keenan Crane's Spot (OBJ without .mtl) with its texture.
+    pub fn spot() -> Model {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/textured_models/spot/");
+        let options = crate::scene::model::ModelOptions { texture: Some(format!("{dir}spot_texture.png").into()), ..Default::default() };
+        crate::scene::model::load_model_with(std::path::Path::new(&format!("{dir}spot_triangulated.obj")), &options).unwrap().model
+    }
+
+    #[test]
+    fn spot_texture_priors_skip_texels_no_uv_covers() {
+        let p = model_priors(&spot()).unwrap();
+        let t = p.texels;
+        assert_eq!(t.total, 1024 * 1024);
+        assert_eq!(t.used + t.not_covered_by_uvs + t.green_screen + t.transparent, t.total);
+        // Spot's UV islands cover about half the texture. An independent raster of the same UVs
+        // (Pillow's ImageDraw.polygon fill of every triangle, v flipped, 1024²) covers 49.38 %;
+        // ours is conservative (edge texels count), so slightly more, but not much.
+        let covered = t.used as f64 / t.total as f64;
+        assert!((0.4938..0.51).contains(&covered), "{t:?}");
+        assert_eq!(p.stats.count, t.used);
+        // With the mask the statistics differ from the whole texture's.
+        let all = ColourStats::from_srgb8(
+            &spot().materials[0].texture.as_ref().unwrap().pixels.chunks(4).map(|c| [c[0], c[1], c[2]]).collect::<Vec<_>>(),
+        )
+        .unwrap();
+        assert!((all.rgb_mean[0] - p.stats.rgb_mean[0]).abs() > 1e-3 || (all.rgb_mean[2] - p.stats.rgb_mean[2]).abs() > 1e-3);
+    }
 }

@@ -159,18 +159,21 @@ pub fn texture_mask(texture: &Rgba8Image, meshes: &[&crate::scene::Mesh]) -> Res
     Ok((used, counts))
 }
 
-/// The textures of a model with the meshes that use each (materials without a texture skipped).
+/// The distinct textures of a model, each with all the meshes that use it (materials that
+/// share one image — loaders give each material its own copy — are merged, so no texel counts
+/// twice; materials without a texture are skipped).
 pub fn model_textures(model: &Model) -> Vec<(&Rgba8Image, Vec<&crate::scene::Mesh>)> {
-    model
-        .materials
-        .iter()
-        .enumerate()
-        .filter_map(|(i, mat)| {
-            let tex = mat.texture.as_ref()?;
-            let meshes: Vec<_> = model.meshes.iter().filter(|m| m.material == i).collect();
-            (!meshes.is_empty()).then_some((tex, meshes))
-        })
-        .collect()
+    let mut groups: Vec<(&Rgba8Image, Vec<&crate::scene::Mesh>)> = Vec::new();
+    for (i, mat) in model.materials.iter().enumerate() {
+        let Some(tex) = mat.texture.as_ref() else { continue };
+        let meshes = model.meshes.iter().filter(|m| m.material == i);
+        match groups.iter_mut().find(|(t, _)| (t.width, t.height) == (tex.width, tex.height) && t.pixels == tex.pixels) {
+            Some((_, list)) => list.extend(meshes),
+            None => groups.push((tex, meshes.collect())),
+        }
+    }
+    groups.retain(|(_, meshes)| !meshes.is_empty());
+    groups
 }
 
 fn add_counts(a: &mut TexelCounts, b: TexelCounts) {
@@ -314,6 +317,21 @@ pub(crate) mod tests {
         // Only red left: σ = 0, mean linear (1, 0, 0).
         assert_eq!(p.stats.rgb_mean, [1.0, 0.0, 0.0]);
         assert!(p.stats.lab_sigma().iter().all(|s| *s < 1e-7));
+    }
+
+    #[test]
+    fn a_texture_shared_by_two_materials_counts_once() {
+        let tex = texture(8, 8, |x, _| if x < 4 { [255, 0, 0, 255] } else { [0, 0, 255, 255] });
+        let mut m = half_quad_model(tex.clone());
+        // A second material with a copy of the same image, used by a quad over the right half.
+        m.materials.push(Material { texture: Some(tex), ..Default::default() });
+        let mut right = m.meshes[0].clone();
+        right.uvs = vec![[0.5, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 1.0]];
+        right.material = 1;
+        m.meshes.push(right);
+        let p = model_priors(&m).unwrap();
+        assert_eq!(p.texels, TexelCounts { total: 64, used: 64, ..Default::default() });
+        assert!((p.stats.rgb_mean[0] - 0.5).abs() < 1e-12 && (p.stats.rgb_mean[2] - 0.5).abs() < 1e-12);
     }
 
     #[test]

@@ -17,7 +17,8 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(subcommand)]
     pub command: Option<Sub>,
-    /// Environment: whatever `previz composite --env` accepts (cube-map faces or an HDR panorama).
+    /// Environment: a folder of six cube-map faces (posx/px …), or an equirectangular
+    /// .hdr/.exr/.jpg/.png (docs/assets.md).
     #[arg(long, required = true)]
     pub env: Option<PathBuf>,
     /// Model (OBJ / glTF / GLB) whose texture priors to add.

@@ -7,6 +7,8 @@
 //   0: 4 words per pixel, f32 linear R, G, B, weight (0 = skip, 1 = use)   (HDR cube maps)
 //   1: 1 word per pixel, RGBA8 sRGB-encoded; alpha 0 = skip, else use      (textures, frames)
 // Regions (pixel index ranges): main (full statistics), up and down (mean colour only).
+// Inputs bigger than one storage binding come in chunks: the per-pixel passes run once per chunk
+// (ranges relative to the chunk), writing GROUPS partial rows each from partial_base.
 //
 // Six dispatches, in order:
 //   first_moments  (GROUPS workgroups) per-group sums: count, rgb, log lab, Y, min Y, max Y; up/down sums
@@ -32,8 +34,10 @@ struct ReduceParams {
     k_hi: u32,
     // Luminances below this are histogrammed as this value (log2 of 0 is -inf).
     lum_floor: f32,
-    _pad0: u32,
-    _pad1: u32,
+    // Inputs larger than one storage binding are split into chunks, one dispatch of the
+    // per-pixel passes each: this chunk's first row in `partials`, and the rows of all chunks.
+    partial_base: u32,
+    partial_rows: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ReduceParams;
@@ -163,12 +167,12 @@ fn first_moments(@builtin(local_invocation_index) li: u32, @builtin(workgroup_id
     reduce_shared(li, ACC, true);
     if (li == 0u) {
         for (var k = 0u; k < ACC; k++) {
-            partials[wid.x * ACC + k] = wg_acc[0][k];
+            partials[(params.partial_base + wid.x) * ACC + k] = wg_acc[0][k];
         }
     }
 }
 
-// Sum the GROUPS partial rows of `count` values into wg_acc[0] (min/max for 8, 9 if minmax).
+// Sum the partial rows (GROUPS per chunk) of `count` values into wg_acc[0] (min/max for 8, 9 if minmax).
 fn gather_partials(li: u32, count: u32, minmax: bool) {
     var acc: array<f32, 18>;
     for (var k = 0u; k < ACC; k++) {
@@ -178,7 +182,7 @@ fn gather_partials(li: u32, count: u32, minmax: bool) {
         acc[8] = BIG;
         acc[9] = -BIG;
     }
-    for (var g = li; g < GROUPS; g += WG) {
+    for (var g = li; g < params.partial_rows; g += WG) {
         for (var k = 0u; k < count; k++) {
             let v = partials[g * ACC + k];
             if (minmax && k == 8u) {
@@ -272,7 +276,7 @@ fn second_moments(@builtin(local_invocation_index) li: u32, @builtin(workgroup_i
     reduce_shared(li, 12u, false);
     if (li == 0u) {
         for (var k = 0u; k < 12u; k++) {
-            partials[wid.x * ACC + k] = wg_acc[0][k];
+            partials[(params.partial_base + wid.x) * ACC + k] = wg_acc[0][k];
         }
     }
     flush_wg_hist(li, BINS, 0u);

@@ -219,3 +219,46 @@ fn bad_input_fails_cleanly() {
     assert_clean_failure(&run(&["colour-transfer", "--source", &s]), &dir, &before, &["--target"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
+}
+
+#[test]
+fn priors_of_an_environment_and_a_model() {
+    let dir = tempdir("priors");
+    let env = data("cubemaps/pisa_ldr_png");
+    let obj = data("textured_models/spot/spot_triangulated.obj");
+    let tex = data("textured_models/spot/spot_texture.png");
+    let out = previz(
+        &dir,
+        &["priors", "--env", env.to_str().unwrap(), "--model", obj.to_str().unwrap(), "--texture", tex.to_str().unwrap(), "--json"],
+    );
+    let v = json(&out);
+    assert!(v["encoding"].as_str().unwrap().contains("linear"));
+    let h = &v["environment"]["horizontal"];
+    assert_eq!(h["count"], 4 * 256 * 256);
+    let l = &h["luminance"];
+    let f = |k: &str| l[k].as_f64().unwrap();
+    assert!(f("min") <= f("p_lo") && f("p_lo") <= f("mean") && f("mean") <= f("p_hi") && f("p_hi") <= f("max"));
+    assert!(f("max") <= 1.0 + 1e-9, "an 8-bit environment is at most 1 in linear light");
+    let m = &v["model"];
+    assert_eq!(m["source"], "textures");
+    assert!(m["texels"]["not_covered_by_uvs"].as_u64().unwrap() > 0);
+    // The table form prints the same without error.
+    let out = previz(&dir, &["priors", "--env", env.to_str().unwrap()]);
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains("horizontal"));
+    // Bad input: a missing environment and an unreadable model.
+    let before = files(&dir);
+    assert_clean_failure(&previz(&dir, &["priors", "--env", "no/such/env"]), &dir, &before, &["--env", "no/such/env"]);
+    let broken = dir.join("broken.obj");
+    std::fs::write(&broken, b"v 0 0 0\nf 1 2 3\n").unwrap();
+    let before = files(&dir);
+    assert_clean_failure(
+        &previz(&dir, &["priors", "--env", env.to_str().unwrap(), "--model", broken.to_str().unwrap()]),
+        &dir,
+        &before,
+        &["--model"],
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -17,12 +17,16 @@ use std::path::PathBuf;
 pub struct Args {
     #[command(subcommand)]
     pub command: Option<Sub>,
-    /// Environment: whatever `previz composite --env` accepts (cube-map faces or an HDR panorama).
+    /// Environment: a folder of six cube-map faces (posx/px …), or an equirectangular
+    /// .hdr/.exr/.jpg/.png (docs/assets.md).
     #[arg(long, required = true)]
     pub env: Option<PathBuf>,
     /// Model (OBJ / glTF / GLB) whose texture priors to add.
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Diffuse texture for the model's materials that have none (an OBJ without .mtl).
+    #[arg(long, requires = "model")]
+    pub texture: Option<PathBuf>,
     /// Compute with the GPU compute reduction instead of the CPU reference.
     #[arg(long)]
     pub gpu: bool,
@@ -57,7 +61,10 @@ pub fn run(args: Args) -> Result<()> {
     let Some(env_path) = &args.env else { bail!("--env is required") };
     let cube = crate::scene::environment::load_environment(env_path).with_context(|| format!("--env {}", env_path.display()))?;
     let model = match &args.model {
-        Some(p) => Some(crate::scene::model::load_model(p).with_context(|| format!("--model {}", p.display()))?),
+        Some(p) => {
+            let options = crate::scene::model::ModelOptions { texture: args.texture.clone(), ..Default::default() };
+            Some(crate::scene::model::load_model_with(p, &options).with_context(|| format!("--model {}", p.display()))?.model)
+        }
         None => None,
     };
     let (env, model_priors) = if args.gpu {

@@ -26,18 +26,16 @@ pub struct PriorsRow {
     pub max_difference: f64,
 }
 
-/// A cube map from six face images (+X, −X, +Y, −Y, +Z, −Z), decoded to linear light (HDR
-/// files as they are, 8-bit ones from sRGB) and resized to `size`².
+/// A cube map from six face images (+X, −X, +Y, −Y, +Z, −Z) resized to `size`², assembled by
+/// the environment loader (8-bit faces decoded from sRGB, float faces linear).
 pub fn cube_from_face_files(files: &[std::path::PathBuf; 6], size: u32) -> Result<CubeMap> {
-    let mut faces: [Vec<[f32; 3]>; 6] = Default::default();
-    for (face, path) in faces.iter_mut().zip(files) {
+    let mut faces = Vec::with_capacity(6);
+    for path in files {
         let img = image::open(path).with_context(|| format!("cannot read cube-map face {}", path.display()))?;
-        let hdr = matches!(img, image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_));
-        let rgb = img.to_rgb32f();
-        let rgb = image::imageops::resize(&rgb, size, size, image::imageops::FilterType::Triangle);
-        *face = rgb.pixels().map(|p| if hdr { p.0 } else { p.0.map(crate::colour::srgb_to_linear) }).collect();
+        faces.push(img.resize_exact(size, size, image::imageops::FilterType::Triangle));
     }
-    Ok(CubeMap { size, faces })
+    let faces: [image::DynamicImage; 6] = faces.try_into().map_err(|_| anyhow::anyhow!("expected six faces"))?;
+    crate::scene::environment::cube_from_faces(faces)
 }
 
 fn max_difference(g: &ColourStats, c: &ColourStats) -> f64 {

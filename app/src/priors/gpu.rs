@@ -2,9 +2,10 @@
 //! map, a texture or a camera frame. Same definitions and encodings as the CPU reference
 //! ([`ColourStats::from_linear`]); a test checks they agree to 1e-3.
 //!
-//! Limits: the input is one storage buffer — 16 bytes per pixel for float cube maps, 4 for
-//! 8-bit images — so it must fit the device's `max_storage_buffer_binding_size` (128 MiB by
-//! default: cube maps up to 6×1024²); bigger inputs are an error, use the CPU functions.
+//! Input: 16 bytes per pixel for float cube maps, 4 for 8-bit images. Inputs bigger than one
+//! storage binding (`max_storage_buffer_binding_size`, 128 MiB by default: a 6×2048² float cube
+//! is 384 MiB) are split into chunks; the per-pixel passes run once per chunk and the finishing
+//! passes combine all chunks' partial sums, so the result does not depend on the chunking.
 
 use super::{EnvironmentPriors, ModelPriorSource, ModelPriors, TexelCounts};
 use crate::colour::correction::COLOUR_CORRECT_WGSL;
@@ -44,8 +45,9 @@ pub struct ReduceParams {
     pub k_lo: u32,
     pub k_hi: u32,
     pub lum_floor: f32,
-    pub _pad0: u32,
-    pub _pad1: u32,
+    /// This chunk's first row of partial sums, and the rows of all chunks.
+    pub partial_base: u32,
+    pub partial_rows: u32,
 }
 
 /// Pixels packed for the GPU.
@@ -129,13 +131,16 @@ pub struct GpuReduction {
 pub struct PriorsReducer {
     layout: wgpu::BindGroupLayout,
     pipelines: Vec<wgpu::ComputePipeline>,
-    params: wgpu::Buffer,
-    partials: wgpu::Buffer,
     result: wgpu::Buffer,
     hist: wgpu::Buffer,
     readback: wgpu::Buffer,
-    pixels: Option<(wgpu::Buffer, u64)>,
+    /// Per chunk: pixel buffer (with its size) and params uniform; grown on demand.
+    chunks: Vec<(wgpu::Buffer, u64, wgpu::Buffer)>,
+    /// Partial sums for all chunks, with its row capacity.
+    partials: Option<(wgpu::Buffer, u64)>,
     timer: Option<GpuTimer>,
+    /// Largest chunk in bytes (the device's storage-binding and buffer limits).
+    max_chunk_bytes: u64,
 }
 
 const ENTRY_POINTS: [&str; 6] = ["first_moments", "finish_first", "second_moments", "finish_second", "fine_histogram", "finish_fine"];
@@ -206,14 +211,19 @@ impl PriorsReducer {
         PriorsReducer {
             layout,
             pipelines,
-            params: buffer("reduce params", std::mem::size_of::<ReduceParams>() as u64, U::UNIFORM | U::COPY_DST),
-            partials: buffer("reduce partials", GROUPS * ACC * 4, U::STORAGE),
             result: buffer("reduce result", RESULT_LEN * 4, U::STORAGE | U::COPY_SRC),
             hist: buffer("reduce histogram", HIST_WORDS * 4, U::STORAGE | U::COPY_DST | U::COPY_SRC),
             readback: buffer("reduce readback", (RESULT_LEN + HIST_WORDS) * 4, U::MAP_READ | U::COPY_DST),
-            pixels: None,
+            chunks: Vec::new(),
+            partials: None,
             timer: GpuTimer::new(gpu, 1),
+            max_chunk_bytes: gpu.device.limits().max_storage_buffer_binding_size.min(gpu.device.limits().max_buffer_size) & !15,
         }
+    }
+
+    /// Limit the chunk size (bytes, at least one pixel); for tests of the chunked path.
+    pub fn set_max_chunk_bytes(&mut self, bytes: u64) {
+        self.max_chunk_bytes = bytes.clamp(16, self.max_chunk_bytes) & !15;
     }
 
     /// Run the reduction over `input`.
@@ -221,49 +231,77 @@ impl PriorsReducer {
         if input.main_count == 0 {
             bail!("no pixels to take statistics of");
         }
-        let bytes = input.words.len() as u64 * 4;
-        let limit = gpu.device.limits().max_storage_buffer_binding_size;
-        if bytes > limit {
-            bail!("input of {} MiB exceeds the GPU's storage-buffer limit of {} MiB; use the CPU priors", bytes >> 20, limit >> 20);
-        }
         let device = &gpu.device;
-        if self.pixels.as_ref().is_none_or(|(_, size)| *size < bytes) {
-            let size = bytes.max(16);
+        let words_per_pixel: usize = if input.format == 0 { 4 } else { 1 };
+        let pixels = input.words.len() / words_per_pixel;
+        let chunk_pixels = ((self.max_chunk_bytes / 4) as usize / words_per_pixel).max(1);
+        let n_chunks = pixels.div_ceil(chunk_pixels).max(1);
+        let rows = GROUPS * n_chunks as u64;
+        if self.partials.as_ref().is_none_or(|(_, r)| *r < rows) {
             let buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("reduce pixels"),
-                size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                label: Some("reduce partials"),
+                size: rows * ACC * 4,
+                usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             });
-            self.pixels = Some((buf, size));
+            self.partials = Some((buf, rows));
         }
-        let Some((pixels, _)) = &self.pixels else { bail!("internal: no pixel buffer") };
-        gpu.queue.write_buffer(pixels, 0, bytemuck::cast_slice(&input.words));
-        let params = ReduceParams {
-            main_begin: input.main.start,
-            main_end: input.main.end,
-            up_begin: input.up.start,
-            up_end: input.up.end,
-            down_begin: input.down.start,
-            down_end: input.down.end,
-            format: input.format,
-            k_lo: percentile_rank(PERCENTILE_LO, input.main_count) as u32,
-            k_hi: percentile_rank(PERCENTILE_HI, input.main_count) as u32,
-            lum_floor: LUM_FLOOR,
-            ..Default::default()
-        };
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("priors reduce"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: pixels.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: self.partials.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: self.result.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: self.hist.as_entire_binding() },
-            ],
-        });
+        let mut binds = Vec::with_capacity(n_chunks);
+        for c in 0..n_chunks {
+            let (p0, p1) = (c * chunk_pixels, ((c + 1) * chunk_pixels).min(pixels));
+            let words = &input.words[p0 * words_per_pixel..p1 * words_per_pixel];
+            let bytes = (words.len() as u64 * 4).max(16);
+            if self.chunks.len() <= c {
+                let params = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("reduce params"),
+                    size: std::mem::size_of::<ReduceParams>() as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                self.chunks.push((pixel_buffer(device, bytes), bytes, params));
+            } else if self.chunks[c].1 < bytes {
+                self.chunks[c].0 = pixel_buffer(device, bytes);
+                self.chunks[c].1 = bytes;
+            }
+            let (pixel_buf, _, params_buf) = &self.chunks[c];
+            gpu.queue.write_buffer(pixel_buf, 0, bytemuck::cast_slice(words));
+            // The regions' ranges relative to this chunk (empty where they do not meet it).
+            let local = |r: &std::ops::Range<u32>| {
+                let (a, b) = ((r.start as usize).max(p0), (r.end as usize).min(p1));
+                if a < b { ((a - p0) as u32, (b - p0) as u32) } else { (0, 0) }
+            };
+            let ((main_begin, main_end), (up_begin, up_end), (down_begin, down_end)) =
+                (local(&input.main), local(&input.up), local(&input.down));
+            let params = ReduceParams {
+                main_begin,
+                main_end,
+                up_begin,
+                up_end,
+                down_begin,
+                down_end,
+                format: input.format,
+                k_lo: percentile_rank(PERCENTILE_LO, input.main_count) as u32,
+                k_hi: percentile_rank(PERCENTILE_HI, input.main_count) as u32,
+                lum_floor: LUM_FLOOR,
+                partial_base: (c as u64 * GROUPS) as u32,
+                partial_rows: rows as u32,
+            };
+            gpu.queue.write_buffer(params_buf, 0, bytemuck::bytes_of(&params));
+        }
+        let Some((partials, _)) = &self.partials else { bail!("internal: no partials buffer") };
+        for (pixel_buf, _, params_buf) in &self.chunks[..n_chunks] {
+            binds.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("priors reduce"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: params_buf.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: pixel_buf.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: partials.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: self.result.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: self.hist.as_entire_binding() },
+                ],
+            }));
+        }
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.hist, 0, None);
         let last = self.pipelines.len() - 1;
@@ -280,9 +318,16 @@ impl PriorsReducer {
             });
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(ENTRY_POINTS[i]), timestamp_writes });
             pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            let groups = if i % 2 == 0 { GROUPS as u32 } else { 1 };
-            pass.dispatch_workgroups(groups, 1, 1);
+            if i % 2 == 0 {
+                // Per-pixel passes: once per chunk.
+                for bind in &binds {
+                    pass.set_bind_group(0, bind, &[]);
+                    pass.dispatch_workgroups(GROUPS as u32, 1, 1);
+                }
+            } else {
+                pass.set_bind_group(0, &binds[0], &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
         }
         if let Some(t) = &self.timer {
             t.resolve(&mut encoder, 1);
@@ -339,6 +384,15 @@ impl PriorsReducer {
     pub fn frame(&mut self, gpu: &Gpu, frame: &Rgba8Image) -> Result<GpuReduction> {
         self.reduce(gpu, &GpuInput::from_image(frame)?)
     }
+}
+
+fn pixel_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("reduce pixels"),
+        size: bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 /// Environment priors on the GPU, convenience for one-off use (makes the pipelines each call).
@@ -400,8 +454,8 @@ mod tests {
             "k_lo",
             "k_hi",
             "lum_floor",
-            "_pad0",
-            "_pad1",
+            "partial_base",
+            "partial_rows",
         ];
         assert_eq!(members.len(), names.len());
         for (i, (m, name)) in members.iter().zip(names).enumerate() {
@@ -464,6 +518,14 @@ mod tests {
         for i in 0..3 {
             assert!(close(g.up_mean[i], cpu.up_mean[i]) && close(g.down_mean[i], cpu.down_mean[i]));
         }
+        // The same input split into 19984-byte chunks (1249 pixels: not aligned with the faces).
+        let mut chunked = PriorsReducer::new(&gpu);
+        chunked.set_max_chunk_bytes(20_000);
+        let c = chunked.environment(&gpu, &cube).unwrap();
+        assert_stats_agree(&c.horizontal, &cpu.horizontal);
+        for i in 0..3 {
+            assert!(close(c.up_mean[i], cpu.up_mean[i]) && close(c.down_mean[i], cpu.down_mean[i]));
+        }
     }
 
     #[test]
@@ -494,6 +556,10 @@ mod tests {
         let cpu = ColourStats::from_linear(&lin).unwrap();
         let g = reducer.frame(&gpu, &tex).unwrap();
         assert_stats_agree(&g.main, &cpu);
+        // Chunked: 1000 pixels of 1200 per chunk.
+        reducer.set_max_chunk_bytes(4000);
+        let g = reducer.frame(&gpu, &tex).unwrap();
+        assert_stats_agree(&g.main, &cpu);
     }
 
     #[test]
@@ -508,5 +574,25 @@ mod tests {
         assert!(reducer.frame(&gpu, &transparent).is_err());
         let empty = Rgba8Image { width: 0, height: 0, pixels: vec![] };
         assert!(reducer.frame(&gpu, &empty).is_err());
+    }
+
+    #[test]
+    fn gpu_priors_of_a_real_model_and_cube_map_agree_with_cpu() {
+        let gpu = gpu();
+        let mut reducer = PriorsReducer::new(&gpu);
+        let spot = crate::priors::tests::spot();
+        let (g, c) = (reducer.model(&gpu, &spot).unwrap(), crate::priors::model_priors(&spot).unwrap());
+        assert_eq!(g.texels, c.texels);
+        assert_stats_agree(&g.stats, &c.stats);
+        let env = crate::scene::environment::load_environment(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/data/cubemaps/pisa_hdr"
+        )))
+        .unwrap();
+        let (g, c) = (reducer.environment(&gpu, &env).unwrap(), crate::priors::environment_priors(&env).unwrap());
+        assert_stats_agree(&g.horizontal, &c.horizontal);
+        for i in 0..3 {
+            assert!(close(g.up_mean[i], c.up_mean[i]) && close(g.down_mean[i], c.down_mean[i]));
+        }
     }
 }

@@ -272,6 +272,11 @@ fn milk_truck_gltf_and_glb_agree() {
         assert_eq!(normals_check(m), 1.0);
     }
     assert_eq!(a.bounds().unwrap(), b.bounds().unwrap());
+    // The same .glb from memory (the embedded demo model path).
+    let bytes = std::fs::read(data("textured_models/cesium_milk_truck_gltf/CesiumMilkTruck.glb")).unwrap();
+    let c = previz::scene::model::load_glb_bytes(&bytes).unwrap();
+    assert_eq!((c.triangle_count(), c.bounds()), (b.triangle_count(), b.bounds()));
+    assert!(previz::scene::model::load_glb_bytes(&bytes[..bytes.len() / 3]).is_err());
     let tex_a = &a.materials.iter().find(|m| m.name == "truck").unwrap().texture.as_ref().unwrap().pixels;
     let tex_b = &b.materials.iter().find(|m| m.name == "truck").unwrap().texture.as_ref().unwrap().pixels;
     assert!(tex_a == tex_b, "the .gltf's PNG and the .glb's embedded PNG decode alike");

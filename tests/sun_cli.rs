@@ -106,11 +106,9 @@ fn batch_reproduces_pvlib_and_reports_bad_rows() {
     assert_eq!(rows.len(), 483);
     for row in &rows {
         assert_eq!(&row[idx("error")], "");
-        for (ours, theirs) in [
-            ("zenith_deg", "pvlib_zenith_deg"),
-            ("apparent_zenith_deg", "pvlib_apparent_zenith_deg"),
-            ("azimuth_deg", "pvlib_azimuth_deg"),
-        ] {
+        for (ours, theirs) in
+            [("zenith_deg", "pvlib_zenith_deg"), ("apparent_zenith_deg", "pvlib_apparent_zenith_deg"), ("azimuth_deg", "pvlib_azimuth_deg")]
+        {
             let a: f64 = row[idx(ours)].parse().unwrap();
             let b: f64 = row[idx(theirs)].parse().unwrap();
             let d = (a - b).abs();

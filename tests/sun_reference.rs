@@ -6,8 +6,7 @@ use chrono::{DateTime, FixedOffset, NaiveDate, NaiveTime, TimeZone, Utc};
 use previz::sun::{self, Algorithm, Site, SunInput, exif::PhotoInfo, horizon::wrap_180, spa};
 
 const PVLIB_TABLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/sun/pvlib_spa_reference.csv");
-const SUNRISE_TABLE: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/reference/spa_sunrise_sunset_reference.csv");
+const SUNRISE_TABLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/reference/spa_sunrise_sunset_reference.csv");
 const PHOTOS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/photos/exif_gps");
 
 fn read_csv(path: &str) -> (csv::StringRecord, Vec<csv::StringRecord>) {
@@ -35,11 +34,7 @@ fn spa_matches_pvlib_to_1e_4_degrees() {
         let time = sun::time::parse_time(col(&h, row, "utc"), "utc").unwrap().with_timezone(&Utc);
         let input = SunInput {
             time,
-            site: Site {
-                latitude_deg: num(&h, row, "lat"),
-                longitude_deg: num(&h, row, "lon"),
-                elevation_m: num(&h, row, "elevation_m"),
-            },
+            site: Site { latitude_deg: num(&h, row, "lat"), longitude_deg: num(&h, row, "lon"), elevation_m: num(&h, row, "elevation_m") },
             pressure_mbar: Some(num(&h, row, "pressure_mbar")),
             temperature_c: Some(num(&h, row, "temperature_c")),
             delta_t_s: Some(num(&h, row, "delta_t_s")),

@@ -131,11 +131,7 @@ struct Resolved {
 fn resolve(args: &Args) -> Result<Resolved> {
     if let Some(photo) = &args.from_photo {
         let info = sun::exif::PhotoInfo::read(photo)?;
-        let given = args
-            .photo_utc_offset
-            .as_deref()
-            .map(|o| sun::exif::parse_offset(o).context("--photo-utc-offset"))
-            .transpose()?;
+        let given = args.photo_utc_offset.as_deref().map(|o| sun::exif::parse_offset(o).context("--photo-utc-offset")).transpose()?;
         let (time, source) = match &args.time {
             Some(t) => (sun::time::parse_time(t, "--time")?, "--time (overrides the photo)".to_string()),
             None => {
@@ -258,10 +254,10 @@ impl Report<'_> {
         s += &format!("algorithm         {}\n", p.algorithm);
         s += &format!("zenith            {:.6}° (geometric, no refraction)\n", p.zenith_deg);
         s += &format!("apparent zenith   {:.6}°\n", p.apparent_zenith_deg);
-        s += &format!("apparent elevation {:.6}°\n", p.apparent_elevation_deg());
+        s += &format!("app. elevation    {:.6}°\n", p.apparent_elevation_deg());
         s += &format!("azimuth           {:.6}° (clockwise from true north)\n", p.azimuth_deg);
         if self.at_pole() {
-            s += "                  at a pole every direction is south (north); this azimuth is measured from the meridian of --lon (docs/sun.md)\n";
+            s += "                  at a pole every horizontal direction is south (north at the south pole): this azimuth is\n                  measured from the meridian of --lon, the limit along it (docs/sun.md)\n";
         }
         s += &format!("direction (ENU)   [{:.6}, {:.6}, {:.6}]\n", d.x, d.y, d.z);
         s += &format!("sunlight factor   {:.4}\n", p.sunlight_factor());
@@ -270,7 +266,11 @@ impl Report<'_> {
         }
         s += &format!("equation of time  {:.2} min (SPA)\n", self.eot);
         let hms = |t: Option<DateTime<FixedOffset>>| t.map_or("-".to_string(), |t| t.format("%Y-%m-%d %H:%M:%S").to_string());
-        s += &format!("transit           {}  (sun elevation {:.3}°)\n", hms(self.local(Some(self.day.transit))), self.day.transit_elevation_deg);
+        s += &format!(
+            "transit           {}  (sun elevation {:.3}°)\n",
+            hms(self.local(Some(self.day.transit))),
+            self.day.transit_elevation_deg
+        );
         match self.day.kind {
             spa::DayKind::RisesAndSets => {
                 s += &format!("sunrise           {}\n", hms(self.local(self.day.sunrise)));
@@ -346,10 +346,7 @@ fn batch_row(fields: &[Option<&str>; 7], algorithm: Algorithm) -> Result<SunPosi
     let number = |i: usize| -> Result<Option<f64>> {
         match fields[i].map(str::trim).filter(|s| !s.is_empty()) {
             None => Ok(None),
-            Some(s) => s
-                .parse::<f64>()
-                .map(Some)
-                .with_context(|| format!("{}: cannot read {s:?} as a number", BATCH_COLUMNS[i].0)),
+            Some(s) => s.parse::<f64>().map(Some).with_context(|| format!("{}: cannot read {s:?} as a number", BATCH_COLUMNS[i].0)),
         }
     };
     let utc = fields[0].map(str::trim).filter(|s| !s.is_empty()).context("utc: empty")?;
@@ -369,13 +366,10 @@ fn batch(path: &Path, algorithm: Algorithm, args: &Args) -> Result<()> {
     if args.from_photo.is_some() || args.elevation.is_some() || args.pressure.is_some() || args.delta_t.is_some() {
         bail!("--batch takes place, weather and ΔT from the CSV columns; only --algorithm applies");
     }
-    let mut reader = csv::ReaderBuilder::new()
-        .flexible(true)
-        .from_path(path)
-        .with_context(|| format!("--batch: cannot open {}", path.display()))?;
+    let mut reader =
+        csv::ReaderBuilder::new().flexible(true).from_path(path).with_context(|| format!("--batch: cannot open {}", path.display()))?;
     let header = reader.headers().with_context(|| format!("--batch: cannot read the header of {}", path.display()))?.clone();
-    let index: Vec<Option<usize>> =
-        BATCH_COLUMNS.iter().map(|(name, _)| header.iter().position(|h| h.trim() == *name)).collect();
+    let index: Vec<Option<usize>> = BATCH_COLUMNS.iter().map(|(name, _)| header.iter().position(|h| h.trim() == *name)).collect();
     for (i, (name, _)) in BATCH_COLUMNS.iter().enumerate().take(3) {
         if index[i].is_none() {
             bail!("--batch: {} has no `{name}` column (the header needs at least utc,lat,lon)", path.display());
@@ -409,12 +403,7 @@ fn batch(path: &Path, algorithm: Algorithm, args: &Args) -> Result<()> {
         };
         out.resize(header.len(), String::new());
         match result {
-            Ok(p) => out.extend([
-                p.zenith_deg.to_string(),
-                p.apparent_zenith_deg.to_string(),
-                p.azimuth_deg.to_string(),
-                String::new(),
-            ]),
+            Ok(p) => out.extend([p.zenith_deg.to_string(), p.apparent_zenith_deg.to_string(), p.azimuth_deg.to_string(), String::new()]),
             Err(e) => {
                 failed += 1;
                 out.extend([String::new(), String::new(), String::new(), batch_message(&e)]);
@@ -473,12 +462,13 @@ fn bench(args: &BenchArgs) -> Result<()> {
     let ns = accuracy::ns_per_eval(accuracy::Entry::Algorithm(algorithm), &cases, 5);
     let per_s = 1e9 / ns;
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({"algorithm": algorithm.name(), "cases": cases.len(), "ns_per_eval": ns, "evals_per_s": per_s})
-        );
+        println!("{}", serde_json::json!({"algorithm": algorithm.name(), "cases": cases.len(), "ns_per_eval": ns, "evals_per_s": per_s}));
     } else {
-        println!("{algorithm}: {ns:.1} ns per evaluation, {per_s:.0} evaluations/s ({} cases, best of 5)", cases.len());
+        println!(
+            "{algorithm}: {ns:.1} ns per evaluation, {per_s:.0} evaluations/s ({} cases, 5 passes, fastest chunk of {})",
+            cases.len(),
+            accuracy::TIMING_CHUNK
+        );
     }
     Ok(())
 }

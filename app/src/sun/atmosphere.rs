@@ -59,12 +59,7 @@ mod tests {
     fn standard_atmosphere_table_values() {
         // U.S. Standard Atmosphere 1976, Table I (geometric altitude): pressure (hPa) and
         // temperature (K) at 0, 1000, 2000 and 5000 m.
-        for (z, p, t_k) in [
-            (0.0, 1013.25, 288.150),
-            (1000.0, 898.76, 281.651),
-            (2000.0, 795.01, 275.154),
-            (5000.0, 540.48, 255.676),
-        ] {
+        for (z, p, t_k) in [(0.0, 1013.25, 288.150), (1000.0, 898.76, 281.651), (2000.0, 795.01, 275.154), (5000.0, 540.48, 255.676)] {
             assert!((standard_pressure_mbar(z) - p).abs() < 0.02, "{z}: {}", standard_pressure_mbar(z));
             assert!((standard_temperature_c(z) + 273.15 - t_k).abs() < 0.001, "{z}");
         }

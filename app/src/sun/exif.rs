@@ -82,8 +82,7 @@ fn gps_time(exif: &Exif) -> Result<Option<DateTime<Utc>>> {
     let (Some(date), Some(hms)) = (ascii(exif, Tag::GPSDateStamp), rationals(exif, Tag::GPSTimeStamp)) else {
         return Ok(None);
     };
-    let day = NaiveDate::parse_from_str(&date, "%Y:%m:%d")
-        .with_context(|| format!("GPSDateStamp {date:?} is not YYYY:MM:DD"))?;
+    let day = NaiveDate::parse_from_str(&date, "%Y:%m:%d").with_context(|| format!("GPSDateStamp {date:?} is not YYYY:MM:DD"))?;
     let [h, m, s] = hms[..] else {
         bail!("GPSTimeStamp has {} values, expected 3", hms.len());
     };
@@ -132,10 +131,8 @@ impl PhotoInfo {
             .read_from_container(&mut BufReader::new(file))
             .with_context(|| format!("--from-photo: no readable EXIF data in {}", path.display()))?;
         let context = || format!("--from-photo: {} has no usable GPS position", path.display());
-        let latitude_deg =
-            coordinate(&exif, Tag::GPSLatitude, Tag::GPSLatitudeRef, "S", 90.0).with_context(context)?;
-        let longitude_deg =
-            coordinate(&exif, Tag::GPSLongitude, Tag::GPSLongitudeRef, "W", 180.0).with_context(context)?;
+        let latitude_deg = coordinate(&exif, Tag::GPSLatitude, Tag::GPSLatitudeRef, "S", 90.0).with_context(context)?;
+        let longitude_deg = coordinate(&exif, Tag::GPSLongitude, Tag::GPSLongitudeRef, "W", 180.0).with_context(context)?;
         let altitude_m = rationals(&exif, Tag::GPSAltitude).and_then(|v| v.first().copied()).map(|a| {
             let below = matches!(
                 exif.get_field(Tag::GPSAltitudeRef, In::PRIMARY).map(|f| &f.value),
@@ -144,8 +141,7 @@ impl PhotoInfo {
             if below { -a } else { a }
         });
         let gps_time = gps_time(&exif).with_context(|| format!("--from-photo: {}", path.display()))?;
-        let (camera_time, camera_offset) =
-            camera_time(&exif).with_context(|| format!("--from-photo: {}", path.display()))?;
+        let (camera_time, camera_offset) = camera_time(&exif).with_context(|| format!("--from-photo: {}", path.display()))?;
         Ok(PhotoInfo { latitude_deg, longitude_deg, altitude_m, gps_time, camera_time, camera_offset })
     }
 
@@ -181,10 +177,7 @@ impl PhotoInfo {
                  offset; give --photo-utc-offset (e.g. +01:00) or --time"
             ),
         };
-        let local = offset
-            .from_local_datetime(&cam)
-            .single()
-            .with_context(|| format!("--from-photo: camera time {cam} at {offset}"))?;
+        let local = offset.from_local_datetime(&cam).single().with_context(|| format!("--from-photo: camera time {cam} at {offset}"))?;
         Ok((local.with_timezone(&Utc), source, None))
     }
 }

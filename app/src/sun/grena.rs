@@ -35,8 +35,7 @@ fn harmonics(w: f64) -> [(f64, f64); 3] {
 
 fn algorithm1(t: f64, te: f64) -> Equatorial {
     let [(s1, c1), (s2, c2), _] = harmonics(0.017_202_786 * te);
-    let ra = -1.388_80 + 1.720_279_20e-2 * te + 3.199e-2 * s1 - 2.65e-3 * c1 + 4.050e-2 * s2
-        + 1.525e-2 * c2;
+    let ra = -1.388_80 + 1.720_279_20e-2 * te + 3.199e-2 * s1 - 2.65e-3 * c1 + 4.050e-2 * s2 + 1.525e-2 * c2;
     let dec = 6.57e-3 + 7.347e-2 * s1 - 3.9919e-1 * c1 + 7.3e-4 * s2 - 6.60e-3 * c2;
     Equatorial { dec, hour_angle: 1.752_83 + 6.300_388_1 * t - ra }
 }
@@ -44,16 +43,14 @@ fn algorithm1(t: f64, te: f64) -> Equatorial {
 fn algorithm2(t: f64, te: f64) -> Equatorial {
     let [(s1, c1), (s2, c2), (s3, c3)] = harmonics(0.017_202_786 * te);
     let (s4, c4) = (2.0 * s2 * c2, (c2 + s2) * (c2 - s2));
-    let ra = -1.388_80 + 1.720_279_20e-2 * te + 3.199e-2 * s1 - 2.65e-3 * c1 + 4.050e-2 * s2
+    let ra = -1.388_80 + 1.720_279_20e-2 * te + 3.199e-2 * s1 - 2.65e-3 * c1
+        + 4.050e-2 * s2
         + 1.525e-2 * c2
         + 1.33e-3 * s3
         + 3.8e-4 * c3
         + 7.3e-4 * s4
         + 6.2e-4 * c4;
-    let dec = 6.57e-3 + 7.347e-2 * s1 - 3.9919e-1 * c1 + 7.3e-4 * s2 - 6.60e-3 * c2 + 1.50e-3 * s3
-        - 2.58e-3 * c3
-        + 6e-5 * s4
-        - 1.3e-4 * c4;
+    let dec = 6.57e-3 + 7.347e-2 * s1 - 3.9919e-1 * c1 + 7.3e-4 * s2 - 6.60e-3 * c2 + 1.50e-3 * s3 - 2.58e-3 * c3 + 6e-5 * s4 - 1.3e-4 * c4;
     Equatorial { dec, hour_angle: 1.752_83 + 6.300_388_1 * t - ra }
 }
 
@@ -66,8 +63,7 @@ fn from_ecliptic(lambda: f64, epsilon: f64) -> (f64, f64) {
 
 fn algorithm3(t: f64, te: f64) -> Equatorial {
     let w = 0.017_201_971_5 * te;
-    let lambda = -1.388_803 + 1.720_279_216e-2 * te + 3.3366e-2 * (w - 0.06172).sin()
-        + 3.53e-4 * (2.0 * w - 0.1163).sin();
+    let lambda = -1.388_803 + 1.720_279_216e-2 * te + 3.3366e-2 * (w - 0.06172).sin() + 3.53e-4 * (2.0 * w - 0.1163).sin();
     let (ra, dec) = from_ecliptic(lambda, 4.089_567e-1 - 6.19e-9 * te);
     Equatorial { dec, hour_angle: 1.752_831_1 + 6.300_388_099 * t - ra }
 }
@@ -82,8 +78,7 @@ fn with_nutation(t: f64, te: f64, l: f64) -> Equatorial {
 
 fn algorithm4(t: f64, te: f64) -> Equatorial {
     let w = 0.017_201_971_5 * te;
-    let l = 1.752_790 + 1.720_279_216e-2 * te + 3.3366e-2 * (w - 0.06172).sin()
-        + 3.53e-4 * (2.0 * w - 0.1163).sin();
+    let l = 1.752_790 + 1.720_279_216e-2 * te + 3.3366e-2 * (w - 0.06172).sin() + 3.53e-4 * (2.0 * w - 0.1163).sin();
     with_nutation(t, te, l)
 }
 
@@ -99,10 +94,7 @@ fn algorithm5(t: f64, te: f64) -> Equatorial {
         (1.28e-5, 3.152e-2, 1.547),
         (3.14e-5, 2.1277e-1, -0.488),
     ];
-    let l = 1.752_790_1 + 1.720_279_215_9e-2 * te + 3.330_24e-2 * s1 - 2.0582e-3 * c1
-        + 3.512e-4 * s2
-        - 4.07e-5 * c2
-        + 5.2e-6 * s3
+    let l = 1.752_790_1 + 1.720_279_215_9e-2 * te + 3.330_24e-2 * s1 - 2.0582e-3 * c1 + 3.512e-4 * s2 - 4.07e-5 * c2 + 5.2e-6 * s3
         - 9e-7 * c3
         - 8.23e-5 * s1 * (2.92e-5 * te).sin()
         + PERTURBATIONS.iter().map(|&(a, f, p)| a * (f * te + p).sin()).sum::<f64>();
@@ -142,20 +134,13 @@ mod tests {
         // solar-positioning 0.7 implements Grena's Algorithm 3 independently (MIT licence);
         // compare geometric positions (no refraction) at a few places and times.
         use solar_positioning::{Location, SolarPositions, time::JulianDate};
-        for (s, lat, lon) in [
-            ("2023-06-15T10:30:00Z", 48.21, 16.37),
-            ("2011-01-01T00:00:00Z", -33.9, 151.2),
-            ("2109-12-31T18:45:00Z", 64.1, -21.9),
-        ] {
+        for (s, lat, lon) in
+            [("2023-06-15T10:30:00Z", 48.21, 16.37), ("2011-01-01T00:00:00Z", -33.9, 151.2), ("2109-12-31T18:45:00Z", 64.1, -21.9)]
+        {
             let jd = at(s);
             let h = horizontal(3, jd, 69.2, lat, lon);
             let theirs = SolarPositions::grena3()
-                .at_from_julian(
-                    JulianDate::new(jd, 69.2).unwrap(),
-                    Location { latitude: lat, longitude: lon },
-                    0.0,
-                    None,
-                )
+                .at_from_julian(JulianDate::new(jd, 69.2).unwrap(), Location { latitude: lat, longitude: lon }, 0.0, None)
                 .unwrap();
             assert!((90.0 - h.elevation_deg - theirs.zenith_angle()).abs() < 1e-7, "{s}");
             assert!((h.azimuth_deg - theirs.azimuth()).abs() < 1e-7, "{s}");
@@ -174,12 +159,7 @@ mod tests {
                     for (lat, lon) in [(0.0, 0.0), (45.0, 100.0), (-60.0, -170.0), (80.0, 10.0)] {
                         let g = horizontal(n, jd, dt, lat, lon);
                         let s = spa::horizontal(jd, dt, lat, lon, 0.0);
-                        let e = angular_separation_deg(
-                            90.0 - g.elevation_deg,
-                            g.azimuth_deg,
-                            90.0 - s.elevation_deg,
-                            s.azimuth_deg,
-                        );
+                        let e = angular_separation_deg(90.0 - g.elevation_deg, g.azimuth_deg, 90.0 - s.elevation_deg, s.azimuth_deg);
                         worst = worst.max(e);
                     }
                 }

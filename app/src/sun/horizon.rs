@@ -22,10 +22,7 @@ pub fn from_equatorial(lat_rad: f64, dec_rad: f64, hour_angle_rad: f64) -> Horiz
     let (sin_h, cos_h) = hour_angle_rad.sin_cos();
     let sin_e = (sin_lat * sin_dec + cos_lat * cos_dec * cos_h).clamp(-1.0, 1.0);
     let gamma = sin_h.atan2(cos_h * sin_lat - sin_dec / cos_dec * cos_lat);
-    Horizontal {
-        elevation_deg: sin_e.asin().to_degrees(),
-        azimuth_deg: wrap_360(gamma.to_degrees() + 180.0),
-    }
+    Horizontal { elevation_deg: sin_e.asin().to_degrees(), azimuth_deg: wrap_360(gamma.to_degrees() + 180.0) }
 }
 
 /// An angle in degrees brought into [0, 360) (never 360.0 itself, even for tiny negatives).

@@ -53,9 +53,7 @@ pub fn horizontal(jd: f64, lat_deg: f64, lon_deg: f64) -> Horizontal {
 /// Seed 002's Eqs. 1–4 exactly as printed (see the module notes), for the chart only.
 pub fn horizontal_as_printed(jd: f64, lat_deg: f64, lon_deg: f64) -> Horizontal {
     let (j, ut_hours) = day_and_hours(jd);
-    let t = ut_hours + 0.17 * (4.0 * PI * (j - 180.0) / 373.0).sin()
-        - 0.129 * (2.0 * PI * (j - 8.0) / 355.0).sin()
-        + lon_deg / 15.0;
+    let t = ut_hours + 0.17 * (4.0 * PI * (j - 180.0) / 373.0).sin() - 0.129 * (2.0 * PI * (j - 8.0) / 355.0).sin() + lon_deg / 15.0;
     let d = 0.4093 * (2.0 * PI * (j - 8.0) / 368.0).sin();
     let l = lat_deg.to_radians();
     let w = PI * t / 12.0;
@@ -79,9 +77,7 @@ mod tests {
         // fit is good to a few seconds of time here (6 s allowed); the printed one is 12 min off.
         let corrected = equation_of_time_hours(290.0) * 60.0;
         assert!((corrected - 14.64).abs() < 0.1, "{corrected}");
-        let printed = (0.17 * (4.0 * PI * (290.0 - 180.0) / 373.0).sin()
-            - 0.129 * (2.0 * PI * (290.0 - 8.0) / 355.0).sin())
-            * 60.0;
+        let printed = (0.17 * (4.0 * PI * (290.0 - 180.0) / 373.0).sin() - 0.129 * (2.0 * PI * (290.0 - 8.0) / 355.0).sin()) * 60.0;
         assert!((printed - 14.64).abs() > 10.0, "{printed}");
     }
 
@@ -114,14 +110,8 @@ mod tests {
                 let s = spa::horizontal(t, delta_t::espenak_meeus(2023, 6), 48.0, 11.0, 0.0);
                 let a = horizontal(t, 48.0, 11.0);
                 let b = horizontal_as_printed(t, 48.0, 11.0);
-                let err = |h: Horizontal| {
-                    angular_separation_deg(
-                        90.0 - h.elevation_deg,
-                        h.azimuth_deg,
-                        90.0 - s.elevation_deg,
-                        s.azimuth_deg,
-                    )
-                };
+                let err =
+                    |h: Horizontal| angular_separation_deg(90.0 - h.elevation_deg, h.azimuth_deg, 90.0 - s.elevation_deg, s.azimuth_deg);
                 worst = worst.max(err(a));
                 worst_printed = worst_printed.max(err(b));
             }

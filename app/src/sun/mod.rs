@@ -23,6 +23,7 @@ pub mod horizon;
 pub mod julian;
 pub mod psa;
 pub mod spa;
+#[rustfmt::skip]
 mod spa_tables;
 pub mod time;
 pub mod twilight;
@@ -83,11 +84,7 @@ impl Algorithm {
     pub fn valid_years(self) -> (i32, i32) {
         match self {
             Algorithm::Spa => spa::VALID_YEARS,
-            Algorithm::Grena1
-            | Algorithm::Grena2
-            | Algorithm::Grena3
-            | Algorithm::Grena4
-            | Algorithm::Grena5 => grena::VALID_YEARS,
+            Algorithm::Grena1 | Algorithm::Grena2 | Algorithm::Grena3 | Algorithm::Grena4 | Algorithm::Grena5 => grena::VALID_YEARS,
             Algorithm::Psa => psa::PSA_2001.valid_years,
             Algorithm::Psa2020 => psa::PSA_2020.valid_years,
             Algorithm::Julian => julian::VALID_YEARS,
@@ -274,14 +271,7 @@ pub fn position(input: &SunInput, algorithm: Algorithm) -> Result<SunPosition> {
 
 /// The position without validation: one algorithm evaluation plus the shared refraction. This
 /// is what the accuracy chart times.
-pub fn evaluate(
-    algorithm: Algorithm,
-    site: &Site,
-    jd: f64,
-    delta_t_s: f64,
-    pressure_mbar: f64,
-    temperature_c: f64,
-) -> SunPosition {
+pub fn evaluate(algorithm: Algorithm, site: &Site, jd: f64, delta_t_s: f64, pressure_mbar: f64, temperature_c: f64) -> SunPosition {
     let h = algorithm.horizontal(site, jd, delta_t_s);
     let refraction = atmosphere::refraction_deg(h.elevation_deg, pressure_mbar, temperature_c);
     SunPosition {
@@ -362,9 +352,11 @@ mod tests {
         assert!((p.apparent_zenith_deg - q.apparent_zenith_deg).abs() < 0.01);
     }
 
+    type Breaker = fn(&mut SunInput);
+
     #[test]
     fn bad_input_names_the_flag() {
-        let cases: [(fn(&mut SunInput), &str); 7] = [
+        let cases: [(Breaker, &str); 7] = [
             (|i| i.site.latitude_deg = 90.5, "--lat"),
             (|i| i.site.latitude_deg = f64::NAN, "--lat"),
             (|i| i.site.longitude_deg = -180.01, "--lon"),

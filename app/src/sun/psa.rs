@@ -78,11 +78,7 @@ pub fn horizontal(c: &Coefficients, jd: f64, lat_deg: f64, lon_deg: f64) -> Hori
     let omega = p[0] + p[1] * n;
     let mean_longitude = p[2] + p[3] * n;
     let mean_anomaly = p[4] + p[5] * n;
-    let ecliptic_longitude = mean_longitude
-        + p[6] * mean_anomaly.sin()
-        + p[7] * (2.0 * mean_anomaly).sin()
-        + p[8]
-        + p[9] * omega.sin();
+    let ecliptic_longitude = mean_longitude + p[6] * mean_anomaly.sin() + p[7] * (2.0 * mean_anomaly).sin() + p[8] + p[9] * omega.sin();
     let obliquity = p[10] + p[11] * n + p[12] * omega.cos();
     // Celestial coordinates (Eqs. 8–9).
     let (sin_l, cos_l) = ecliptic_longitude.sin_cos();
@@ -113,12 +109,7 @@ mod tests {
                 for (lat, lon) in [(0.0, 0.0), (37.1, -2.4), (-45.0, 170.0), (70.0, 25.0)] {
                     let a = horizontal(c, jd, lat, lon);
                     let s = spa::horizontal(jd, dt, lat, lon, 0.0);
-                    worst = worst.max(angular_separation_deg(
-                        90.0 - a.elevation_deg,
-                        a.azimuth_deg,
-                        90.0 - s.elevation_deg,
-                        s.azimuth_deg,
-                    ));
+                    worst = worst.max(angular_separation_deg(90.0 - a.elevation_deg, a.azimuth_deg, 90.0 - s.elevation_deg, s.azimuth_deg));
                 }
             }
         }

@@ -84,6 +84,49 @@ fn cubic(c0: f64, c1: f64, c2: f64, c3_divisor: f64, x: f64) -> f64 {
     c0 + x * (c1 + x * (c2 + x / c3_divisor))
 }
 
+/// Largest |Y| multiplier in the nutation table, checked at compile time below.
+const MAX_Y: usize = 4;
+const _: () = {
+    let mut i = 0;
+    while i < tables::NUTATION_Y.len() {
+        let mut j = 0;
+        while j < 5 {
+            let y = tables::NUTATION_Y[i][j];
+            assert!(y >= -(MAX_Y as i8) && y <= MAX_Y as i8);
+            j += 1;
+        }
+        i += 1;
+    }
+};
+
+/// Nutation in longitude Δψ and obliquity Δε in degrees (Eqs. 20–23) from X0..X4 (degrees).
+/// Each term needs sin and cos of Σ_j Y_ij·X_j. Since e^{iΣ Y·X} = Π_j (e^{iX_j})^{Y_ij}, five
+/// sin_cos calls and complex products replace the 63 sin_cos calls of the direct sum: the same
+/// mathematics, a quarter less time for all of SPA (checked against the direct sum in a test).
+fn nutation(jce: f64, x_deg: &[f64; 5]) -> (f64, f64) {
+    let mut powers = [[(1.0f64, 0.0f64); 2 * MAX_Y + 1]; 5];
+    for (p, x) in powers.iter_mut().zip(x_deg) {
+        let (s, c) = x.to_radians().sin_cos();
+        for k in 1..=MAX_Y {
+            let (re, im) = p[MAX_Y + k - 1];
+            p[MAX_Y + k] = (re * c - im * s, re * s + im * c);
+            p[MAX_Y - k] = (p[MAX_Y + k].0, -p[MAX_Y + k].1);
+        }
+    }
+    let (mut dpsi, mut deps) = (0.0, 0.0);
+    for (y, [a, b, c, d]) in tables::NUTATION_Y.iter().zip(tables::NUTATION_ABCD.iter()) {
+        let (mut re, mut im) = (1.0, 0.0);
+        for (p, &yj) in powers.iter().zip(y) {
+            // In range by the compile-time check above.
+            let (pr, pi) = p[(MAX_Y as i64 + i64::from(yj)) as usize];
+            (re, im) = (re * pr - im * pi, re * pi + im * pr);
+        }
+        dpsi += (a + b * jce) * im;
+        deps += (c + d * jce) * re;
+    }
+    (dpsi / 36_000_000.0, deps / 36_000_000.0)
+}
+
 /// SPA steps 3.1–3.8 for Julian day `jd` (UT) and ΔT = TT − UT in seconds.
 pub fn geocentric(jd: f64, delta_t_s: f64) -> Geocentric {
     let jde = jd + delta_t_s / 86_400.0;
@@ -91,10 +134,7 @@ pub fn geocentric(jd: f64, delta_t_s: f64) -> Geocentric {
     let jce = (jde - JD_J2000) / 36_525.0;
     let jme = jce / 10.0;
 
-    let l_deg = wrap_360(
-        series(&[&tables::L0, &tables::L1, &tables::L2, &tables::L3, &tables::L4, &tables::L5], jme)
-            .to_degrees(),
-    );
+    let l_deg = wrap_360(series(&[&tables::L0, &tables::L1, &tables::L2, &tables::L3, &tables::L4, &tables::L5], jme).to_degrees());
     let b_deg = series(&[&tables::B0, &tables::B1], jme).to_degrees();
     let r_au = series(&[&tables::R0, &tables::R1, &tables::R2, &tables::R3, &tables::R4], jme);
     let theta_deg = wrap_360(l_deg + 180.0);
@@ -105,41 +145,27 @@ pub fn geocentric(jd: f64, delta_t_s: f64) -> Geocentric {
         cubic(357.52772, 35_999.050_340, -0.000_160_3, -300_000.0, jce),
         cubic(134.96298, 477_198.867_398, 0.008_697_2, 56_250.0, jce),
         cubic(93.27191, 483_202.017_538, -0.003_682_5, 327_270.0, jce),
-        cubic(125.04452, -1934.136_261, 0.002_070_8, 450_000.0, jce),
+        cubic(125.04452, -1_934.136_261, 0.002_070_8, 450_000.0, jce),
     ];
-    let (mut dpsi, mut deps) = (0.0, 0.0);
-    for (y, [a, b, c, d]) in tables::NUTATION_Y.iter().zip(tables::NUTATION_ABCD.iter()) {
-        let arg: f64 = y.iter().zip(x_deg.iter()).map(|(&yi, &xi)| f64::from(yi) * xi).sum();
-        let (s, co) = arg.to_radians().sin_cos();
-        dpsi += (a + b * jce) * s;
-        deps += (c + d * jce) * co;
-    }
-    let delta_psi_deg = dpsi / 36_000_000.0;
-    let delta_epsilon_deg = deps / 36_000_000.0;
+    let (delta_psi_deg, delta_epsilon_deg) = nutation(jce, &x_deg);
 
     let u = jme / 10.0;
-    let epsilon0_arcsec = [
-        84_381.448, -4680.93, -1.55, 1999.25, -51.38, -249.67, -39.05, 7.12, 27.87, 5.79, 2.45,
-    ]
-    .iter()
-    .rev()
-    .fold(0.0, |acc, k| acc * u + k);
+    let epsilon0_arcsec = [84_381.448, -4680.93, -1.55, 1999.25, -51.38, -249.67, -39.05, 7.12, 27.87, 5.79, 2.45]
+        .iter()
+        .rev()
+        .fold(0.0, |acc, k| acc * u + k);
     let epsilon_deg = epsilon0_arcsec / 3600.0 + delta_epsilon_deg;
 
     let delta_tau_deg = -20.4898 / (3600.0 * r_au);
     let lambda_deg = theta_deg + delta_psi_deg + delta_tau_deg;
 
-    let nu0_deg = wrap_360(
-        280.460_618_37 + 360.985_647_366_29 * (jd - JD_J2000) + 0.000_387_933 * jc * jc
-            - jc * jc * jc / 38_710_000.0,
-    );
+    let nu0_deg = wrap_360(280.460_618_37 + 360.985_647_366_29 * (jd - JD_J2000) + 0.000_387_933 * jc * jc - jc * jc * jc / 38_710_000.0);
     let (sin_eps, cos_eps) = epsilon_deg.to_radians().sin_cos();
     let nu_deg = nu0_deg + delta_psi_deg * cos_eps;
 
     let (sin_lambda, cos_lambda) = lambda_deg.to_radians().sin_cos();
     let beta = beta_deg.to_radians();
-    let alpha_deg =
-        wrap_360((sin_lambda * cos_eps - beta.tan() * sin_eps).atan2(cos_lambda).to_degrees());
+    let alpha_deg = wrap_360((sin_lambda * cos_eps - beta.tan() * sin_eps).atan2(cos_lambda).to_degrees());
     let delta_deg = (beta.sin() * cos_eps + beta.cos() * sin_eps * sin_lambda).asin().to_degrees();
 
     Geocentric {
@@ -206,9 +232,7 @@ pub fn equation_of_time_min(g: &Geocentric) -> f64 {
     let jme = g.jme;
     let m = wrap_360(
         280.466_456_7
-            + jme
-                * (360_007.698_277_9
-                    + jme * (0.030_320_28 + jme * (1.0 / 49_931.0 - jme * (1.0 / 15_300.0 + jme / 2_000_000.0)))),
+            + jme * (360_007.698_277_9 + jme * (0.030_320_28 + jme * (1.0 / 49_931.0 - jme * (1.0 / 15_300.0 + jme / 2_000_000.0)))),
     );
     let e = 4.0 * (m - 0.005_718_3 - g.alpha_deg + g.delta_psi_deg * g.epsilon_deg.to_radians().cos());
     // A.1: bring into ±20 min (the unwrapped value may be off by a whole day of 1440 min).
@@ -317,10 +341,7 @@ pub fn rise_transit_set(
             let denom = 360.0 * delta_p.to_radians().cos() * lat.cos() * h_p.to_radians().sin();
             jd0 + m + (h - h0_prime) / denom
         };
-        (
-            Some(event(in_window(m_transit - h0 / 360.0))),
-            Some(event(in_window(m_transit + h0 / 360.0))),
-        )
+        (Some(event(in_window(m_transit - h0 / 360.0))), Some(event(in_window(m_transit + h0 / 360.0))))
     } else {
         (None, None)
     };
@@ -397,6 +418,24 @@ mod tests {
     }
 
     #[test]
+    fn nutation_by_products_equals_the_direct_sum() {
+        // Eqs. 20–23 summed term by term, as printed, against the product form used above.
+        for k in 0..200 {
+            let jce = -40.0 + 80.0 * f64::from(k) / 199.0; // years −2000..6000: JCE −40..40
+            let g = geocentric(JD_J2000 + jce * 36_525.0, 0.0);
+            let (mut dpsi, mut deps) = (0.0, 0.0);
+            for (y, [a, b, c, d]) in tables::NUTATION_Y.iter().zip(tables::NUTATION_ABCD.iter()) {
+                let arg: f64 = y.iter().zip(g.x_deg.iter()).map(|(&yi, &xi)| f64::from(yi) * xi).sum();
+                let (s, co) = arg.to_radians().sin_cos();
+                dpsi += (a + b * jce) * s;
+                deps += (c + d * jce) * co;
+            }
+            assert!((g.delta_psi_deg - dpsi / 36e6).abs() < 1e-12, "{jce}");
+            assert!((g.delta_epsilon_deg - deps / 36e6).abs() < 1e-12, "{jce}");
+        }
+    }
+
+    #[test]
     fn topocentric_steps_match_the_published_values() {
         let g = geocentric(jd(), 67.0);
         let t = topocentric(&g, LAT, LON, ELEV);
@@ -418,10 +457,10 @@ mod tests {
         use solar_positioning::{Location, SolarPositions, time::JulianDate};
         for (jd, dt, lat, lon, elev) in [
             (jd(), 67.0, LAT, LON, ELEV),
-            (2_305_812.75, 120.0, -33.9, 18.4, 10.0),   // 1601
-            (2_816_788.1, 4400.0, 64.1, -21.9, 0.0),    // 3000
-            (2_460_483.0, 69.0, 89.5, 170.0, 2500.0),  // near the pole
-            (2_451_545.3, 63.8, 0.0, 180.0, 0.0),      // date line
+            (2_305_812.75, 120.0, -33.9, 18.4, 10.0), // 1601
+            (2_816_788.1, 4400.0, 64.1, -21.9, 0.0),  // 3000
+            (2_460_483.0, 69.0, 89.5, 170.0, 2500.0), // near the pole
+            (2_451_545.3, 63.8, 0.0, 180.0, 0.0),     // date line
         ] {
             let ours = horizontal(jd, dt, lat, lon, elev);
             let theirs = SolarPositions::new()

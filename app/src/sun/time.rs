@@ -51,8 +51,7 @@ pub fn from_julian_day(jd: f64) -> Result<DateTime<Utc>> {
     if !micros.is_finite() || micros.abs() > 9.0e18 {
         bail!("Julian date {jd} is outside the representable range");
     }
-    DateTime::<Utc>::from_timestamp_micros(micros as i64)
-        .with_context(|| format!("Julian date {jd} is outside the representable range"))
+    DateTime::<Utc>::from_timestamp_micros(micros as i64).with_context(|| format!("Julian date {jd} is outside the representable range"))
 }
 
 /// Proleptic Gregorian calendar parts of a Julian date (UT).
@@ -146,13 +145,7 @@ mod tests {
 
     #[test]
     fn civil_parts_match_chrono() {
-        for s in [
-            "2024-02-29T06:00:00Z",
-            "2023-12-31T23:59:59Z",
-            "1600-03-01T00:00:00Z",
-            "-1999-07-04T18:30:00Z",
-            "5999-12-31T12:00:00Z",
-        ] {
+        for s in ["2024-02-29T06:00:00Z", "2023-12-31T23:59:59Z", "1600-03-01T00:00:00Z", "-1999-07-04T18:30:00Z", "5999-12-31T12:00:00Z"] {
             let t = parse_time(s, "t").unwrap().with_timezone(&Utc);
             let c = civil_from_julian_day(julian_day(&t));
             assert_eq!(c.year, i64::from(t.year()), "{s}");
@@ -161,5 +154,4 @@ mod tests {
             assert!((c.seconds_of_day - sod).abs() < 1e-3, "{s}");
         }
     }
-
 }

@@ -18,8 +18,7 @@ pub fn sunlight_factor(apparent_elevation_deg: f64) -> f32 {
     if apparent_elevation_deg.is_nan() {
         return 0.0;
     }
-    let x = ((apparent_elevation_deg - CIVIL_TWILIGHT_END_DEG) / (FADE_START_DEG - CIVIL_TWILIGHT_END_DEG))
-        .clamp(0.0, 1.0);
+    let x = ((apparent_elevation_deg - CIVIL_TWILIGHT_END_DEG) / (FADE_START_DEG - CIVIL_TWILIGHT_END_DEG)).clamp(0.0, 1.0);
     (x * x * (3.0 - 2.0 * x)) as f32
 }
 

@@ -363,7 +363,8 @@ fn batch_row(fields: &[Option<&str>; 7], algorithm: Algorithm) -> Result<SunPosi
 }
 
 fn batch(path: &Path, algorithm: Algorithm, args: &Args) -> Result<()> {
-    if args.from_photo.is_some() || args.elevation.is_some() || args.pressure.is_some() || args.delta_t.is_some() {
+    let single_only = [args.elevation, args.pressure, args.temperature, args.delta_t, args.slope];
+    if args.from_photo.is_some() || single_only.iter().any(Option::is_some) {
         bail!("--batch takes place, weather and ΔT from the CSV columns; only --algorithm applies");
     }
     let mut reader =

@@ -254,10 +254,10 @@ impl Report<'_> {
         s += &format!("algorithm         {}\n", p.algorithm);
         s += &format!("zenith            {:.6}° (geometric, no refraction)\n", p.zenith_deg);
         s += &format!("apparent zenith   {:.6}°\n", p.apparent_zenith_deg);
-        s += &format!("apparent elevation {:.6}°\n", p.apparent_elevation_deg());
+        s += &format!("app. elevation    {:.6}°\n", p.apparent_elevation_deg());
         s += &format!("azimuth           {:.6}° (clockwise from true north)\n", p.azimuth_deg);
         if self.at_pole() {
-            s += "                  at a pole every direction is south (north); this azimuth is measured from the meridian of --lon (docs/sun.md)\n";
+            s += "                  at a pole every horizontal direction is south (north at the south pole): this azimuth is\n                  measured from the meridian of --lon, the limit along it (docs/sun.md)\n";
         }
         s += &format!("direction (ENU)   [{:.6}, {:.6}, {:.6}]\n", d.x, d.y, d.z);
         s += &format!("sunlight factor   {:.4}\n", p.sunlight_factor());
@@ -363,7 +363,8 @@ fn batch_row(fields: &[Option<&str>; 7], algorithm: Algorithm) -> Result<SunPosi
 }
 
 fn batch(path: &Path, algorithm: Algorithm, args: &Args) -> Result<()> {
-    if args.from_photo.is_some() || args.elevation.is_some() || args.pressure.is_some() || args.delta_t.is_some() {
+    let single_only = [args.elevation, args.pressure, args.temperature, args.delta_t, args.slope];
+    if args.from_photo.is_some() || single_only.iter().any(Option::is_some) {
         bail!("--batch takes place, weather and ΔT from the CSV columns; only --algorithm applies");
     }
     let mut reader =
@@ -464,7 +465,11 @@ fn bench(args: &BenchArgs) -> Result<()> {
     if args.json {
         println!("{}", serde_json::json!({"algorithm": algorithm.name(), "cases": cases.len(), "ns_per_eval": ns, "evals_per_s": per_s}));
     } else {
-        println!("{algorithm}: {ns:.1} ns per evaluation, {per_s:.0} evaluations/s ({} cases, best of 5)", cases.len());
+        println!(
+            "{algorithm}: {ns:.1} ns per evaluation, {per_s:.0} evaluations/s ({} cases, 5 passes, fastest chunk of {})",
+            cases.len(),
+            accuracy::TIMING_CHUNK
+        );
     }
     Ok(())
 }

@@ -7,8 +7,8 @@ use std::path::Path;
 use anyhow::{Result, anyhow};
 use plotters::prelude::*;
 
+use super::Algorithm;
 use super::accuracy::{Entry, Measurement};
-use super::{Algorithm, spa};
 
 /// Heading error of a calibrated phone compass, degrees: "about 1–3°" (issue 3). An algorithm
 /// well below this band is accurate enough for compositing: the camera's own heading is worse.
@@ -20,13 +20,17 @@ pub const SPA_STATED_UNCERTAINTY_DEG: f64 = 0.0003;
 const WIDTH: u32 = 1400;
 const HEIGHT: u32 = 900;
 
+/// One distinct colour per entry (Tableau 10 without its orange, which is the compass band's).
 fn colour(entry: Entry) -> RGBColor {
     match entry {
         Entry::Algorithm(Algorithm::Spa) => RGBColor(0, 0, 0),
-        Entry::Algorithm(Algorithm::Grena1 | Algorithm::Grena2 | Algorithm::Grena3 | Algorithm::Grena4 | Algorithm::Grena5) => {
-            RGBColor(31, 119, 180)
-        }
-        Entry::Algorithm(Algorithm::Psa | Algorithm::Psa2020) => RGBColor(44, 160, 44),
+        Entry::Algorithm(Algorithm::Grena1) => RGBColor(23, 190, 207),
+        Entry::Algorithm(Algorithm::Grena2) => RGBColor(31, 119, 180),
+        Entry::Algorithm(Algorithm::Grena3) => RGBColor(140, 86, 75),
+        Entry::Algorithm(Algorithm::Grena4) => RGBColor(188, 189, 34),
+        Entry::Algorithm(Algorithm::Grena5) => RGBColor(127, 127, 127),
+        Entry::Algorithm(Algorithm::Psa) => RGBColor(44, 160, 44),
+        Entry::Algorithm(Algorithm::Psa2020) => RGBColor(227, 119, 194),
         Entry::Algorithm(Algorithm::Julian) => RGBColor(214, 39, 40),
         Entry::JulianAsPrinted => RGBColor(148, 103, 189),
     }
@@ -62,6 +66,7 @@ pub fn render(ms: &[Measurement]) -> Result<Vec<u8>> {
             .y_desc("angular error vs SPA (degrees, log scale)")
             .label_style(("sans-serif", 18))
             .axis_desc_style(("sans-serif", 20))
+            .x_label_formatter(&|x| format!("{x:.0}"))
             .y_label_formatter(&|y| format!("{y:e}"))
             .draw()
             .map_err(plot_err)?;
@@ -74,7 +79,7 @@ pub fn render(ms: &[Measurement]) -> Result<Vec<u8>> {
             .label(format!("phone compass heading error ({lo}–{hi}°)"))
             .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 18, y + 6)], band.mix(0.35).filled()));
 
-        for (i, m) in ms.iter().enumerate() {
+        for m in ms {
             let c = colour(m.entry);
             let x = m.ns_per_eval;
             let spa_row = m.entry == Entry::Algorithm(Algorithm::Spa);
@@ -84,32 +89,29 @@ pub fn render(ms: &[Measurement]) -> Result<Vec<u8>> {
                 (m.max_error_deg.max(1e-5), m.rms_error_deg.max(1e-5))
             };
             chart.draw_series(std::iter::once(PathElement::new(vec![(x, rms), (x, max)], c.stroke_width(2)))).map_err(plot_err)?;
-            chart.draw_series(std::iter::once(Circle::new((x, max), 7, c.filled()))).map_err(plot_err)?;
             chart.draw_series(std::iter::once(TriangleMarker::new((x, rms), 8, c.stroke_width(2)))).map_err(plot_err)?;
+            let (a, b) = m.entry.valid_years();
             let label = if spa_row {
-                format!("spa (reference; stated ±{SPA_STATED_UNCERTAINTY_DEG}°, years {}..{})", spa::VALID_YEARS.0, spa::VALID_YEARS.1)
+                format!("spa ({a}..{b}; drawn at its stated ±{SPA_STATED_UNCERTAINTY_DEG}°)")
             } else {
-                let (a, b) = m.entry.valid_years();
-                format!("{} ({a}–{b})", m.entry.name())
+                format!("{} ({a}..{b})", m.entry.name())
             };
-            // Alternate label offsets so neighbours with similar speed do not overlap.
-            let dy = if i % 2 == 0 { -26 } else { 10 };
             chart
-                .draw_series(std::iter::once(
-                    EmptyElement::at((x, max)) + Text::new(label, (10, dy), ("sans-serif", 17).into_font().color(&c)),
-                ))
-                .map_err(plot_err)?;
+                .draw_series(std::iter::once(Circle::new((x, max), 7, c.filled())))
+                .map_err(plot_err)?
+                .label(label)
+                .legend(move |(x, y)| Circle::new((x + 9, y), 6, c.filled()));
         }
         // Legend entries for the two marker shapes.
         chart
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(plot_err)?
-            .label("maximum error (filled circle)")
+            .label("maximum error: filled circle")
             .legend(|(x, y)| Circle::new((x + 9, y), 6, BLACK.filled()));
         chart
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(plot_err)?
-            .label("RMS error (triangle)")
+            .label("RMS error: triangle (joined to the maximum)")
             .legend(|(x, y)| TriangleMarker::new((x + 9, y), 7, BLACK.stroke_width(2)));
         chart
             .configure_series_labels()

@@ -23,6 +23,7 @@ pub mod horizon;
 pub mod julian;
 pub mod psa;
 pub mod spa;
+#[rustfmt::skip]
 mod spa_tables;
 pub mod time;
 pub mod twilight;
@@ -351,9 +352,11 @@ mod tests {
         assert!((p.apparent_zenith_deg - q.apparent_zenith_deg).abs() < 0.01);
     }
 
+    type Breaker = fn(&mut SunInput);
+
     #[test]
     fn bad_input_names_the_flag() {
-        let cases: [(fn(&mut SunInput), &str); 7] = [
+        let cases: [(Breaker, &str); 7] = [
             (|i| i.site.latitude_deg = 90.5, "--lat"),
             (|i| i.site.latitude_deg = f64::NAN, "--lat"),
             (|i| i.site.longitude_deg = -180.01, "--lon"),

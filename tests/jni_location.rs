@@ -59,7 +59,13 @@ fn new_activity<'l>(env: &mut Env<'l>) -> JObject<'l> {
     env.new_object(jni_str!("android/app/Activity"), jni_sig!("()V"), &[]).unwrap()
 }
 
-fn call<'l>(env: &mut Env<'l>, obj: &JObject<'_>, name: &'static jni::strings::JNIStr, sig: &'static str, args: &[JValue]) -> jni::JValueOwned<'l> {
+fn call<'l>(
+    env: &mut Env<'l>,
+    obj: &JObject<'_>,
+    name: &'static jni::strings::JNIStr,
+    sig: &'static str,
+    args: &[JValue],
+) -> jni::JValueOwned<'l> {
     let sig = jni::signature::RuntimeMethodSignature::from_str(sig).unwrap();
     env.call_method(obj, name, jni::signature::MethodSignature::from(&sig), args).unwrap()
 }
@@ -108,7 +114,13 @@ fn permission_is_requested_once_then_updates_start_and_fixes_arrive() {
         let lm = manager(env, &activity);
         let net = location(env, 51.45, -2.59, None, 800.0, 5_000_000_000);
         let p = env.new_string("network")?;
-        call(env, &lm, jni_str!("testSetLastKnown"), "(Ljava/lang/String;Landroid/location/Location;)V", &[JValue::Object(&p), JValue::Object(&net)]);
+        call(
+            env,
+            &lm,
+            jni_str!("testSetLastKnown"),
+            "(Ljava/lang/String;Landroid/location/Location;)V",
+            &[JValue::Object(&p), JValue::Object(&net)],
+        );
         let first = bridge.poll(env)?.expect("the last-known fix comes at once");
         assert_eq!(bridge.state(), LocationState::Listening);
         assert_eq!((first.lat_deg, first.lon_deg, first.t), (51.45, -2.59, 5.0));
@@ -180,7 +192,9 @@ fn disabled_provider_and_java_exceptions_are_reported_and_recoverable() {
 fn display_rotation_and_package_name() {
     with_env(|env| {
         let activity = new_activity(env);
-        for (value, expected) in [(0, DisplayRotation::R0), (1, DisplayRotation::R90), (2, DisplayRotation::R180), (3, DisplayRotation::R270)] {
+        for (value, expected) in
+            [(0, DisplayRotation::R0), (1, DisplayRotation::R90), (2, DisplayRotation::R180), (3, DisplayRotation::R270)]
+        {
             call(env, &activity, jni_str!("testSetRotation"), "(I)V", &[JValue::Int(value)]);
             assert_eq!(jni_location::display_rotation(env, &activity)?, expected);
         }

@@ -368,7 +368,11 @@ impl OrientationFilter {
         let Some(date) = self.date else { return };
         let moved_far = match self.gps_position {
             // About 10 km: the field changes by far less than the magnetometer noise over it.
-            Some((la, lo)) => (lat - la).abs() > 0.09 || angle_difference(lon.to_radians(), lo.to_radians()).abs() > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01),
+            Some((la, lo)) => {
+                (lat - la).abs() > 0.09
+                    || angle_difference(lon.to_radians(), lo.to_radians()).abs()
+                        > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01)
+            }
             None => true,
         };
         if moved_far && let Ok(r) = MagneticReference::wmm(lat, lon, alt, date) {
@@ -523,12 +527,13 @@ impl OrientationEstimator for OrientationFilter {
             }
             Reading::Gyro { t, v } => {
                 self.gyro_seen = true;
-                if self.initialised && !self.cfg.use_platform_attitude {
-                    if let Some(t0) = self.gyro_t {
-                        let dt = t - t0;
-                        if dt > 0.0 && dt < MAX_GYRO_GAP_S {
-                            self.step(t, dt, v, true);
-                        }
+                if self.initialised
+                    && !self.cfg.use_platform_attitude
+                    && let Some(t0) = self.gyro_t
+                {
+                    let dt = t - t0;
+                    if dt > 0.0 && dt < MAX_GYRO_GAP_S {
+                        self.step(t, dt, v, true);
                     }
                 }
                 self.gyro_t = Some(t);
@@ -784,7 +789,14 @@ mod tests {
     #[test]
     fn gps_fix_with_a_date_sets_the_wmm_reference() {
         let mut f = OrientationFilter::new(FusionConfig::default());
-        let fix = crate::sensors::GpsFix { t: 0.0, lat_deg: 51.4545, lon_deg: -2.5879, alt_m: 20.0, horizontal_accuracy_m: 10.0, vertical_accuracy_m: 15.0 };
+        let fix = crate::sensors::GpsFix {
+            t: 0.0,
+            lat_deg: 51.4545,
+            lon_deg: -2.5879,
+            alt_m: 20.0,
+            horizontal_accuracy_m: 10.0,
+            vertical_accuracy_m: 15.0,
+        };
         // Without a date the model cannot be evaluated: no reference.
         f.update(&Reading::Gps(fix)).unwrap();
         assert!(f.reference().is_none());

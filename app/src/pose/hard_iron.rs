@@ -48,7 +48,8 @@ pub fn fit_sphere(points: &[DVec3]) -> Option<HardIronFit> {
     let x = solve4(a)?;
     let c = DVec3::new(x[0], x[1], x[2]);
     let r2 = x[3] + c.length_squared();
-    if !(r2 > 0.0) {
+    // Also rejects NaN.
+    if r2.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let radius = r2.sqrt();
@@ -66,11 +67,12 @@ fn solve4(mut a: [[f64; 5]; 4]) -> Option<[f64; 4]> {
             return None;
         }
         a.swap(col, pivot);
-        for row in 0..4 {
+        let pivot_row = a[col];
+        for (row, r) in a.iter_mut().enumerate() {
             if row != col {
-                let f = a[row][col] / a[col][col];
-                for k in col..5 {
-                    a[row][k] -= f * a[col][k];
+                let f = r[col] / pivot_row[col];
+                for (x, p) in r.iter_mut().zip(pivot_row.iter()).skip(col) {
+                    *x -= f * p;
                 }
             }
         }

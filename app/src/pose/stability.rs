@@ -30,7 +30,9 @@ use glam::{DQuat, DVec3};
 pub enum Estimator {
     Fusion(FusionConfig),
     /// Seed 000's compass-only orientation, low-passed with this time constant (s).
-    CompassOnly { tau_s: f64 },
+    CompassOnly {
+        tau_s: f64,
+    },
 }
 
 /// A named estimator setting.
@@ -119,7 +121,13 @@ pub fn jitter(errors: &[DVec3], window: usize) -> JitterStats {
         peak = peak.max(f);
         w2 += (local - mean).length_squared();
     }
-    JitterStats { flicker_rms: (f2 / n as f64).sqrt(), flicker_peak: peak, wander_rms: (w2 / n as f64).sqrt(), offset: mean.length(), samples: n }
+    JitterStats {
+        flicker_rms: (f2 / n as f64).sqrt(),
+        flicker_peak: peak,
+        wander_rms: (w2 / n as f64).sqrt(),
+        offset: mean.length(),
+        samples: n,
+    }
 }
 
 /// Pool per-run statistics (RMS values weighted by sample counts, peaks maximal).
@@ -313,7 +321,13 @@ pub struct StabilityConfig {
 
 impl Default for StabilityConfig {
     fn default() -> Self {
-        StabilityConfig { seeds: 20, noise_levels: vec![NoiseLevel::Phone, NoiseLevel::Bad], sun_enu: default_sun(), settings: default_settings(), hold_s: 30.0 }
+        StabilityConfig {
+            seeds: 20,
+            noise_levels: vec![NoiseLevel::Phone, NoiseLevel::Bad],
+            sun_enu: default_sun(),
+            settings: default_settings(),
+            hold_s: 30.0,
+        }
     }
 }
 
@@ -403,13 +417,19 @@ pub fn measure_cases(cfg: &StabilityConfig, setting: &Setting, mut progress: imp
     };
     // A steel object passes: 25 µT for 6 s, from 8 s.
     let window = (8.0, 14.0);
-    let disturbance = Disturbance { start: window.0, duration: window.1 - window.0, field_enu_ut: DVec3::new(0.8, -0.4, 0.45).normalize() * 25.0 };
+    let disturbance =
+        Disturbance { start: window.0, duration: window.1 - window.0, field_enu_ut: DVec3::new(0.8, -0.4, 0.45).normalize() * 25.0 };
     type Base = fn(f64) -> DQuat;
-    let wrap_base: Base = |t| from_heading_pitch_roll(355f64.to_radians() + trapezoid_turn(t, 6.0, 20f64.to_radians(), 10f64.to_radians(), 0.3), 0.0, 0.0);
+    let wrap_base: Base =
+        |t| from_heading_pitch_roll(355f64.to_radians() + trapezoid_turn(t, 6.0, 20f64.to_radians(), 10f64.to_radians(), 0.3), 0.0, 0.0);
     let up_base: Base = |t| from_heading_pitch_roll(0.5, minimum_jerk((t - 6.0) / 1.5) * std::f64::consts::FRAC_PI_2, 0.0);
     let down_base: Base = |t| from_heading_pitch_roll(0.5, -minimum_jerk((t - 6.0) / 1.5) * std::f64::consts::FRAC_PI_2, 0.0);
-    let cases: [(&str, f64, Base, bool); 4] =
-        [("heading across 0/360", 14.0, wrap_base, false), ("pitch to +90", 14.0, up_base, false), ("pitch to -90", 14.0, down_base, false), ("magnetic disturbance", 24.0, hold_base, true)];
+    let cases: [(&str, f64, Base, bool); 4] = [
+        ("heading across 0/360", 14.0, wrap_base, false),
+        ("pitch to +90", 14.0, up_base, false),
+        ("pitch to -90", 14.0, down_base, false),
+        ("magnetic disturbance", 24.0, hold_base, true),
+    ];
     for &noise in &cfg.noise_levels {
         for (name, secs, base, disturbed) in cases {
             let mut runs: Vec<(&Setting, f64, f64, usize, usize, usize, bool)> = Vec::new();
@@ -556,7 +576,10 @@ mod tests {
         assert!((j.wander_rms - a / 3f64.sqrt()).abs() < 1e-3 * a, "{j:?}");
         assert_eq!(jitter(&[], FLICKER_WINDOW), JitterStats::default());
         // Pooling weights by samples.
-        let p = pool(&[JitterStats { flicker_rms: 1.0, flicker_peak: 2.0, wander_rms: 0.0, offset: 0.0, samples: 3 }, JitterStats { flicker_rms: 0.0, flicker_peak: 5.0, wander_rms: 0.0, offset: 0.0, samples: 1 }]);
+        let p = pool(&[
+            JitterStats { flicker_rms: 1.0, flicker_peak: 2.0, wander_rms: 0.0, offset: 0.0, samples: 3 },
+            JitterStats { flicker_rms: 0.0, flicker_peak: 5.0, wander_rms: 0.0, offset: 0.0, samples: 1 },
+        ]);
         assert!((p.flicker_rms - 0.75f64.sqrt()).abs() < 1e-15 && p.flicker_peak == 5.0 && p.samples == 4);
     }
 
@@ -588,7 +611,13 @@ mod tests {
             Setting { name: "default".into(), estimator: Estimator::Fusion(FusionConfig::default()) },
             Setting { name: "compass".into(), estimator: Estimator::CompassOnly { tau_s: 0.0 } },
         ];
-        let cfg = StabilityConfig { seeds: 1, noise_levels: vec![NoiseLevel::Phone], sun_enu: default_sun(), settings: settings.clone(), hold_s: 10.0 };
+        let cfg = StabilityConfig {
+            seeds: 1,
+            noise_levels: vec![NoiseLevel::Phone],
+            sun_enu: default_sun(),
+            settings: settings.clone(),
+            hold_s: 10.0,
+        };
         let rows = measure_tradeoff(&cfg, || {}).unwrap();
         assert_eq!(rows.len(), 2);
         assert!(rows[0].jitter_rms_deg * 5.0 < rows[1].jitter_rms_deg, "{rows:?}");

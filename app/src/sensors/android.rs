@@ -71,7 +71,8 @@ impl AndroidSensors {
         let package = CString::new(package).context("package name contains a NUL byte")?;
         // SAFETY: plain NDK calls with valid arguments; every pointer is checked for null.
         unsafe {
-            let manager = NonNull::new(ffi::ASensorManager_getInstanceForPackage(package.as_ptr())).context("ASensorManager_getInstanceForPackage returned null")?;
+            let manager = NonNull::new(ffi::ASensorManager_getInstanceForPackage(package.as_ptr()))
+                .context("ASensorManager_getInstanceForPackage returned null")?;
             let mut looper = ffi::ALooper_forThread();
             if looper.is_null() {
                 looper = ffi::ALooper_prepare(ffi::ALOOPER_PREPARE_ALLOW_NON_CALLBACKS as i32);
@@ -160,7 +161,7 @@ impl SensorSource for AndroidSensors {
             }
         }
         self.polls = self.polls.wrapping_add(1);
-        let check_rotation = self.polls % ROTATION_EVERY == 0;
+        let check_rotation = self.polls.is_multiple_of(ROTATION_EVERY);
         let (location, activity) = (&mut self.location, &self.activity);
         let (fix, rotation) = self.vm.attach_current_thread(|env| -> Result<_> {
             let fix = location.poll(env)?;

@@ -59,7 +59,15 @@ impl IosSensors {
             location.setDesiredAccuracy(kCLLocationAccuracyNearestTenMeters);
             location.requestWhenInUseAuthorization();
             location.startUpdatingLocation();
-            Ok(IosSensors { motion, location, north, convention: None, last_motion_t: f64::NEG_INFINITY, last_fix_t: f64::NEG_INFINITY, rejected: 0 })
+            Ok(IosSensors {
+                motion,
+                location,
+                north,
+                convention: None,
+                last_motion_t: f64::NEG_INFINITY,
+                last_fix_t: f64::NEG_INFINITY,
+                rejected: 0,
+            })
         }
     }
 }

@@ -24,10 +24,53 @@ pub struct HardIronFit {
     pub inliers: usize,
 }
 
+/// Smallest over largest eigenvalue of the points' covariance: near 0 when they lie near a
+/// plane or a line (the phone turned about one axis only), 1 for an even spread.
+pub fn spread_ratio(points: &[DVec3]) -> f64 {
+    if points.len() < 2 {
+        return 0.0;
+    }
+    let mean = points.iter().sum::<DVec3>() / points.len() as f64;
+    let mut c = glam::DMat3::ZERO;
+    for p in points {
+        let d = *p - mean;
+        c += glam::DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+    }
+    let e = symmetric_eigenvalues(c);
+    if e[2] <= 0.0 { 0.0 } else { (e[0] / e[2]).max(0.0) }
+}
+
+/// Eigenvalues (ascending) of a symmetric 3×3 matrix, closed form (Smith 1961, "Eigenvalues of
+/// a symmetric 3 × 3 matrix", Communications of the ACM 4(4):168).
+pub fn symmetric_eigenvalues(a: glam::DMat3) -> [f64; 3] {
+    let (a00, a11, a22) = (a.x_axis.x, a.y_axis.y, a.z_axis.z);
+    let (a01, a02, a12) = (a.y_axis.x, a.z_axis.x, a.z_axis.y);
+    let p1 = a01 * a01 + a02 * a02 + a12 * a12;
+    if p1 == 0.0 {
+        let mut e = [a00, a11, a22];
+        e.sort_by(f64::total_cmp);
+        return e;
+    }
+    let q = (a00 + a11 + a22) / 3.0;
+    let p2 = (a00 - q).powi(2) + (a11 - q).powi(2) + (a22 - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    let b = (a - glam::DMat3::from_diagonal(glam::DVec3::splat(q))) * (1.0 / p);
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let e1 = q + 2.0 * p * phi.cos();
+    let e3 = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+    let e2 = 3.0 * q - e1 - e3;
+    [e3, e2, e1]
+}
+
+/// Readings must spread at least this much (see [`spread_ratio`]) for a fit: a sphere through
+/// readings near one plane is not determined by them, and noise would pick it.
+pub const MIN_SPREAD: f64 = 0.1;
+
 /// Least-squares sphere through points; `None` when the points do not determine one (too few,
-/// or all near a plane or a line).
+/// or too close to a plane or a line, see [`MIN_SPREAD`]).
 pub fn fit_sphere(points: &[DVec3]) -> Option<HardIronFit> {
-    if points.len() < 4 {
+    if points.len() < 4 || spread_ratio(points) < MIN_SPREAD {
         return None;
     }
     // Normal equations of [2x 2y 2z 1]·[cx cy cz k]ᵀ = x² + y² + z², centred on the mean for
@@ -168,10 +211,30 @@ mod tests {
     }
 
     #[test]
+    fn eigenvalues_of_known_matrices() {
+        // diag(1, 2, 3) rotated: eigenvalues unchanged.
+        let r = glam::DMat3::from_quat(glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.8, 1.2));
+        let a = r * glam::DMat3::from_diagonal(DVec3::new(1.0, 2.0, 3.0)) * r.transpose();
+        let e = symmetric_eigenvalues(a);
+        assert!((e[0] - 1.0).abs() < 1e-12 && (e[1] - 2.0).abs() < 1e-12 && (e[2] - 3.0).abs() < 1e-12, "{e:?}");
+        // [[2,1,0],[1,2,0],[0,0,5]]: 1, 3, 5.
+        let b = glam::DMat3::from_cols(DVec3::new(2.0, 1.0, 0.0), DVec3::new(1.0, 2.0, 0.0), DVec3::new(0.0, 0.0, 5.0));
+        let e = symmetric_eigenvalues(b);
+        assert!((e[0] - 1.0).abs() < 1e-12 && (e[1] - 3.0).abs() < 1e-12 && (e[2] - 5.0).abs() < 1e-12, "{e:?}");
+        // Points on a circle have no spread across its plane; on a sphere, an even spread.
+        let circle: Vec<DVec3> = (0..36).map(|i| DVec3::new((i as f64 * 0.17).cos(), (i as f64 * 0.17).sin(), 0.0)).collect();
+        assert!(spread_ratio(&circle) < 1e-12);
+        assert!(spread_ratio(&sphere_points(DVec3::ZERO, 1.0, 200)) > 0.9);
+    }
+
+    #[test]
     fn degenerate_points_give_no_fit() {
         // All readings in one plane (the phone only turned about one axis): no unique sphere.
         let flat: Vec<DVec3> = (0..20).map(|i| DVec3::new((i as f64).cos(), (i as f64).sin(), 0.0) * 40.0).collect();
         assert!(fit_sphere(&flat).is_none());
+        // Nearly flat (a turn about the vertical with a little wobble) is refused too.
+        let wobbly: Vec<DVec3> = (0..20).map(|i| DVec3::new((i as f64).cos() * 40.0, (i as f64).sin() * 40.0, 2.0 * (i as f64 * 0.7).sin())).collect();
+        assert!(fit_sphere(&wobbly).is_none());
         assert!(fit_sphere(&[DVec3::X; 3]).is_none());
     }
 

@@ -233,7 +233,8 @@ mod tests {
         let flat: Vec<DVec3> = (0..20).map(|i| DVec3::new((i as f64).cos(), (i as f64).sin(), 0.0) * 40.0).collect();
         assert!(fit_sphere(&flat).is_none());
         // Nearly flat (a turn about the vertical with a little wobble) is refused too.
-        let wobbly: Vec<DVec3> = (0..20).map(|i| DVec3::new((i as f64).cos() * 40.0, (i as f64).sin() * 40.0, 2.0 * (i as f64 * 0.7).sin())).collect();
+        let wobbly: Vec<DVec3> =
+            (0..20).map(|i| DVec3::new((i as f64).cos() * 40.0, (i as f64).sin() * 40.0, 2.0 * (i as f64 * 0.7).sin())).collect();
         assert!(fit_sphere(&wobbly).is_none());
         assert!(fit_sphere(&[DVec3::X; 3]).is_none());
     }

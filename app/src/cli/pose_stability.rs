@@ -39,7 +39,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let cfg = StabilityConfig { seeds: args.seeds, noise_levels: args.noise.clone(), hold_s: args.hold, ..StabilityConfig::default() };
     let default_setting = cfg.settings[0].clone();
-    let cases_per_level = 5;
+    let cases_per_level = 6;
     let total = cfg.seeds * cfg.noise_levels.len() as u64 * (1 + cases_per_level);
     let bar = indicatif::ProgressBar::new(total);
     bar.set_style(
@@ -76,16 +76,17 @@ fn opt(v: f64) -> String {
 /// The CSV: one row per (kind, noise, scenario/setting).
 pub fn report_csv(r: &StabilityReport) -> String {
     let mut s = String::from(
-        "kind,noise,case,setting,jitter_rms_deg,jitter_peak_deg,sun_offset_deg,error_rms_deg,lag_ms,max_error_deg,accuracy_coverage,flagged_fraction,ns_per_reading\n",
+        "kind,noise,case,setting,jitter_rms_deg,jitter_peak_deg,wander_rms_deg,sun_offset_deg,error_rms_deg,lag_ms,max_error_deg,accuracy_coverage,flagged_fraction,ns_per_reading\n",
     );
     for t in &r.tradeoff {
         let _ = writeln!(
             s,
-            "tradeoff,{},hold+turn,{},{},{},{},{},{},{},{},,",
+            "tradeoff,{},hold+turn,{},{},{},{},{},{},{},{},{},,",
             t.noise.name(),
             t.setting,
             opt(t.jitter_rms_deg),
             opt(t.jitter_peak_deg),
+            opt(t.wander_rms_deg),
             opt(t.sun_offset_deg),
             opt(t.error_rms_deg),
             opt(t.lag_ms),
@@ -96,7 +97,7 @@ pub fn report_csv(r: &StabilityReport) -> String {
     for c in &r.cases {
         let _ = writeln!(
             s,
-            "case,{},{},{},,,,{},,{},,{},",
+            "case,{},{},{},,,,,{},,{},,{},",
             c.noise.name(),
             c.case,
             c.setting,
@@ -106,7 +107,7 @@ pub fn report_csv(r: &StabilityReport) -> String {
         );
     }
     for t in &r.timing {
-        let _ = writeln!(s, "timing,,,{},,,,,,,,,{}", t.setting, opt(t.ns_per_reading));
+        let _ = writeln!(s, "timing,,,{},,,,,,,,,,{}", t.setting, opt(t.ns_per_reading));
     }
     s
 }
@@ -117,9 +118,9 @@ pub fn report_markdown(r: &StabilityReport, seeds: u64) -> String {
     let _ = writeln!(s, "### Jitter and lag ({seeds} seeds per row; hand-held hold and a 90° turn at 90°/s)\n");
     let _ = writeln!(
         s,
-        "| noise | setting | sun jitter RMS (°) | peak (°) | sun offset (°) | error RMS (°) | lag (ms) | turn peak error (°) | accuracy coverage |"
+        "| noise | setting | sun jitter RMS (°) | jitter peak (°) | wander RMS (°) | sun offset (°) | error RMS (°) | lag (ms) | turn peak error (°) | accuracy coverage |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     let mut rows: Vec<&TradeoffRow> = r.tradeoff.iter().collect();
     rows.sort_by(|a, b| {
         (a.noise.name(), a.jitter_rms_deg).partial_cmp(&(b.noise.name(), b.jitter_rms_deg)).unwrap_or(std::cmp::Ordering::Equal)
@@ -127,11 +128,12 @@ pub fn report_markdown(r: &StabilityReport, seeds: u64) -> String {
     for t in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.0} | {:.2} | {} |",
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.0} | {:.2} | {} |",
             t.noise.name(),
             t.setting,
             t.jitter_rms_deg,
             t.jitter_peak_deg,
+            t.wander_rms_deg,
             t.sun_offset_deg,
             t.error_rms_deg,
             t.lag_ms,
@@ -140,7 +142,7 @@ pub fn report_markdown(r: &StabilityReport, seeds: u64) -> String {
         );
     }
     let _ = writeln!(s, "\n### Failure cases\n");
-    let _ = writeln!(s, "| noise | case | setting | max error (°) | RMS error (°) | disturbance flagged | all finite |");
+    let _ = writeln!(s, "| noise | case | setting | max error (°) | RMS error (°) | flagged as disturbed | all finite |");
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
     for c in &r.cases {
         let _ = writeln!(
@@ -300,6 +302,7 @@ mod tests {
             seeds: 1,
             jitter_rms_deg: jit,
             jitter_peak_deg: jit * 3.0,
+            wander_rms_deg: jit,
             sun_offset_deg: 0.5,
             error_rms_deg: 0.6,
             lag_ms: lag,
@@ -337,7 +340,7 @@ mod tests {
         assert!(img.pixels().any(|p| p[0] > 200 && p[1] < 50 && p[2] < 50));
         let csv = report_csv(&report);
         assert_eq!(csv.lines().count(), 1 + 3 + 1);
-        assert!(csv.lines().all(|l| l.split(',').count() == 13), "{csv}");
+        assert!(csv.lines().all(|l| l.split(',').count() == 14), "{csv}");
         assert!(report_markdown(&report, 1).contains("| phone | default |"));
     }
 }

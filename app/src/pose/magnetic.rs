@@ -87,7 +87,9 @@ mod tests {
     /// NOAA/BGS WMM2025 report, table of test values (WMM2025testvalues.pdf, the same numbers as
     /// WMM2025_TestValues.txt in WMM2025COF.zip): decimal year, height (km), lat, lon,
     /// X, Y, Z (nT), D (deg). 2025.0 = 1 January 2025; 2027.5 = 2 July 2027.
-    const WMM2025_TEST_VALUES: [(f64, f64, f64, f64, f64, f64, f64, f64); 6] = [
+    /// (decimal year, height km, lat, lon, X, Y, Z, D).
+    type TestValue = (f64, f64, f64, f64, f64, f64, f64, f64);
+    const WMM2025_TEST_VALUES: [TestValue; 6] = [
         (2025.0, 0.0, 80.0, 0.0, 6521.6, 145.9, 54791.5, 1.28),
         (2025.0, 0.0, 0.0, 120.0, 39677.8, -109.6, -10580.2, -0.16),
         (2025.0, 0.0, -80.0, 240.0, 6117.5, 15751.9, -52022.5, 68.78),

@@ -242,10 +242,10 @@ fn check_params(p: &UserPathParams) -> Result<()> {
     if !(0.0..=90.0).contains(&p.vertical_pitch_deg) {
         bail!("vertical pitch must be within 0..=90 degrees, got {}", p.vertical_pitch_deg);
     }
-    if let Some(o) = &p.order {
-        if o.contains(&Target::Front) || o.len() != 5 || (0..o.len()).any(|i| o[i + 1..].contains(&o[i])) {
-            bail!("the face order must list right, back, left, up and down once each, got {o:?}");
-        }
+    if let Some(o) = &p.order
+        && (o.contains(&Target::Front) || o.len() != 5 || (0..o.len()).any(|i| o[i + 1..].contains(&o[i])))
+    {
+        bail!("the face order must list right, back, left, up and down once each, got {o:?}");
     }
     Ok(())
 }

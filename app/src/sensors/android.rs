@@ -161,7 +161,7 @@ impl SensorSource for AndroidSensors {
             }
         }
         self.polls = self.polls.wrapping_add(1);
-        let check_rotation = self.polls % ROTATION_EVERY == 0;
+        let check_rotation = self.polls.is_multiple_of(ROTATION_EVERY);
         let (location, activity) = (&mut self.location, &self.activity);
         let (fix, rotation) = self.vm.attach_current_thread(|env| -> Result<_> {
             let fix = location.poll(env)?;

@@ -162,7 +162,7 @@ impl LocationBridge {
         let gps = jstring(env, GPS_PROVIDER)?;
         let r = env.call_method(manager, jni_str!("isProviderEnabled"), jni_sig!("(Ljava/lang/String;)Z"), &[JValue::Object(&gps)]);
         let v = checked(env, "LocationManager.isProviderEnabled", r)?;
-        Ok(checked(env, "isProviderEnabled result", v.z())?)
+        checked(env, "isProviderEnabled result", v.z())
     }
 
     fn start_updates(&mut self, env: &mut Env<'_>, manager: &JObject<'_>) -> Result<()> {

@@ -6,6 +6,7 @@
 //! the edges (CLI, files) and radians inside. Images are sRGB-encoded; shading is linear.
 
 pub mod bench;
+pub mod capture;
 pub mod chart;
 pub mod cli;
 pub mod colour;
@@ -14,3 +15,4 @@ pub mod pose;
 pub mod render;
 pub mod scene;
 pub mod sensors;
+pub mod ui;

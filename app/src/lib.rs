@@ -6,6 +6,7 @@
 //! the edges (CLI, files) and radians inside. Images are sRGB-encoded; shading is linear.
 
 pub mod bench;
+pub mod camera;
 pub mod capture;
 pub mod chart;
 pub mod cli;

@@ -106,7 +106,9 @@ pub fn cube_to_enu(c: Vec3) -> Vec3 {
 }
 
 pub mod background;
+pub mod cubemap;
 pub mod demo;
 pub mod environment;
 pub mod file;
 pub mod model;
+pub mod normals;

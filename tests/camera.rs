@@ -1,0 +1,148 @@
+//! The virtual phone and the file frame source against real environments and photos.
+
+use glam::{Mat3, Quat, Vec3};
+use previz::camera::FrameSource;
+use previz::camera::exposure::{ExposureMode, tone_to_srgb8};
+use previz::camera::file::ImageFiles;
+use previz::camera::sim::{SimSettings, VirtualPhone};
+use previz::scene::environment::load_environment;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel)
+}
+
+/// Camera → ENU rotation from the image's right and up directions (the camera looks along
+/// right × up).
+fn pose(right: Vec3, up: Vec3) -> Quat {
+    Quat::from_mat3(&Mat3::from_cols(right, up, right.cross(up)))
+}
+
+#[test]
+fn a_90_degree_square_view_reproduces_each_cube_face() {
+    // Looking at the centre of each face with a 90° square view puts the pixel centres exactly
+    // on the face's texel centres, so the frame is the face itself, exposed and tone-mapped.
+    // The image right/up per face follow the Vulkan face table (scene::cubemap) through
+    // enu_to_cube: e.g. +X (East) has −z_cube (South) to the right and +y_cube (up) up.
+    let cube = Arc::new(load_environment(&data("cubemaps/pisa_hdr")).unwrap());
+    let (e, s, u) = (Vec3::X, Vec3::Y, Vec3::Z); // East, North, Up
+    let views = [(-s, u), (s, u), (e, -s), (e, s), (e, u), (-e, u)];
+    let exposure = 0.6;
+    let settings = SimSettings { width: 256, height: 256, vfov_deg: 90.0, exposure: ExposureMode::Fixed(exposure) };
+    let phone = VirtualPhone::new(cube.clone(), &settings).unwrap();
+    for (face, (right, up)) in views.into_iter().enumerate() {
+        let img = phone.render_with_exposure(pose(right, up), exposure).unwrap();
+        let mut worst = 0;
+        for (i, texel) in cube.faces[face].iter().enumerate() {
+            for (c, value) in texel.iter().enumerate() {
+                let want = tone_to_srgb8(value * exposure) as i32;
+                worst = worst.max((img.pixels[i * 4 + c] as i32 - want).abs());
+            }
+        }
+        assert!(worst <= 1, "face {face}: off by {worst} code values");
+    }
+}
+
+#[test]
+fn auto_exposed_outdoor_view_is_well_exposed() {
+    let cube = Arc::new(load_environment(&data("cubemaps/humus_Bridge2")).unwrap());
+    let mut phone = VirtualPhone::new(cube, &SimSettings { width: 160, height: 120, ..Default::default() }).unwrap();
+    // Level, looking North-East.
+    let q = Quat::from_rotation_z(-45f32.to_radians()) * Quat::from_rotation_x(90f32.to_radians());
+    let frame = phone.render(q, 0.0).unwrap();
+    let n = (frame.image.pixels.len() / 4) as f32;
+    let mean = frame.image.pixels.chunks(4).map(|p| (p[0] as f32 + p[1] as f32 + p[2] as f32) / 3.0).sum::<f32>() / n;
+    assert!((70.0..190.0).contains(&mean), "mean sRGB code {mean}");
+    let clipped = frame.image.pixels.chunks(4).filter(|p| p[..3].iter().all(|c| *c == 255)).count() as f32 / n;
+    assert!(clipped < 0.2, "{clipped} of the frame is white");
+}
+
+#[test]
+fn photo_folder_as_a_sequence() {
+    // Natural order puts 87_OSError.jpg (1488x2240) first; the 640x480 DSCN photos that follow
+    // do not match its size, which is reported with the file's name.
+    let mut seq = ImageFiles::open(&data("photos/exif_gps"), 30.0).unwrap();
+    assert_eq!(seq.len(), 10);
+    let first = seq.next_frame().unwrap().unwrap();
+    assert_eq!((first.image.width, first.image.height), (1488, 2240));
+    let err = seq.next_frame().unwrap_err().to_string();
+    assert!(err.contains("DSCN0010.jpg") && err.contains("1488x2240"), "{err}");
+}
+
+/// Frames per second of the virtual phone at 960x640, with the alternatives side by side.
+/// Not a check (no timed assertions); run with
+/// `cargo test --release --test camera -- --ignored --nocapture bench_virtual_phone`.
+#[test]
+#[ignore]
+fn bench_virtual_phone() {
+    use previz::scene::environment::load_equirect;
+    use std::time::Instant;
+    let path = data("hdri/polyhaven_1k/quarry_01_1k.hdr");
+    let cube = Arc::new(load_environment(&path).unwrap());
+    let equirect = load_equirect(&path).unwrap();
+    let settings = SimSettings { width: 960, height: 640, vfov_deg: 50.0, exposure: ExposureMode::default() };
+    let mut phone = VirtualPhone::new(cube.clone(), &settings).unwrap();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let poses: Vec<Quat> = (0..60).map(|i| Quat::from_rotation_z(i as f32 * 0.1) * Quat::from_rotation_x(1.3)).collect();
+    let time = |f: &mut dyn FnMut(Quat)| {
+        f(poses[0]); // warm-up
+        let t0 = Instant::now();
+        for q in &poses {
+            f(*q);
+        }
+        t0.elapsed().as_secs_f64() / poses.len() as f64
+    };
+    let mut t = 0.0;
+    let mut rows = Vec::new();
+    phone.set_threads(cores);
+    rows.push((
+        format!("render (meter + adapt + draw), {cores} threads"),
+        time(&mut |q| {
+            t += 1.0 / 30.0;
+            phone.render(q, t).unwrap();
+        }),
+    ));
+    phone.set_threads(1);
+    rows.push((
+        "render (meter + adapt + draw), 1 thread".to_string(),
+        time(&mut |q| {
+            t += 1.0 / 30.0;
+            phone.render(q, t).unwrap();
+        }),
+    ));
+    rows.push((
+        "draw only at fixed exposure, 1 thread".to_string(),
+        time(&mut |q| {
+            phone.render_with_exposure(q, 1.0).unwrap();
+        }),
+    ));
+    // Alternative: the exact tone curve (powf per channel) instead of the lookup table.
+    let (w, h) = (960usize, 640usize);
+    let tan_v = (25f32).to_radians().tan();
+    let tan_h = tan_v * 1.5;
+    let mut out = vec![0u8; w * h * 4];
+    let mut naive = |q: Quat, sample: &dyn Fn(Vec3) -> [f32; 3]| {
+        let r = Mat3::from_quat(q);
+        for y in 0..h {
+            let ny = (1.0 - 2.0 * (y as f32 + 0.5) / h as f32) * tan_v;
+            for x in 0..w {
+                let nx = (2.0 * (x as f32 + 0.5) / w as f32 - 1.0) * tan_h;
+                let c = sample(r.x_axis * nx + r.y_axis * ny - r.z_axis);
+                let px = &mut out[(y * w + x) * 4..][..4];
+                px.copy_from_slice(&[tone_to_srgb8(c[0]), tone_to_srgb8(c[1]), tone_to_srgb8(c[2]), 255]);
+            }
+        }
+    };
+    rows.push(("draw, exact tone curve instead of LUT, 1 thread".to_string(), time(&mut |q| naive(q, &|d| cube.sample_enu(d)))));
+    rows.push((
+        "draw, exact tone curve, sampling the equirect instead of the cube, 1 thread".to_string(),
+        time(&mut |q| naive(q, &|d| equirect.sample_enu(d, 0.0))),
+    ));
+    let base = rows[0].1;
+    println!("| variant (960x640, quarry_01_1k.hdr, 256 px faces) | ms/frame | frames/s | time vs first row |");
+    println!("|---|---|---|---|");
+    for (name, secs) in rows {
+        println!("| {name} | {:.2} | {:.1} | {:.2} |", secs * 1e3, 1.0 / secs, secs / base);
+    }
+}

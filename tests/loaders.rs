@@ -1,0 +1,600 @@
+//! Asset loaders against the real files in ../shared/data (see SOURCES.md there for the
+//! published counts these tests check) and against bad input written to temporary folders.
+
+use glam::Vec3;
+use previz::colour::luminance_bt709;
+use previz::scene::background::load_image;
+use previz::scene::environment::{
+    EnvOptions, cube_dir_to_face_uv, face_uv_to_cube_dir, load_environment, load_environment_with, load_equirect, texel_solid_angle,
+};
+use previz::scene::model::{ModelOptions, load_model, load_model_with};
+use previz::scene::{CubeMap, Mesh, Model, cube_to_enu, enu_to_cube};
+use std::path::{Path, PathBuf};
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel)
+}
+
+/// A fresh temporary folder for one test.
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("previz-loaders-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn v(p: [f32; 3]) -> Vec3 {
+    Vec3::from_array(p)
+}
+
+fn tri(mesh: &Mesh, t: usize) -> [usize; 3] {
+    [mesh.indices[3 * t] as usize, mesh.indices[3 * t + 1] as usize, mesh.indices[3 * t + 2] as usize]
+}
+
+/// Every normal unit length; returns the fraction of triangle corners whose vertex normal
+/// points to the same side as the triangle's winding normal.
+fn normals_check(model: &Model) -> f64 {
+    let (mut agree, mut total) = (0usize, 0usize);
+    for mesh in &model.meshes {
+        assert_eq!(mesh.normals.len(), mesh.positions.len());
+        assert_eq!(mesh.uvs.len(), mesh.positions.len());
+        for n in &mesh.normals {
+            assert!((v(*n).length() - 1.0).abs() < 1e-4, "normal {n:?} not unit length");
+        }
+        for t in 0..mesh.indices.len() / 3 {
+            let [a, b, c] = tri(mesh, t);
+            let face = (v(mesh.positions[b]) - v(mesh.positions[a])).cross(v(mesh.positions[c]) - v(mesh.positions[a]));
+            if face.length_squared() == 0.0 {
+                continue;
+            }
+            for i in [a, b, c] {
+                total += 1;
+                agree += (v(mesh.normals[i]).dot(face) > 0.0) as usize;
+            }
+        }
+    }
+    agree as f64 / total as f64
+}
+
+/// Signed volume (divergence theorem, Σ a·(b×c)/6): positive when a closed mesh is wound with
+/// outward-facing triangles.
+fn signed_volume(model: &Model) -> f64 {
+    let mut vol = 0.0f64;
+    for mesh in &model.meshes {
+        for t in 0..mesh.indices.len() / 3 {
+            let [a, b, c] = tri(mesh, t).map(|i| v(mesh.positions[i]).as_dvec3());
+            vol += a.dot(b.cross(c)) / 6.0;
+        }
+    }
+    vol
+}
+
+// ---------------------------------------------------------------------------------- OBJ
+
+#[test]
+fn spider_obj_with_five_textured_materials_and_backslash_paths() {
+    let loaded = load_model_with(&data("textured_models/spider/spider.obj"), &ModelOptions::default()).unwrap();
+    let m = &loaded.model;
+    // SOURCES.md: 1,368 triangles, 5 materials, each with a map_Kd written as `.\name.jpg`.
+    assert_eq!(m.triangle_count(), 1368);
+    let mut names: Vec<&str> = m.materials.iter().map(|m| m.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["Augentex", "BeinTex", "Brusttex", "HLeibTex", "Skin"]);
+    let skin = m.materials.iter().find(|m| m.name == "Skin").unwrap();
+    assert_eq!(skin.diffuse, [0.827451, 0.792157, 0.772549]);
+    // The texture is the JPEG's pixels, decoded independently here.
+    let tex = skin.texture.as_ref().unwrap();
+    let direct = image::open(data("textured_models/spider/wal67ar_small.jpg")).unwrap().to_rgba8();
+    assert_eq!((tex.width, tex.height), direct.dimensions());
+    assert_eq!(tex.pixels, direct.into_raw());
+    assert!(m.materials.iter().all(|m| m.texture.is_some()));
+    // Groups of one material are merged: Skin, HLeibTex, BeinTex, Augentex are used by faces,
+    // Brusttex by none (no `usemtl Brusttex` in the file).
+    assert!(m.meshes.iter().all(|mesh| mesh.material < 5));
+    assert_eq!(m.meshes.len(), 4);
+    // The file's own normals are kept (normalised) except its one `vn 0 0 0`: every distinct
+    // v/vt/vn corner using it gets the mean of its faces instead. Count those in the text.
+    let text = std::fs::read_to_string(data("textured_models/spider/spider.obj")).unwrap();
+    let vns: Vec<&str> = text.lines().filter(|l| l.starts_with("vn ")).collect();
+    let zero = 1 + vns.iter().position(|l| l.split_whitespace().skip(1).all(|c| c.parse::<f32>().unwrap() == 0.0)).unwrap();
+    let corners: std::collections::HashSet<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .flat_map(|l| l.split_whitespace().skip(1))
+        .filter(|c| c.rsplit('/').next() == Some(zero.to_string().as_str()))
+        .collect();
+    assert_eq!(loaded.notes.len(), 1, "{:?}", loaded.notes);
+    assert!(loaded.notes[0].contains(&format!("{} zero or invalid normal", corners.len())), "{:?}", loaded.notes);
+    assert!(normals_check(m) > 0.9);
+    // UVs: OBJ's v points up the image, ours down: every loaded (u, v) is a file `vt` (u, 1 − v).
+    // (The spider's UVs tile: they range over about −0.5..1.5.)
+    let mut file_vt: Vec<(f32, f32)> = text
+        .lines()
+        .filter(|l| l.starts_with("vt "))
+        .map(|l| {
+            let c: Vec<f32> = l.split_whitespace().skip(1).map(|c| c.parse().unwrap()).collect();
+            (c[0], c[1])
+        })
+        .collect();
+    file_vt.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let in_file = |u: f32, v: f32| {
+        let from = file_vt.partition_point(|t| t.0 < u - 1e-5);
+        file_vt[from..].iter().take_while(|t| t.0 <= u + 1e-5).any(|t| (t.1 - v).abs() <= 1e-5)
+    };
+    assert!(m.meshes.iter().flat_map(|mesh| &mesh.uvs).all(|uv| in_file(uv[0], 1.0 - uv[1])));
+}
+
+#[test]
+fn spot_without_mtl_or_normals_gets_computed_normals_and_a_given_texture() {
+    let path = data("textured_models/spot/spot_triangulated.obj");
+    let options = ModelOptions { texture: Some(data("textured_models/spot/spot_texture.png")), ..Default::default() };
+    let loaded = load_model_with(&path, &options).unwrap();
+    let m = &loaded.model;
+    assert_eq!(m.triangle_count(), 5856);
+    assert!(loaded.notes.iter().any(|n| n.contains("computed smooth normals")), "{:?}", loaded.notes);
+    let tex = m.materials[0].texture.as_ref().unwrap();
+    assert_eq!((tex.width, tex.height), (1024, 1024));
+    // Computed normals: unit length and on the front side of every corner's own face.
+    assert_eq!(normals_check(m), 1.0);
+    // Closed, outward-wound genus-0 mesh (SOURCES.md): positive volume.
+    assert!(signed_volume(m) > 0.0);
+    // The UV seams did not become normal seams (vertices are welded by position).
+    assert!(seams_smoothed(&m.meshes[0], 60.0) > 100, "spot has UV seams");
+}
+
+/// Where several vertices share a position (UV or patch seams) and every face around that
+/// position lies within the crease angle of every other, the crease rule gives them all the
+/// same normal. Checks that and returns how many such seam positions there were.
+fn seams_smoothed(mesh: &Mesh, crease_deg: f32) -> usize {
+    let mut faces_at: std::collections::HashMap<[u32; 3], Vec<Vec3>> = Default::default();
+    let mut normals_at: std::collections::HashMap<[u32; 3], Vec<Vec3>> = Default::default();
+    for t in 0..mesh.indices.len() / 3 {
+        let [a, b, c] = tri(mesh, t);
+        let n = (v(mesh.positions[b]) - v(mesh.positions[a])).cross(v(mesh.positions[c]) - v(mesh.positions[a])).normalize_or_zero();
+        for i in [a, b, c] {
+            faces_at.entry(mesh.positions[i].map(f32::to_bits)).or_default().push(n);
+            normals_at.entry(mesh.positions[i].map(f32::to_bits)).or_default().push(v(mesh.normals[i]));
+        }
+    }
+    let cos = crease_deg.to_radians().cos() + 1e-3;
+    let mut checked = 0;
+    for (key, faces) in &faces_at {
+        let mut vertices: Vec<u32> =
+            (0..mesh.positions.len()).filter(|&i| mesh.positions[i].map(f32::to_bits) == *key).map(|i| i as u32).collect();
+        vertices.dedup();
+        let smooth = faces.iter().all(|f| faces.iter().all(|g| f.dot(*g) >= cos));
+        if vertices.len() < 2 || !smooth {
+            continue;
+        }
+        let ns = &normals_at[key];
+        assert!(ns.iter().all(|n| n.dot(ns[0]) > 1.0 - 1e-6), "split normals at a smooth seam {key:?}");
+        checked += 1;
+    }
+    checked
+}
+
+#[test]
+fn missing_mtllib_is_tolerated_with_a_note() {
+    for (file, tris) in [("meshes/bunny-crane-with-normals.obj", 28_576), ("meshes/stanford-dragon-100k.obj", 100_000)] {
+        let loaded = load_model_with(&data(file), &ModelOptions::default()).unwrap();
+        let m = &loaded.model;
+        assert_eq!(m.triangle_count(), tris, "{file}");
+        assert!(loaded.notes.iter().any(|n| n.contains(".mtl") && n.contains("not found")), "{file}: {:?}", loaded.notes);
+        assert_eq!(m.materials.len(), 1);
+        assert_eq!(m.materials[0].name, "default");
+        // Both are closed and outward-wound (SOURCES.md); normals face out.
+        assert!(signed_volume(m) > 0.0, "{file}");
+        assert!(normals_check(m) > 0.99, "{file}");
+    }
+}
+
+#[test]
+fn dragon_bounds_and_computed_normals() {
+    let loaded = load_model_with(&data("meshes/stanford-dragon-100k.obj"), &ModelOptions::default()).unwrap();
+    let (lo, hi) = loaded.model.bounds().unwrap();
+    // SOURCES.md: bbox x ±7.05, y 0..9.94, z ±3.15.
+    assert!((lo.x + 7.05).abs() < 0.01 && (hi.x - 7.05).abs() < 0.01, "{lo} {hi}");
+    assert!(lo.y.abs() < 0.01 && (hi.y - 9.94).abs() < 0.01, "{lo} {hi}");
+    assert!((lo.z + 3.15).abs() < 0.01 && (hi.z - 3.15).abs() < 0.01, "{lo} {hi}");
+    assert!(loaded.notes.iter().any(|n| n.contains("no normals")));
+    assert_eq!(normals_check(&loaded.model), 1.0);
+}
+
+#[test]
+fn suzanne_quads_are_triangulated() {
+    let m = load_model(&data("meshes/suzanne.obj")).unwrap();
+    // 500 faces, 468 of them quads: 468 * 2 + 32 = 968 triangles.
+    assert_eq!(m.triangle_count(), 968);
+    assert!(normals_check(&m) > 0.95);
+    let (lo, hi) = m.bounds().unwrap();
+    assert!((lo.x + 3.86).abs() < 0.01 && (hi.x + 1.13).abs() < 0.01, "{lo} {hi}");
+}
+
+#[test]
+fn icosphere_normals_from_the_crease_rule_are_radial() {
+    // The icosphere ships flat per-face normals; recomputed smooth normals of a unit sphere
+    // must point along the position vector.
+    let mut m = load_model(&data("meshes/icosphere-320.obj")).unwrap();
+    assert_eq!(m.triangle_count(), 320);
+    for mesh in &mut m.meshes {
+        previz::scene::normals::compute_crease_normals(mesh, 60.0).unwrap();
+        for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+            let angle = v(*p).normalize().dot(v(*n)).clamp(-1.0, 1.0).acos().to_degrees();
+            assert!(angle < 1.0, "normal {angle} deg off radial at {p:?}");
+        }
+        // Smooth: one normal per position (162 vertices, SOURCES.md).
+        assert_eq!(mesh.positions.len(), 162);
+    }
+}
+
+#[test]
+fn teapot_unwelded_patch_seams_are_smoothed_across() {
+    let m = load_model(&data("meshes/teapot.obj")).unwrap();
+    assert_eq!(m.triangle_count(), 6320);
+    assert_eq!(normals_check(&m), 1.0);
+    // The file's patch seams are unwelded: 1,036 boundary edges (SOURCES.md). Normals are
+    // computed on positions, so seam vertices with equal position and normal merge and the
+    // loaded mesh is welded except at real creases and the real openings.
+    let mesh = &m.meshes[0];
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    for t in mesh.indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let boundary = edges.values().filter(|n| **n == 1).count();
+    assert!(boundary < 1036 / 4, "{boundary} boundary edges");
+    // Any position still carrying several vertices is at a crease, not a smooth seam.
+    assert_eq!(seams_smoothed(mesh, 60.0), 0);
+}
+
+// --------------------------------------------------------------------------------- glTF
+
+#[test]
+fn milk_truck_gltf_and_glb_agree() {
+    let a = load_model(&data("textured_models/cesium_milk_truck_gltf/CesiumMilkTruck.gltf")).unwrap();
+    let b = load_model(&data("textured_models/cesium_milk_truck_gltf/CesiumMilkTruck.glb")).unwrap();
+    for m in [&a, &b] {
+        // Truck mesh: 5232 + 168 + 864 indices; wheel mesh 2304 indices, instanced by two nodes.
+        assert_eq!(m.triangle_count(), (5232 + 168 + 864) / 3 + 2 * 2304 / 3);
+        let names: Vec<&str> = m.materials.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names.len(), 4);
+        for n in ["truck", "glass", "window_trim", "wheels"] {
+            assert!(names.contains(&n), "{names:?}");
+        }
+        let glass = m.materials.iter().find(|m| m.name == "glass").unwrap();
+        assert_eq!(glass.diffuse, [0.0, 0.040_506_3, 0.021_240_7]);
+        assert!(glass.texture.is_none());
+        let truck = m.materials.iter().find(|m| m.name == "truck").unwrap();
+        let tex = truck.texture.as_ref().unwrap();
+        assert_eq!((tex.width, tex.height), (2048, 2048));
+        assert_eq!(normals_check(m), 1.0);
+    }
+    assert_eq!(a.bounds().unwrap(), b.bounds().unwrap());
+    let tex_a = &a.materials.iter().find(|m| m.name == "truck").unwrap().texture.as_ref().unwrap().pixels;
+    let tex_b = &b.materials.iter().find(|m| m.name == "truck").unwrap().texture.as_ref().unwrap().pixels;
+    assert!(tex_a == tex_b, "the .gltf's PNG and the .glb's embedded PNG decode alike");
+    // Node transforms: the wheel mesh is placed by two nodes at x = −1.352 and x = +1.433.
+    let wheels_index = a.materials.iter().position(|m| m.name == "wheels").unwrap();
+    let wheels = a.meshes.iter().find(|m| m.material == wheels_index).unwrap();
+    let (left, right): (Vec<f32>, Vec<f32>) = wheels.positions.iter().map(|p| p[0]).partition(|x| *x < 0.0);
+    assert_eq!(left.len(), right.len());
+    let mean = |xs: &[f32]| xs.iter().sum::<f32>() / xs.len() as f32;
+    assert!((mean(&left) + 1.352).abs() < 0.05 && (mean(&right) - 1.433).abs() < 0.05, "{} {}", mean(&left), mean(&right));
+}
+
+// ------------------------------------------------------------------------- environments
+
+/// Mean absolute difference between texels that touch across face edges, and between texels
+/// one step apart inside faces. A wrong face orientation makes the first much larger.
+fn seam_vs_interior(cube: &CubeMap) -> (f32, f32) {
+    let n = cube.size as usize;
+    let texel = |f: usize, x: usize, y: usize| cube.faces[f][y * n + x];
+    let diff = |a: [f32; 3], b: [f32; 3]| (0..3).map(|i| (a[i] - b[i]).abs()).sum::<f32>() / 3.0;
+    let (mut seam, mut inner, mut count) = (0.0, 0.0, 0usize);
+    for face in 0..6 {
+        for i in 0..n {
+            let along = (i as f32 + 0.5) / n as f32;
+            let half = 0.5 / n as f32;
+            // (edge texel, just outside the edge, one texel inside)
+            for (x, y, out_u, out_v, in_x, in_y) in [
+                (0, i, -half, along, 1, i),
+                (n - 1, i, 1.0 + half, along, n - 2, i),
+                (i, 0, along, -half, i, 1),
+                (i, n - 1, along, 1.0 + half, i, n - 2),
+            ] {
+                let (f2, u2, v2) = cube_dir_to_face_uv(face_uv_to_cube_dir(face, out_u, out_v));
+                assert_ne!(f2, face);
+                let (x2, y2) = (((u2 * n as f32) as usize).min(n - 1), ((v2 * n as f32) as usize).min(n - 1));
+                seam += diff(texel(face, x, y), texel(f2, x2, y2));
+                inner += diff(texel(face, x, y), texel(face, in_x, in_y));
+                count += 1;
+            }
+        }
+    }
+    (seam / count as f32, inner / count as f32)
+}
+
+#[test]
+fn humus_face_folders_with_both_namings_join_without_seams() {
+    for (dir, size) in [("cubemaps/humus_Bridge2", 1024), ("cubemaps/humus_SwedishRoyalCastle", 512)] {
+        let cube = load_environment(&data(dir)).unwrap();
+        assert_eq!(cube.size, size, "{dir}");
+        // 8-bit faces converted to linear: within [0, 1].
+        assert!(cube.faces.iter().flatten().flatten().all(|c| (0.0..=1.0).contains(c)));
+        let (seam, inner) = seam_vs_interior(&cube);
+        assert!(seam < 2.0 * inner + 0.01, "{dir}: seam {seam} vs interior {inner}");
+    }
+}
+
+#[test]
+fn bridge2_daylight_sky_is_brighter_than_ground() {
+    let cube = load_environment(&data("cubemaps/humus_Bridge2")).unwrap();
+    let lum = |f| luminance_bt709(cube.face_mean(f));
+    // +Y (sky) above −Y (ground) on a sunny outdoor map.
+    assert!(lum(2) > 2.0 * lum(3), "{} vs {}", lum(2), lum(3));
+    // Blue sky: the up face is bluer than it is red.
+    let up = cube.face_mean(2);
+    assert!(up[2] > up[0], "{up:?}");
+}
+
+#[test]
+fn pisa_hdr_faces_stay_linear_float() {
+    let hdr = load_environment(&data("cubemaps/pisa_hdr")).unwrap();
+    assert_eq!(hdr.size, 256);
+    let max = hdr.faces.iter().flatten().flatten().fold(0.0f32, |m, c| m.max(*c));
+    // SOURCES.md: maximum about 6.7 — values above 1 survive.
+    assert!((6.0..7.5).contains(&max), "max {max}");
+    // The LDR PNG copy of the same cube (sRGB, decoded to linear): each HDR face matches its
+    // namesake texel by texel (log-luminance correlation) and no other face.
+    let ldr = load_environment(&data("cubemaps/pisa_ldr_png")).unwrap();
+    assert_eq!(ldr.size, 256);
+    let log_lum = |f: &[[f32; 3]]| f.iter().map(|p| (luminance_bt709(*p) as f64 + 1e-3).ln()).collect::<Vec<f64>>();
+    let corr = |a: &[f64], b: &[f64]| {
+        let n = a.len() as f64;
+        let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+        let sab: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+        let (saa, sbb): (f64, f64) = (a.iter().map(|x| (x - ma).powi(2)).sum(), b.iter().map(|y| (y - mb).powi(2)).sum());
+        sab / (saa * sbb).sqrt()
+    };
+    for f in 0..6 {
+        let h = log_lum(&hdr.faces[f]);
+        for g in 0..6 {
+            let r = corr(&h, &log_lum(&ldr.faces[g]));
+            if f == g {
+                assert!(r > 0.95, "face {f}: {r}");
+            } else {
+                assert!(r < 0.7, "hdr face {f} vs ldr face {g}: {r}");
+            }
+        }
+    }
+}
+
+/// Direction of the brightest texel of a cube map, in ENU.
+fn brightest_direction(cube: &CubeMap) -> Vec3 {
+    let n = cube.size as usize;
+    let (mut best, mut dir) = (f32::MIN, Vec3::ZERO);
+    for (f, texels) in cube.faces.iter().enumerate() {
+        for (i, t) in texels.iter().enumerate() {
+            let l = luminance_bt709(*t);
+            if l > best {
+                best = l;
+                dir = cube_to_enu(face_uv_to_cube_dir(f, ((i % n) as f32 + 0.5) / n as f32, ((i / n) as f32 + 0.5) / n as f32));
+            }
+        }
+    }
+    dir
+}
+
+/// ∫ luminance dω over the sphere for a cube map.
+fn cube_integral(cube: &CubeMap) -> f64 {
+    let n = cube.size;
+    cube.faces
+        .iter()
+        .flat_map(|f| f.iter().enumerate())
+        .map(|(i, t)| luminance_bt709(*t) as f64 * texel_solid_angle(n, i as u32 % n, i as u32 / n) as f64)
+        .sum()
+}
+
+#[test]
+fn quarry_equirect_hdr_sun_position_and_energy() {
+    let path = data("hdri/polyhaven_1k/quarry_01_1k.hdr");
+    let eq = load_equirect(&path).unwrap();
+    assert_eq!((eq.width(), eq.height()), (1024, 512));
+    // hdri_peak_stats_DERIVED.csv (numpy): mean luminance 0.48687, peak 63,745.9 at row 227,
+    // column 614.
+    let lum: Vec<f32> = eq.pixels().iter().map(|p| luminance_bt709(*p)).collect();
+    let mean = lum.iter().map(|l| *l as f64).sum::<f64>() / lum.len() as f64;
+    assert!((mean / 0.48687 - 1.0).abs() < 1e-3, "mean {mean}");
+    let (peak_i, peak) = lum.iter().enumerate().fold((0, 0.0f32), |b, (i, l)| if *l > b.1 { (i, *l) } else { b });
+    assert!((peak / 63_745.9 - 1.0).abs() < 1e-3, "peak {peak}");
+    assert_eq!((peak_i / 1024, peak_i % 1024), (227, 614));
+
+    // The cube map has the sun where the equirect convention puts it: column 614 of 1024 is
+    // azimuth (614.5/1024 − 0.5)·360° = 36.0°, row 227 elevation 90° − 227.5/512·180° = 10.0°.
+    let cube = load_environment(&path).unwrap();
+    assert_eq!(cube.size, 256);
+    let (az, el) = (36.035f32.to_radians(), 10.02f32.to_radians());
+    let expected = Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+    let got = brightest_direction(&cube);
+    let err = got.dot(expected).clamp(-1.0, 1.0).acos().to_degrees();
+    assert!(err < 0.6, "sun {err} deg from where it belongs");
+
+    // Energy: ∫ L dω over the sphere is the same from the equirect and the cube (1%).
+    let eq_integral: f64 =
+        (0..512u32).map(|y| (0..1024).map(|x| lum[(y * 1024 + x) as usize] as f64).sum::<f64>() * eq.pixel_solid_angle(y) as f64).sum();
+    let cube_int = cube_integral(&cube);
+    assert!((cube_int / eq_integral - 1.0).abs() < 0.01, "cube {cube_int} vs equirect {eq_integral}");
+
+    // A heading turns the whole map: with the panorama's front at azimuth 90°, the sun is at
+    // 126°.
+    let turned = load_environment_with(&path, &EnvOptions { heading_deg: 90.0, face_size: Some(128) }).unwrap();
+    assert_eq!(turned.size, 128);
+    let az2 = 126.035f32.to_radians();
+    let expected2 = Vec3::new(el.cos() * az2.sin(), el.cos() * az2.cos(), el.sin());
+    assert!(brightest_direction(&turned).dot(expected2) > 1.5f32.to_radians().cos());
+}
+
+#[test]
+fn zip_exr_equirect_loads_with_negatives_clamped() {
+    let path = data("hdri/blender_studiolights_world_zip/city.exr");
+    let eq = load_equirect(&path).unwrap();
+    assert_eq!((eq.width(), eq.height()), (1024, 512));
+    // hdri_peak_stats_DERIVED.csv: the file has 299 negative pixels (min −0.0016) — gone.
+    assert!(eq.pixels().iter().flatten().all(|c| *c >= 0.0));
+    // Mean luminance 1.05452 and peak 31,749.4 at row 120, column 614 (numpy, same values).
+    let lum: Vec<f32> = eq.pixels().iter().map(|p| luminance_bt709(*p)).collect();
+    let mean = lum.iter().map(|l| *l as f64).sum::<f64>() / lum.len() as f64;
+    assert!((mean / 1.05452 - 1.0).abs() < 1e-3, "mean {mean}");
+    let (peak_i, peak) = lum.iter().enumerate().fold((0, 0.0f32), |b, (i, l)| if *l > b.1 { (i, *l) } else { b });
+    assert!((peak / 31_749.4 - 1.0).abs() < 1e-3, "peak {peak}");
+    assert_eq!((peak_i / 1024, peak_i % 1024), (120, 614));
+    let cube = load_environment_with(&path, &EnvOptions { face_size: Some(64), ..Default::default() }).unwrap();
+    assert_eq!(cube.size, 64);
+}
+
+#[test]
+fn dwab_exr_decodes_like_its_zip_copy() {
+    // SOURCES.md made the ZIP copies because older `exr` releases could not read DWAB; the exr
+    // 1.74 decoder in our lock file does, bit-identically to OpenEXR (which wrote the ZIP copy).
+    let dwab = load_equirect(&data("hdri/blender_studiolights_world/city.exr")).unwrap();
+    let zip = load_equirect(&data("hdri/blender_studiolights_world_zip/city.exr")).unwrap();
+    assert!(dwab.pixels() == zip.pixels());
+    // A damaged DWAB file: the error names it and its compression and suggests ZIP.
+    let dir = temp_dir("dwab");
+    let bytes = std::fs::read(data("hdri/blender_studiolights_world/city.exr")).unwrap();
+    let cut = dir.join("cut.exr");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let err = err_text(load_environment(&cut));
+    assert!(err.contains("cut.exr") && err.contains("dwab") && err.contains("ZIP"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+// ---------------------------------------------------------------------------- backgrounds
+
+#[test]
+fn background_photos() {
+    let a = load_image(&data("photos/exif_gps/DSCN0010.jpg")).unwrap();
+    assert_eq!((a.width, a.height), (640, 480));
+    assert_eq!(a.pixels.len(), 640 * 480 * 4);
+    let b = load_image(&data("photos/exif_gps/87_OSError.jpg")).unwrap();
+    assert_eq!((b.width, b.height), (1488, 2240));
+    let c = load_image(&data("textured_models/spot/spot_texture.png")).unwrap();
+    assert_eq!((c.width, c.height), (1024, 1024));
+    assert!(c.pixels.chunks(4).all(|p| p[3] == 255));
+}
+
+// ------------------------------------------------------------------------------ bad input
+
+fn err_text<T: std::fmt::Debug>(r: anyhow::Result<T>) -> String {
+    format!("{:#}", r.unwrap_err())
+}
+
+#[test]
+fn malformed_obj_names_the_file() {
+    let dir = temp_dir("badobj");
+    for (name, body) in [
+        ("short_vertex.obj", "v 1 2\nf 1 2 3\n"),
+        ("bad_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n"),
+        ("no_faces.obj", "v 0 0 0\nv 1 0 0\n"),
+        ("nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, body).unwrap();
+        let err = err_text(load_model(&path));
+        assert!(err.contains(name), "{name}: {err}");
+    }
+    let binary = dir.join("binary.obj");
+    std::fs::write(&binary, [0xff, 0xfe, 0x00, 0x80, 0x81]).unwrap();
+    assert!(err_text(load_model(&binary)).contains("binary.obj"));
+    let err = err_text(load_model(&dir.join("absent.obj")));
+    assert!(err.contains("absent.obj"), "{err}");
+    let err = err_text(load_model(&dir.join("model.fbx")));
+    assert!(err.contains("model.fbx") && err.contains(".obj"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn missing_texture_names_texture_and_mtl() {
+    let dir = temp_dir("notex");
+    std::fs::write(dir.join("m.obj"), "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl a\nf 1/1 2/2 3/3\n")
+        .unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl a\nKd 1 0 0\nmap_Kd textures\\gone.jpg\n").unwrap();
+    let err = err_text(load_model(&dir.join("m.obj")));
+    assert!(err.contains("gone.jpg") && err.contains("m.mtl"), "{err}");
+    // A texture that exists but is not an image: error names it.
+    std::fs::create_dir_all(dir.join("textures")).unwrap();
+    std::fs::write(dir.join("textures/gone.jpg"), b"not a jpeg").unwrap();
+    let err = err_text(load_model(&dir.join("m.obj")));
+    assert!(err.contains("gone.jpg"), "{err}");
+    // Case differs from the file on disk (a Windows-made model): found anyway.
+    image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9])).save(dir.join("textures/GONE.png")).unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl a\nKd 1 0 0\nmap_Kd Textures\\gone.PNG\n").unwrap();
+    let m = load_model(&dir.join("m.obj")).unwrap();
+    assert_eq!(m.materials[0].texture.as_ref().unwrap().pixels[0], 9);
+    // Malformed MTL: error names it.
+    std::fs::write(dir.join("m.mtl"), "newmtl a\nKd x y z\n").unwrap();
+    let err = err_text(load_model(&dir.join("m.obj")));
+    assert!(err.contains("m.mtl"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn write_faces(dir: &Path, names: [&str; 6], size: impl Fn(usize) -> (u32, u32)) {
+    for (i, n) in names.iter().enumerate() {
+        let (w, h) = size(i);
+        image::RgbImage::from_pixel(w, h, image::Rgb([40 * i as u8, 100, 200])).save(dir.join(n)).unwrap();
+    }
+}
+
+#[test]
+fn bad_cube_folders_are_clear_errors() {
+    let long = ["posx.png", "negx.png", "posy.png", "negy.png", "posz.png", "negz.png"];
+    let short = ["px.png", "nx.png", "py.png", "ny.png", "pz.png", "nz.png"];
+    let dir = temp_dir("faces");
+
+    // Good: solid faces land in wgpu order with the convention of enu_to_cube.
+    write_faces(&dir, short, |_| (4, 4));
+    let cube = load_environment(&dir).unwrap();
+    let srgb = previz::colour::srgb_to_linear;
+    for f in 0..6 {
+        assert!((cube.face_mean(f)[0] - srgb(40.0 * f as f32 / 255.0)).abs() < 1e-5);
+    }
+    // North (ENU +y) is the +Z face, pz.png.
+    assert_eq!(cube_dir_to_face_uv(enu_to_cube(Vec3::Y)).0, 4);
+    assert!((cube.sample_enu(Vec3::Y)[0] - srgb(160.0 / 255.0)).abs() < 1e-5);
+
+    // Mismatched size: names the odd file.
+    write_faces(&dir, short, |i| if i == 2 { (8, 8) } else { (4, 4) });
+    let err = err_text(load_environment(&dir));
+    assert!(err.contains("py.png") && err.contains("same size"), "{err}");
+    // Non-square.
+    write_faces(&dir, short, |i| if i == 4 { (4, 3) } else { (4, 4) });
+    let err = err_text(load_environment(&dir));
+    assert!(err.contains("pz.png") && err.contains("square"), "{err}");
+    // Unreadable image.
+    write_faces(&dir, short, |_| (4, 4));
+    std::fs::write(dir.join("nx.png"), b"garbage").unwrap();
+    let err = err_text(load_environment(&dir));
+    assert!(err.contains("nx.png"), "{err}");
+    // Ambiguous: two files for one face.
+    write_faces(&dir, short, |_| (4, 4));
+    write_faces(&dir, long, |_| (4, 4));
+    let err = err_text(load_environment(&dir));
+    assert!(err.contains("ambiguous"), "{err}");
+    // Missing face.
+    for n in short {
+        std::fs::remove_file(dir.join(n)).unwrap();
+    }
+    std::fs::remove_file(dir.join("negz.png")).unwrap();
+    let err = err_text(load_environment(&dir));
+    assert!(err.contains("-Z") && err.contains("negz"), "{err}");
+    // Not an environment at all.
+    let err = err_text(load_environment(&dir.join("posx.txt")));
+    assert!(err.contains("posx.txt"), "{err}");
+    // Equirect of the wrong shape.
+    image::RgbImage::new(30, 20).save(dir.join("pano.png")).unwrap();
+    let err = err_text(load_environment(&dir.join("pano.png")));
+    assert!(err.contains("pano.png") && err.contains("2:1"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

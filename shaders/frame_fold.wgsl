@@ -77,7 +77,8 @@ fn fold_uv(c: vec3<f32>) -> vec2<f32> {
     if (-f >= a.x && -f >= a.y) {
         let p = vec2<f32>(x, y) / a.z;
         let r = max(abs(p.x), abs(p.y));
-        let b = p / max(r, 1e-6);
+        // Straight at the camera the whole border meets; pick its top.
+        let b = select(p / max(r, 1e-6), vec2<f32>(0.0, 1.0), r < 1e-6);
         let border = box_point(vec4<f32>(0.0, 0.0, 1.0, 1.0), b.x, b.y);
         let mid = box_point(u.outer, b.x, b.y);
         return mix(border, mid, r);

@@ -83,12 +83,6 @@ impl Scene {
     }
 }
 
-fn save_actual(name: &str, r: &Rendered) {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/golden-actual");
-    std::fs::create_dir_all(&dir).unwrap();
-    image::save_buffer(dir.join(format!("{name}.png")), &r.rgba, r.width, r.height, image::ExtendedColorType::Rgba8).unwrap();
-}
-
 #[test]
 fn capture_guidance_golden_images() {
     let mut s = Scene::new();
@@ -114,7 +108,6 @@ fn capture_guidance_golden_images() {
     assert_eq!(next.name, "back");
     assert!(next.on_screen.is_some_and(|n| n.x > 0.3 && n.x < 0.8), "{next:?}");
     let r = s.draw(&mut ui, &p);
-    save_actual("capture_overlay_in_view", &r);
     common::assert_golden("capture_overlay_in_view", &r);
 
     // 2: after back, held still looking 40° down at 300°: the nearest target (down, 50° away) is
@@ -132,7 +125,6 @@ fn capture_guidance_golden_images() {
     assert!(next.on_screen.is_none() && next.arrow.y < -0.99, "{next:?}");
     assert_eq!(g.message, "Turn to down");
     let r = s.draw(&mut ui, &p);
-    save_actual("capture_overlay_arrow", &r);
     common::assert_golden("capture_overlay_arrow", &r);
     assert!(!GYRO_ONLY_TEXT.is_empty());
 }

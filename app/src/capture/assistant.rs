@@ -130,6 +130,7 @@ struct TargetState {
 }
 
 /// The capture assistant (see the module documentation).
+#[derive(Debug)]
 pub struct Assistant {
     cfg: AssistantConfig,
     states: Vec<TargetState>,
@@ -270,9 +271,10 @@ impl Assistant {
         let Some(href) = self.reference_heading_deg else { return Ok(None) };
         let steady = self.rate_deg_s <= self.cfg.max_rate_deg_s;
         let dq = q.as_dquat();
+        let hpr = heading_pitch_roll(dq);
         let mut best: Option<(usize, f64)> = None;
         for (i, s) in self.states.iter_mut().enumerate().filter(|(_, s)| s.shot.is_none()) {
-            let e = s.target.aim_error(href, dq);
+            let e = s.target.aim_error_hpr(href, dq, hpr);
             if e.angle_deg < s.closest_deg {
                 s.closest_deg = e.angle_deg;
                 s.closest_t = t;
@@ -428,7 +430,7 @@ impl Assistant {
                         } else {
                             format!("held on target only {:.2} s (needs {} s)", s.longest_dwell, self.cfg.dwell_s)
                         };
-                        format!("{}: {why}", s.target.name)
+                        if s.target.primary { why } else { format!("{}: {why}", s.target.name) }
                     })
                     .collect();
                 (f, reasons.join("; "))
@@ -601,9 +603,14 @@ mod tests {
     fn guidance_points_at_the_nearest_target_and_flags_gyro_only() {
         let (mut a, f) = assistant(Mode::Stretch);
         a.tap(0.0, &aim(0.0, 0.0), f.clone()).unwrap();
-        // Looking at heading 60: the nearest target is right (30° away), arrow to the right.
+        // A quick turn to heading 60: "Hold still" while the rate is high.
         a.observe(0.1, &aim(60.0, 0.0)).unwrap();
+        assert!(a.guidance().hold_still);
+        assert_eq!(a.guidance().message, "Hold still");
+        // Held there: the nearest target is right (30° away), arrow to the right.
+        a.observe(0.25, &aim(60.0, 0.0)).unwrap();
         let g = a.guidance();
+        assert!(!g.hold_still);
         let n = g.next.unwrap();
         assert_eq!(n.name, "right");
         assert!((n.angle_deg - 30.0).abs() < 1e-3);
@@ -613,13 +620,13 @@ mod tests {
         assert_eq!(g.message, "Turn to right");
         assert_eq!(g.faces_done, 1);
         // Looking slightly down from level: nearest is... the arrow for "down" points down.
-        a.observe(0.2, &aim(0.0, -60.0)).unwrap();
+        a.observe(0.4, &aim(0.0, -60.0)).unwrap();
         let n = a.guidance().next.unwrap();
         assert_eq!(n.name, "down");
         assert!(n.arrow.y < -0.99);
         let mut p = aim(0.0, -60.0);
         p.heading_source = HeadingSource::GyroOnly;
-        a.observe(0.3, &p).unwrap();
+        a.observe(0.5, &p).unwrap();
         assert!(a.guidance().gyro_only);
     }
 }

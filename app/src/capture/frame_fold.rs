@@ -112,7 +112,8 @@ pub fn fold_uv(c: Vec3, inner: ScreenBox, outer: ScreenBox) -> Vec2 {
     if -f >= a.x && -f >= a.y {
         let p = Vec2::new(x, y) / a.z.max(f32::MIN_POSITIVE);
         let r = p.x.abs().max(p.y.abs());
-        let b = p / r.max(1e-6);
+        // Straight at the camera the whole border meets; pick its top.
+        let b = if r < 1e-6 { Vec2::Y } else { p / r };
         return ScreenBox::FULL.point(b.x, b.y).lerp(outer.point(b.x, b.y), r);
     }
     if a.x >= a.y {

@@ -37,7 +37,7 @@ pub use projection::Pinhole;
 pub use targets::{Face, Target};
 
 /// How faces are made from the shots.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
     /// One shot per face, its centred square stretched over the face (seed 000).

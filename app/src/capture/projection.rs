@@ -103,8 +103,8 @@ mod tests {
     #[test]
     fn projection_inverts_pixel_rays() {
         let cam = Pinhole::from_vfov(640, 480, 50.0).unwrap();
-        // 4:3 at 50° vertical: hfov = 2·atan(4/3·tan 25°) = 63.94° (closed form).
-        assert!((cam.hfov_deg() - 63.94).abs() < 0.01, "{}", cam.hfov_deg());
+        // 4:3 at 50° vertical: hfov = 2·atan(4/3·tan 25°) = 2·atan(0.621744) = 63.742°.
+        assert!((cam.hfov_deg() - 63.742).abs() < 0.001, "{}", cam.hfov_deg());
         let pose = from_heading_pitch_roll(0.7, -0.3, 0.1).as_quat();
         for (px, py) in [(0.5, 0.5), (320.0, 240.0), (639.5, 10.25), (100.0, 479.5)] {
             let world = pose * cam.pixel_to_dir(px, py);

@@ -23,12 +23,15 @@ use crate::camera::sim::{SimSettings, VirtualPhone};
 use crate::pose::fusion::{FusionConfig, OrientationFilter};
 use crate::pose::trace::TruthTrace;
 use crate::pose::frames::angle_between;
+use crate::pose::user_path::UserPathParams;
+use super::targets::{AimError, Target};
+use super::user_path::{AimShift, CapturePath, simulate_guided_path};
 use crate::pose::{HeadingSource, OrientationEstimator};
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
 use crate::sensors::{Reading, SensorSource};
 use anyhow::{Context, Result, bail};
-use glam::DQuat;
+use glam::{DQuat, Quat};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -125,6 +128,12 @@ pub struct ReplayResult {
     /// Wall time spent assembling the faces (ms).
     pub assembly_ms: f64,
     pub exposure: Option<f32>,
+    /// Per camera frame: time, estimated pose and true pose (camera → world).
+    pub track: Vec<(f64, Quat, DQuat)>,
+    /// Per target (the assistant's order): whether its shot was taken.
+    pub taken: Vec<bool>,
+    /// The assistant's reference heading (degrees), once the front was taken.
+    pub reference_heading_deg: Option<f64>,
 }
 
 impl ReplayResult {
@@ -207,6 +216,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let mut location = None;
     let (mut frames, mut gyro_only) = (0usize, 0usize);
     let mut complete_t = None;
+    let mut track = Vec::new();
     let n = ((trace.end() - trace.start()) * cfg.frame_hz).floor() as usize;
     for k in 0..=n {
         let t = trace.start() + k as f64 / cfg.frame_hz;
@@ -223,7 +233,9 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if pose.heading_source == HeadingSource::GyroOnly {
             gyro_only += 1;
         }
-        let truth = trace.orientation_at(t).as_quat();
+        let truth_d = trace.orientation_at(t);
+        track.push((t, pose.q, truth_d));
+        let truth = truth_d.as_quat();
         let exposure = match locked {
             Some(e) => e,
             None => {
@@ -249,7 +261,8 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         }
     }
     let targets = assistant.targets().len();
-    let shots = (0..targets).filter(|&i| assistant.shot(i).is_some()).count();
+    let taken: Vec<bool> = (0..targets).map(|i| assistant.shot(i).is_some()).collect();
+    let shots = taken.iter().filter(|t| **t).count();
     let started = Instant::now();
     let finished = assistant.finish();
     let assembly_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -265,6 +278,9 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         frames,
         assembly_ms,
         exposure: locked,
+        track,
+        taken,
+        reference_heading_deg: assistant.reference_heading_deg(),
     };
     match finished {
         Err(e) => result.incomplete = Some(format!("{e:#}")),
@@ -277,6 +293,68 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         }
     }
     Ok(result)
+}
+
+/// A simulated user who follows the on-screen guidance, and what they captured.
+pub struct GuidedRun {
+    pub result: ReplayResult,
+    pub path: CapturePath,
+    /// Passes the user needed (1 = the first path completed the capture).
+    pub attempts: usize,
+}
+
+/// Targets whose aims are this close to a pole get no heading correction (heading is free there).
+const POLE_PITCH_DEG: f64 = 80.0;
+
+/// Replay a simulated user ([`simulate_guided_path`], seeded by `path_seed`) who follows the
+/// guidance. The guidance is drawn from the *estimated* pose, so a user watching it aims where
+/// the estimate says the target is, not where it truly is. Simulated in passes: when a pass
+/// leaves targets untaken, the mean aim error shown during each of their holds shifts the
+/// user's aim for the next pass, up to `max_attempts`
+/// passes. The result is the last pass. The user does not see the true target, only the
+/// screen: the shift is the aim error the assistant showed (from the estimated pose and its
+/// estimated reference heading).
+pub fn replay_guided(
+    env: &Arc<CubeMap>,
+    cfg: &ReplayConfig,
+    path_seed: u64,
+    params: &UserPathParams,
+    max_attempts: usize,
+) -> Result<GuidedRun> {
+    let targets: Vec<Target> = Assistant::new(cfg.assistant()?)?.targets().into_iter().cloned().collect();
+    let mut shifts = vec![AimShift::default(); targets.len()];
+    let mut attempts = 0;
+    loop {
+        attempts += 1;
+        let path = simulate_guided_path(path_seed, &targets, params, &shifts)?;
+        let result = replay(env, &TruthTrace::new(path.samples.clone())?, cfg)?;
+        if result.capture.is_some() || attempts >= max_attempts.max(1) {
+            return Ok(GuidedRun { result, path, attempts });
+        }
+        let Some(href) = result.reference_heading_deg else {
+            // No tap: guidance cannot help.
+            return Ok(GuidedRun { result, path, attempts });
+        };
+        for v in path.visits.iter().filter(|v| v.target != 0 && !result.taken.get(v.target).copied().unwrap_or(true)) {
+            let target = &targets[v.target];
+            // Where the screen showed the target relative to the view during the hold.
+            let errors: Vec<AimError> = result
+                .track
+                .iter()
+                .filter(|(t, _, _)| *t >= v.start + 0.3 && *t <= v.end)
+                .map(|(_, est, _)| target.aim_error(href, est.as_dquat()))
+                .collect();
+            if errors.is_empty() {
+                continue;
+            }
+            let n = errors.len() as f64;
+            let shift = &mut shifts[v.target];
+            if target.pitch_deg.abs() < POLE_PITCH_DEG {
+                shift.heading_deg -= errors.iter().map(|e| e.heading_deg).sum::<f64>() / n / target.pitch_deg.to_radians().cos();
+            }
+            shift.pitch_deg -= errors.iter().map(|e| e.pitch_deg).sum::<f64>() / n;
+        }
+    }
 }
 
 fn quat_of(wxyz: [f64; 4]) -> DQuat {

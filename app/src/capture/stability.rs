@@ -10,11 +10,10 @@
 
 use super::Mode;
 use super::assistant::Assistant;
-use super::replay::{ReplayConfig, ReplayResult, replay};
+use super::replay::{ReplayConfig, ReplayResult, replay_guided};
 use super::targets::Face;
 use super::user_path::simulate_capture_path;
 use crate::pose::fusion::{DisturbanceConfig, FusionConfig};
-use crate::pose::trace::TruthTrace;
 use crate::pose::user_path::UserPathParams;
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel};
@@ -25,6 +24,9 @@ use rand_chacha::ChaCha8Rng;
 use std::fmt::Write as _;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+
+/// Passes a simulated user gets to follow the guidance ([`replay_guided`]).
+pub const GUIDED_ATTEMPTS: usize = 3;
 
 /// What a run exercises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -116,6 +118,8 @@ pub struct RunRow {
     pub assembly_ms: f64,
     /// Missing faces (incomplete runs).
     pub missing: String,
+    /// Passes the guided user needed (see [`replay_guided`]).
+    pub attempts: usize,
 }
 
 impl RunRow {
@@ -144,7 +148,7 @@ pub fn jobs(cfg: &StudyConfig) -> Vec<Job> {
 
 /// Run one job.
 pub fn run_job(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> Result<RunRow> {
-    let replay_cfg = ReplayConfig {
+    let mut replay_cfg = ReplayConfig {
         mode: job.mode,
         width: cfg.width,
         height: cfg.height,
@@ -167,18 +171,19 @@ pub fn run_job(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> Result<RunRow
         }
         _ => {}
     }
-    let path = simulate_capture_path(job.seed, &targets, &params)?;
-    let tap = path.samples.iter().find(|s| s.tap).map_or(0.0, |s| s.t);
-    let mut replay_cfg = replay_cfg;
     if let Case::Disturbance { fallback } = job.case {
+        // Starts 1 s after the tap of the undisturbed path (the user's timing barely changes
+        // between guided passes).
+        let tap = simulate_capture_path(job.seed, &targets, &params)?.samples.iter().find(|s| s.tap).map_or(0.0, |s| s.t);
         let dir = DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.0).normalize_or(DVec3::X);
         replay_cfg.disturbances = vec![Disturbance { start: tap + 1.0, duration: 8.0, field_enu_ut: dir * 40.0 }];
         replay_cfg.fusion =
             FusionConfig { disturbance: DisturbanceConfig { enabled: fallback, ..DisturbanceConfig::default() }, ..FusionConfig::default() };
     }
-    let trace = TruthTrace::new(path.samples)?;
-    let r = replay(env, &trace, &replay_cfg)?;
-    Ok(row(job, path.reference_heading_deg, &r))
+    let run = replay_guided(env, &replay_cfg, job.seed, &params, GUIDED_ATTEMPTS)?;
+    let mut row = row(job, run.path.reference_heading_deg, &run.result);
+    row.attempts = run.attempts;
+    Ok(row)
 }
 
 fn row(job: Job, href: f64, r: &ReplayResult) -> RunRow {
@@ -205,6 +210,7 @@ fn row(job: Job, href: f64, r: &ReplayResult) -> RunRow {
             .as_deref()
             .map(|s| s.lines().skip(1).map(|l| l.trim().split(':').next().unwrap_or("").to_string()).collect::<Vec<_>>().join(" "))
             .unwrap_or_default(),
+        attempts: 1,
     }
 }
 
@@ -263,6 +269,8 @@ pub struct Summary {
     pub mean_shots: f64,
     pub mean_assembly_ms: f64,
     pub mean_gyro_only: f64,
+    /// Mean guided passes per run.
+    pub mean_attempts: f64,
 }
 
 impl Summary {
@@ -325,6 +333,7 @@ pub fn summarise(rows: &[RunRow]) -> Vec<Summary> {
                 mean_shots: g.iter().map(|r| r.shots as f64).sum::<f64>() / g.len().max(1) as f64,
                 mean_assembly_ms: mean_of(done.iter().map(|r| r.assembly_ms)).unwrap_or(0.0),
                 mean_gyro_only: g.iter().map(|r| r.gyro_only_fraction).sum::<f64>() / g.len().max(1) as f64,
+                mean_attempts: g.iter().map(|r| r.attempts as f64).sum::<f64>() / g.len().max(1) as f64,
             }
         })
         .collect()
@@ -339,7 +348,7 @@ pub fn rows_csv(rows: &[RunRow]) -> String {
     let mut s = String::from(
         "case,noise,mode,seed,reference_heading_deg,completed,time_to_complete_s,shots,targets,mean_orientation_error_deg,\
 max_orientation_error_deg,psnr_front_db,psnr_up_db,psnr_down_db,psnr_right_db,psnr_back_db,psnr_left_db,mean_psnr_db,mean_flip,\
-min_coverage,gyro_only_fraction,assembly_ms,missing\n",
+min_coverage,gyro_only_fraction,assembly_ms,guided_passes,missing\n",
     );
     for r in rows {
         let _ = writeln!(
@@ -359,7 +368,7 @@ min_coverage,gyro_only_fraction,assembly_ms,missing\n",
             r.face_psnr.iter().map(|p| opt(*p, 3)).collect::<Vec<_>>().join(","),
             opt(r.mean_psnr(), 3),
             opt(r.mean_flip, 5),
-            format_args!("{},{:.4},{:.2},{}", opt(r.min_coverage, 4), r.gyro_only_fraction, r.assembly_ms, r.missing),
+            format_args!("{},{:.4},{:.2},{},{}", opt(r.min_coverage, 4), r.gyro_only_fraction, r.assembly_ms, r.attempts, r.missing),
         );
     }
     s
@@ -368,13 +377,13 @@ min_coverage,gyro_only_fraction,assembly_ms,missing\n",
 /// The summary as a markdown table.
 pub fn summary_markdown(summaries: &[Summary]) -> String {
     let mut s = String::from(
-        "| case | noise | mode | runs | complete | median time (s) | mean orient. err (°) | p95 max err (°) | mean PSNR (dB) | mean FLIP | min coverage | shots | assembly (ms) | gyro-only frames |\n\
-|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| case | noise | mode | runs | complete | median time (s) | mean orient. err (°) | p95 max err (°) | mean PSNR (dB) | mean FLIP | min coverage | shots | passes | assembly (ms) | gyro-only frames |\n\
+|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in summaries {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.0}% | {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.0}% |",
+            "| {} | {} | {} | {} | {:.0}% | {} | {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.1} | {:.0}% |",
             m.case.name(),
             m.noise.name(),
             m.mode.name(),
@@ -387,6 +396,7 @@ pub fn summary_markdown(summaries: &[Summary]) -> String {
             opt(m.mean_flip, 3),
             opt(m.mean_min_coverage, 3),
             m.mean_shots,
+            m.mean_attempts,
             m.mean_assembly_ms,
             100.0 * m.mean_gyro_only,
         );
@@ -575,8 +585,11 @@ mod tests {
         assert_eq!(ticks.load(Ordering::Relaxed), 5);
         let by = |c: Case| rows.iter().find(|r| r.job.case == c).unwrap();
         assert!(by(Case::Random).completed, "{:?}", by(Case::Random).missing);
+        // The user aimed within 2° of North (± the 0.8° aim error); the estimated reference adds
+        // the phone-noise heading error (a few degrees at most over a capture).
         let wrap = by(Case::Wrap);
-        assert!(wrap.completed && (wrap.reference_heading_deg < 3.0 || wrap.reference_heading_deg > 357.0), "{wrap:?}");
+        let off_north = crate::pose::frames::heading_difference_deg(wrap.reference_heading_deg, 0.0).abs();
+        assert!(wrap.completed && off_north < 2.8 + 3.0, "{wrap:?}");
         assert!(by(Case::Pole).completed, "{:?}", by(Case::Pole).missing);
         // The disturbance drives the filter into gyro-only mode only when the fallback is on.
         assert!(by(Case::Disturbance { fallback: true }).gyro_only_fraction > 0.0);

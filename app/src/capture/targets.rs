@@ -10,7 +10,7 @@
 
 use super::Mode;
 use super::projection::{Pinhole, local_to_world};
-use crate::pose::frames::{from_heading_pitch_roll, heading_difference_deg, heading_pitch_roll};
+use crate::pose::frames::{HeadingPitchRoll, from_heading_pitch_roll, heading_difference_deg, heading_pitch_roll};
 use glam::{DQuat, DVec3, Quat, Vec3};
 
 /// The six faces of a capture.
@@ -138,7 +138,11 @@ impl Target {
 
     /// How far a camera pose (camera → world) is from this target.
     pub fn aim_error(&self, reference_heading_deg: f64, pose: DQuat) -> AimError {
-        let hpr = heading_pitch_roll(pose);
+        self.aim_error_hpr(reference_heading_deg, pose, heading_pitch_roll(pose))
+    }
+
+    /// [`Target::aim_error`] with the pose's heading, pitch and roll already computed.
+    pub fn aim_error_hpr(&self, reference_heading_deg: f64, pose: DQuat, hpr: HeadingPitchRoll) -> AimError {
         let target_heading = reference_heading_deg + self.heading_offset_deg;
         let dh = heading_difference_deg(hpr.heading.to_degrees(), target_heading);
         let forward = pose * DVec3::NEG_Z;
@@ -147,21 +151,64 @@ impl Target {
     }
 }
 
-/// Pitches and heading step of the candidate aims for extra stitch targets (degrees).
-const CANDIDATE_PITCHES: [f64; 11] = [-75.0, -60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0, 75.0];
-const CANDIDATE_HEADING_STEP: f64 = 15.0;
+/// Candidate aims for extra stitch targets: pitch every `CANDIDATE_STEP` from −80° to 80°,
+/// heading every `CANDIDATE_STEP` (degrees).
+const CANDIDATE_STEP: f64 = 5.0;
+const CANDIDATE_MAX_PITCH: f64 = 80.0;
 /// Face samples per side used to plan coverage.
-const PLAN_SAMPLES: u32 = 24;
+const PLAN_SAMPLES: u32 = 16;
 /// Most roll (degrees) the planner allows the user while aiming; shots must cover their
 /// part of a face at roll −r, 0 and +r.
 pub const PLAN_ROLL_DEG: f64 = 5.0;
 
+/// Which plan samples a shot surely covers, as a bitset.
+fn coverage_bits(t: &Target, samples: &[Vec3], half_tan: (f32, f32), disc: f32, tolerance_deg: f64) -> Vec<u64> {
+    let mut bits = vec![0u64; samples.len().div_ceil(64)];
+    let rolls: Vec<Quat> = if t.heading_free(tolerance_deg) {
+        vec![t.pose(0.0).as_quat().inverse()]
+    } else {
+        [-PLAN_ROLL_DEG, 0.0, PLAN_ROLL_DEG]
+            .iter()
+            .map(|roll| from_heading_pitch_roll(t.heading_offset_deg.to_radians(), t.pitch_deg.to_radians(), roll.to_radians()).as_quat().inverse())
+            .collect()
+    };
+    for (i, d) in samples.iter().enumerate() {
+        let inside = if t.heading_free(tolerance_deg) {
+            let c = rolls[0] * *d;
+            c.z < 0.0 && (c.x * c.x + c.y * c.y).sqrt() <= disc * -c.z
+        } else {
+            rolls.iter().all(|q| {
+                let c = *q * *d;
+                c.z < 0.0 && c.x.abs() <= half_tan.0 * -c.z && c.y.abs() <= half_tan.1 * -c.z
+            })
+        };
+        if inside {
+            bits[i / 64] |= 1 << (i % 64);
+        }
+    }
+    bits
+}
+
 /// The targets for a mode and lens: the six face centres, and in stitch mode the extra aims
-/// (greedy set cover) that make every face pixel seen by some shot even when each shot is off
-/// by the tolerance and rolled by up to [`PLAN_ROLL_DEG`]. A shot is counted on the frame
-/// shrunk by the tolerance plus one degree; near the poles, where the heading is free, only on
-/// the disc inscribed in that shrunk frame (any rotation about the view axis).
+/// (greedy set cover over a 5° lattice of aims) that make every face pixel seen by some shot
+/// even when each shot is off by the tolerance and rolled by up to [`PLAN_ROLL_DEG`]. A shot is
+/// counted on the frame shrunk by the tolerance plus one degree; near the poles, where the
+/// heading is free, only on the disc inscribed in that shrunk frame (any rotation about the
+/// view axis). Plans are cached per (mode, lens, tolerance).
 pub fn plan_targets(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target> {
+    type Key = (Mode, u32, u32, u64);
+    static CACHE: std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<Key, Vec<Target>>>> = std::sync::OnceLock::new();
+    let key = (mode, camera.tan_half_h.to_bits(), camera.tan_half_v.to_bits(), tolerance_deg.to_bits());
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(t) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return t.clone();
+    }
+    let targets = plan_uncached(mode, camera, tolerance_deg);
+    cache.lock().unwrap_or_else(|e| e.into_inner()).insert(key, targets.clone());
+    targets
+}
+
+fn plan_uncached(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target> {
     let mut targets: Vec<Target> = Face::ALL.iter().map(|&f| Target::for_face(f)).collect();
     if mode == Mode::Stretch {
         return targets;
@@ -177,53 +224,47 @@ pub fn plan_targets(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Tar
     // Half-angles of the usable frame, as tangents.
     let th = (camera.tan_half_h.atan() - margin).max(0.0).tan();
     let tv = (camera.tan_half_v.atan() - margin).max(0.0).tan();
-    let disc = th.min(tv);
-    let covers = |t: &Target, d: Vec3| -> bool {
-        if t.heading_free(tolerance_deg) {
-            let c = t.pose(0.0).as_quat().inverse() * d;
-            return c.z < 0.0 && (c.x * c.x + c.y * c.y).sqrt() <= disc * -c.z;
+    let bits = |t: &Target| coverage_bits(t, &samples, (th, tv), th.min(tv), tolerance_deg);
+    let mut covered = vec![0u64; samples.len().div_ceil(64)];
+    for t in &targets {
+        for (c, b) in covered.iter_mut().zip(bits(t)) {
+            *c |= b;
         }
-        [-PLAN_ROLL_DEG, 0.0, PLAN_ROLL_DEG].iter().all(|roll| {
-            let q = from_heading_pitch_roll(t.heading_offset_deg.to_radians(), t.pitch_deg.to_radians(), roll.to_radians()).as_quat();
-            let c = q.inverse() * d;
-            c.z < 0.0 && c.x.abs() <= th * -c.z && c.y.abs() <= tv * -c.z
-        })
-    };
-    let mut covered: Vec<bool> = samples.iter().map(|&d| targets.iter().any(|t| covers(t, d))).collect();
-    let candidates: Vec<Target> = CANDIDATE_PITCHES
-        .iter()
-        .flat_map(|&p| {
-            (0..(360.0 / CANDIDATE_HEADING_STEP) as u32).map(move |i| {
-                let h = f64::from(i) * CANDIDATE_HEADING_STEP;
-                let dir = DVec3::new(h.to_radians().sin() * p.to_radians().cos(), h.to_radians().cos() * p.to_radians().cos(), p.to_radians().sin());
-                Target { name: String::new(), face: Face::of_local_dir(dir.as_vec3()), primary: false, heading_offset_deg: h, pitch_deg: p }
+    }
+    let steps = (CANDIDATE_MAX_PITCH / CANDIDATE_STEP) as i32;
+    let candidates: Vec<(Target, Vec<u64>)> = (-steps..=steps)
+        .flat_map(|j| {
+            let p = f64::from(j) * CANDIDATE_STEP;
+            (0..(360.0 / CANDIDATE_STEP) as u32).map(move |i| {
+                let h = f64::from(i) * CANDIDATE_STEP;
+                let (hr, pr) = (h.to_radians(), p.to_radians());
+                let dir = Vec3::new((hr.sin() * pr.cos()) as f32, (hr.cos() * pr.cos()) as f32, pr.sin() as f32);
+                Target { name: String::new(), face: Face::of_local_dir(dir), primary: false, heading_offset_deg: h, pitch_deg: p }
             })
         })
+        .map(|t| {
+            let b = bits(&t);
+            (t, b)
+        })
         .collect();
+    let all = samples.len();
+    let count = |c: &[u64]| c.iter().map(|w| w.count_ones() as usize).sum::<usize>();
     let mut per_face = [0u32; 6];
-    while covered.iter().any(|c| !c) {
-        let best = candidates
-            .iter()
-            .map(|c| (c, samples.iter().zip(&covered).filter(|(d, done)| !**done && covers(c, **d)).count()))
-            .max_by_key(|(_, n)| *n);
-        let Some((best, n)) = best else { break };
-        if n == 0 {
-            // The lens is too narrow for the candidate lattice; report the holes as coverage.
+    while count(&covered) < all {
+        let gain = |b: &[u64]| b.iter().zip(&covered).map(|(x, c)| (x & !c).count_ones() as usize).sum::<usize>();
+        let Some((best, b)) = candidates.iter().max_by_key(|(_, b)| gain(b)) else { break };
+        if gain(b) == 0 {
+            // The lens is too narrow for the candidate lattice; the holes show as coverage.
             break;
         }
-        for (d, done) in samples.iter().zip(covered.iter_mut()) {
-            *done |= covers(best, *d);
+        for (c, x) in covered.iter_mut().zip(b) {
+            *c |= x;
         }
         let k = &mut per_face[best.face.layer()];
         *k += 1;
         targets.push(Target { name: format!("{}+{}", best.face.name(), *k), ..best.clone() });
     }
     targets
-}
-
-/// The camera pose for `q` as f64.
-pub fn as_dquat(q: Quat) -> DQuat {
-    q.as_dquat()
 }
 
 /// Rotation taking a world direction to the capture's local frame.

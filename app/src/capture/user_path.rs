@@ -60,10 +60,29 @@ fn uniform(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
     if hi > lo { rng.random_range(lo..hi) } else { lo }
 }
 
+/// How far the user shifts their aim for a target from where it truly is (degrees): what the
+/// on-screen guidance, drawn from the *estimated* pose, makes them do. Heading is along the
+/// horizon (a true heading change), pitch is elevation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AimShift {
+    pub heading_deg: f64,
+    pub pitch_deg: f64,
+}
+
 /// Generate the path of a user visiting `targets` (the first must be the front). Same seed
 /// and parameters, same path. `params.order` is ignored (the user follows the guidance);
 /// `params.vertical_pitch_deg` scales the pitch of targets at ±90°.
 pub fn simulate_capture_path(seed: u64, targets: &[Target], params: &UserPathParams) -> Result<CapturePath> {
+    simulate_guided_path(seed, targets, params, &[])
+}
+
+/// [`simulate_capture_path`] with the user's aim for target `i` shifted by `shifts[i]` (missing
+/// entries: no shift). The random draws do not depend on the shifts, so a shifted path is the
+/// same user making the same movements to slightly different places.
+pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathParams, shifts: &[AimShift]) -> Result<CapturePath> {
+    if shifts.iter().any(|s| !(s.heading_deg.is_finite() && s.pitch_deg.is_finite())) {
+        bail!("aim shifts must be finite: {shifts:?}");
+    }
     let finite = [params.rate_hz, params.aim_error_deg, params.roll_deg, params.hold_s.0, params.hold_s.1, params.mean_speed_deg_s];
     if finite.iter().any(|v| !v.is_finite()) || params.rate_hz <= 0.0 || params.mean_speed_deg_s <= 0.0 || params.hold_s.0 <= 0.0 {
         bail!("user path parameters must be finite and positive: {params:?}");
@@ -99,6 +118,9 @@ pub fn simulate_capture_path(seed: u64, targets: &[Target], params: &UserPathPar
     while let Some(index) = next {
         let target = &targets[index];
         let goal = if index == 0 { front } else { aim(&mut rng, target, at.h) };
+        let shift = shifts.get(index).copied().unwrap_or_default();
+        // Shifts cannot take the aim past the vertical.
+        let goal = Hpr { h: goal.h + shift.heading_deg, p: (goal.p + shift.pitch_deg).clamp(-90.0, 90.0), ..goal };
         let dh = heading_difference_deg(goal.h, at.h);
         let goal = Hpr { h: at.h + dh, ..goal };
         let angle = angle_between(at.quat(), goal.quat()).to_degrees();

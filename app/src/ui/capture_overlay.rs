@@ -85,17 +85,27 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
             None => {
                 let dir = Vec2::new(next.arrow.x, -next.arrow.y);
                 let start = centre + dir * 40.0;
-                painter.arrow(start, dir * 110.0, Stroke::new(6.0, colour));
-                centre + dir * 185.0
+                painter.arrow(start, dir * 80.0, Stroke::new(6.0, colour));
+                // Beside the arrow's middle.
+                centre + dir * 80.0 + Vec2::new(dir.y, -dir.x) * 75.0
             }
         };
+        // Keep the label clear of the top bar and the thumbnail strip.
+        let safe = Rect::from_min_max(
+            Pos2::new(screen.left() + 80.0, screen.top() + 90.0),
+            Pos2::new(screen.right() - 80.0, screen.bottom() - THUMB - 60.0),
+        );
         let text = format!("{}  {:.0}°", next.name, next.angle_deg);
-        banner(&painter, label_at, &text, 20.0, colour, shade);
+        banner(&painter, safe.clamp(label_at), &text, 20.0, colour, shade);
     }
 
-    // Message and progress.
+    // What to do (the "Hold still" warning has its own banner), and progress.
+    let instruction = match (&g.next, g.phase) {
+        (Some(n), Phase::Capturing) if g.hold_still => format!("Turn to {}", n.name),
+        _ => g.message.clone(),
+    };
     let top = Pos2::new(centre.x, screen.top() + 28.0);
-    banner(&painter, top, &g.message, 24.0, white, shade);
+    banner(&painter, top, &instruction, 24.0, white, shade);
     if g.phase != Phase::WaitingForTap {
         let mut text = format!("{}/6", g.faces_done);
         if g.shots_total > 6 {
@@ -111,7 +121,7 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
     }
     if g.gyro_only {
         let galley = painter.layout_no_wrap(GYRO_ONLY_TEXT.to_string(), FontId::proportional(18.0), Color32::BLACK);
-        let rect = Rect::from_min_size(screen.left_top() + Vec2::new(14.0, 14.0), galley.size() + Vec2::new(16.0, 8.0));
+        let rect = Rect::from_min_size(screen.left_top() + Vec2::new(14.0, 58.0), galley.size() + Vec2::new(16.0, 8.0));
         painter.rect_filled(rect, 6.0, Color32::from_rgb(255, 190, 40));
         painter.galley(rect.min + Vec2::new(8.0, 4.0), galley, Color32::BLACK);
     }

@@ -88,13 +88,16 @@ impl HeadlessUi {
         if let Some(v) = input.viewports.get_mut(&egui::ViewportId::ROOT) {
             v.native_pixels_per_point = Some(ppp);
         }
-        let output = self.ctx.run_pass(input, |ctx| ui(ctx));
-        let paint_jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
-        for (id, deltas) in &output.textures_delta.set {
-            for delta in deltas {
-                self.renderer.update_texture(&gpu.device, &gpu.queue, *id, delta);
+        let mut output = self.ctx.run_pass(input, |ctx| ui(ctx));
+        // Drain the texture delta now: uploads before painting, frees after (egui panics on an
+        // undrained delta).
+        for (id, deltas) in output.textures_delta.set.drain() {
+            for delta in &deltas {
+                self.renderer.update_texture(&gpu.device, &gpu.queue, id, delta);
             }
         }
+        let frees: Vec<egui::TextureId> = output.textures_delta.free.drain().collect();
+        let paint_jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
         let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: [self.width, self.height], pixels_per_point: output.pixels_per_point };
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("headless ui") });
         let extra = self.renderer.update_buffers(&gpu.device, &gpu.queue, &mut encoder, &paint_jobs, &screen);
@@ -124,7 +127,7 @@ impl HeadlessUi {
             wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
         );
         gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
-        for id in &output.textures_delta.free {
+        for id in &frees {
             self.renderer.free_texture(id);
         }
         let slice = self.readback.slice(..);

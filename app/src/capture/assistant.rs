@@ -433,7 +433,13 @@ impl Assistant {
                         if s.target.primary { why } else { format!("{}: {why}", s.target.name) }
                     })
                     .collect();
-                (f, reasons.join("; "))
+                // Stitch mode can leave many shots of a face untaken: name a few.
+                const SHOWN: usize = 3;
+                let mut text = reasons.iter().take(SHOWN).cloned().collect::<Vec<_>>().join("; ");
+                if reasons.len() > SHOWN {
+                    text += &format!("; and {} more shot(s) not taken", reasons.len() - SHOWN);
+                }
+                (f, text)
             })
             .collect()
     }

@@ -39,16 +39,24 @@ pub fn run(args: Args) -> Result<()> {
     }
     let cfg = StabilityConfig { seeds: args.seeds, noise_levels: args.noise.clone(), hold_s: args.hold, ..StabilityConfig::default() };
     let default_setting = cfg.settings[0].clone();
-    let cases_per_level = 5;
+    let cases_per_level = 6;
     let total = cfg.seeds * cfg.noise_levels.len() as u64 * (1 + cases_per_level);
     let bar = indicatif::ProgressBar::new(total);
-    bar.set_style(indicatif::ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
     bar.set_message("jitter/lag");
     let tradeoff = stability::measure_tradeoff(&cfg, || bar.inc(1))?;
     bar.set_message("failure cases");
     let (cases, disturbance) = stability::measure_cases(&cfg, &default_setting, || bar.inc(1))?;
     bar.finish_and_clear();
-    let timing_settings: Vec<_> = cfg.settings.iter().filter(|s| s.name == "default" || matches!(s.estimator, Estimator::CompassOnly { tau_s } if tau_s == 0.0)).cloned().collect();
+    let timing_settings: Vec<_> = cfg
+        .settings
+        .iter()
+        .filter(|s| s.name == "default" || matches!(s.estimator, Estimator::CompassOnly { tau_s } if tau_s == 0.0))
+        .cloned()
+        .collect();
     let timing = stability::measure_timing(&cfg, &timing_settings)?;
     let report = StabilityReport { tradeoff, cases, timing, disturbance };
 
@@ -67,15 +75,18 @@ fn opt(v: f64) -> String {
 
 /// The CSV: one row per (kind, noise, scenario/setting).
 pub fn report_csv(r: &StabilityReport) -> String {
-    let mut s = String::from("kind,noise,case,setting,jitter_rms_deg,jitter_peak_deg,sun_offset_deg,error_rms_deg,lag_ms,max_error_deg,accuracy_coverage,flagged_fraction,ns_per_reading\n");
+    let mut s = String::from(
+        "kind,noise,case,setting,jitter_rms_deg,jitter_peak_deg,wander_rms_deg,sun_offset_deg,error_rms_deg,lag_ms,max_error_deg,accuracy_coverage,flagged_fraction,ns_per_reading\n",
+    );
     for t in &r.tradeoff {
         let _ = writeln!(
             s,
-            "tradeoff,{},hold+turn,{},{},{},{},{},{},{},{},,",
+            "tradeoff,{},hold+turn,{},{},{},{},{},{},{},{},{},,",
             t.noise.name(),
             t.setting,
             opt(t.jitter_rms_deg),
             opt(t.jitter_peak_deg),
+            opt(t.wander_rms_deg),
             opt(t.sun_offset_deg),
             opt(t.error_rms_deg),
             opt(t.lag_ms),
@@ -86,7 +97,7 @@ pub fn report_csv(r: &StabilityReport) -> String {
     for c in &r.cases {
         let _ = writeln!(
             s,
-            "case,{},{},{},,,,{},,{},,{},",
+            "case,{},{},{},,,,,{},,{},,{},",
             c.noise.name(),
             c.case,
             c.setting,
@@ -96,7 +107,7 @@ pub fn report_csv(r: &StabilityReport) -> String {
         );
     }
     for t in &r.timing {
-        let _ = writeln!(s, "timing,,,{},,,,,,,,,{}", t.setting, opt(t.ns_per_reading));
+        let _ = writeln!(s, "timing,,,{},,,,,,,,,,{}", t.setting, opt(t.ns_per_reading));
     }
     s
 }
@@ -105,18 +116,24 @@ pub fn report_csv(r: &StabilityReport) -> String {
 pub fn report_markdown(r: &StabilityReport, seeds: u64) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "### Jitter and lag ({seeds} seeds per row; hand-held hold and a 90° turn at 90°/s)\n");
-    let _ = writeln!(s, "| noise | setting | sun jitter RMS (°) | peak (°) | sun offset (°) | error RMS (°) | lag (ms) | turn peak error (°) | accuracy coverage |");
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| noise | setting | sun jitter RMS (°) | jitter peak (°) | wander RMS (°) | sun offset (°) | error RMS (°) | lag (ms) | turn peak error (°) | accuracy coverage |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     let mut rows: Vec<&TradeoffRow> = r.tradeoff.iter().collect();
-    rows.sort_by(|a, b| (a.noise.name(), a.jitter_rms_deg).partial_cmp(&(b.noise.name(), b.jitter_rms_deg)).unwrap_or(std::cmp::Ordering::Equal));
+    rows.sort_by(|a, b| {
+        (a.noise.name(), a.jitter_rms_deg).partial_cmp(&(b.noise.name(), b.jitter_rms_deg)).unwrap_or(std::cmp::Ordering::Equal)
+    });
     for t in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.0} | {:.2} | {} |",
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.0} | {:.2} | {} |",
             t.noise.name(),
             t.setting,
             t.jitter_rms_deg,
             t.jitter_peak_deg,
+            t.wander_rms_deg,
             t.sun_offset_deg,
             t.error_rms_deg,
             t.lag_ms,
@@ -125,7 +142,7 @@ pub fn report_markdown(r: &StabilityReport, seeds: u64) -> String {
         );
     }
     let _ = writeln!(s, "\n### Failure cases\n");
-    let _ = writeln!(s, "| noise | case | setting | max error (°) | RMS error (°) | disturbance flagged | all finite |");
+    let _ = writeln!(s, "| noise | case | setting | max error (°) | RMS error (°) | flagged as disturbed | all finite |");
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
     for c in &r.cases {
         let _ = writeln!(
@@ -161,7 +178,8 @@ pub fn draw_chart(path: &Path, r: &StabilityReport) -> Result<()> {
         root.fill(&WHITE).map_err(|e| err(&e))?;
         let (left, right) = root.split_horizontally(w / 2);
         let noise = r.tradeoff.iter().find(|t| t.noise == NoiseLevel::Phone).or(r.tradeoff.first()).map(|t| t.noise);
-        let pts: Vec<&TradeoffRow> = r.tradeoff.iter().filter(|t| Some(t.noise) == noise && t.jitter_rms_deg > 0.0 && t.lag_ms.is_finite()).collect();
+        let pts: Vec<&TradeoffRow> =
+            r.tradeoff.iter().filter(|t| Some(t.noise) == noise && t.jitter_rms_deg > 0.0 && t.lag_ms.is_finite()).collect();
         let max_lag = pts.iter().map(|t| t.lag_ms).fold(50.0f64, f64::max) * 1.1;
         let min_lag = pts.iter().map(|t| t.lag_ms).fold(0.0f64, f64::min) - 5.0;
         let ymax = pts.iter().map(|t| t.jitter_rms_deg).fold(0.01f64, f64::max) * 2.0;
@@ -181,8 +199,10 @@ pub fn draw_chart(path: &Path, r: &StabilityReport) -> Result<()> {
             .label_style(("sans-serif", 14))
             .draw()
             .map_err(|e| err(&e))?;
-        let fusion: Vec<(f64, f64)> = pts.iter().filter(|t| t.setting.starts_with("fusion")).map(|t| (t.lag_ms, t.jitter_rms_deg)).collect();
-        let compass: Vec<(f64, f64)> = pts.iter().filter(|t| t.setting.starts_with("compass")).map(|t| (t.lag_ms, t.jitter_rms_deg)).collect();
+        let fusion: Vec<(f64, f64)> =
+            pts.iter().filter(|t| t.setting.starts_with("fusion")).map(|t| (t.lag_ms, t.jitter_rms_deg)).collect();
+        let compass: Vec<(f64, f64)> =
+            pts.iter().filter(|t| t.setting.starts_with("compass")).map(|t| (t.lag_ms, t.jitter_rms_deg)).collect();
         let default: Vec<(f64, f64)> = pts.iter().filter(|t| t.setting == "default").map(|t| (t.lag_ms, t.jitter_rms_deg)).collect();
         chart
             .draw_series(fusion.iter().map(|&p| Circle::new(p, 4, BLUE.filled())))
@@ -214,7 +234,10 @@ pub fn draw_chart(path: &Path, r: &StabilityReport) -> Result<()> {
     write_png_rgb8(path, w, h, &buf).with_context(|| format!("writing chart {}", path.display()))
 }
 
-fn draw_disturbance<DB: plotters::prelude::DrawingBackend>(area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>, s: &DisturbanceSeries) -> Result<(), plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>> {
+fn draw_disturbance<DB: plotters::prelude::DrawingBackend>(
+    area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    s: &DisturbanceSeries,
+) -> Result<(), plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>> {
     use plotters::prelude::*;
     let t0 = s.t.first().copied().unwrap_or(0.0);
     let t1 = s.t.last().copied().unwrap_or(1.0).max(t0 + 1.0);
@@ -226,15 +249,33 @@ fn draw_disturbance<DB: plotters::prelude::DrawingBackend>(area: &plotters::prel
         .y_label_area_size(60)
         .build_cartesian_2d(t0..t1, 0.0..ymax)?;
     chart.configure_mesh().x_desc("time (s)").y_desc("heading error (°)").label_style(("sans-serif", 14)).draw()?;
-    chart.draw_series(std::iter::once(Rectangle::new([(s.window.0, 0.0), (s.window.1, ymax)], RGBColor(255, 230, 200).filled())))?.label("disturbance present").legend(|(x, y)| Rectangle::new([(x - 6, y - 6), (x + 6, y + 6)], RGBColor(255, 230, 200).filled()));
+    chart
+        .draw_series(std::iter::once(Rectangle::new([(s.window.0, 0.0), (s.window.1, ymax)], RGBColor(255, 230, 200).filled())))?
+        .label("disturbance present")
+        .legend(|(x, y)| Rectangle::new([(x - 6, y - 6), (x + 6, y + 6)], RGBColor(255, 230, 200).filled()));
     // Where the filter flagged it: a band at the top.
     let flagged: Vec<(f64, f64)> = s.t.iter().zip(&s.flagged).filter(|(_, f)| **f).map(|(t, _)| (*t, ymax * 0.97)).collect();
-    chart.draw_series(flagged.iter().map(|&p| Circle::new(p, 1, MAGENTA.filled())))?.label("flagged: gyro only").legend(|(x, y)| Circle::new((x, y), 3, MAGENTA.filled()));
+    chart
+        .draw_series(flagged.iter().map(|&p| Circle::new(p, 1, MAGENTA.filled())))?
+        .label("flagged: gyro only")
+        .legend(|(x, y)| Circle::new((x, y), 3, MAGENTA.filled()));
     let without: Vec<(f64, f64)> = s.t.iter().copied().zip(s.error_without_fallback_deg.iter().copied()).collect();
     let with: Vec<(f64, f64)> = s.t.iter().copied().zip(s.error_with_fallback_deg.iter().copied()).collect();
-    chart.draw_series(LineSeries::new(without, RED.stroke_width(2)))?.label("compass always trusted").legend(|(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], RED.stroke_width(2)));
-    chart.draw_series(LineSeries::new(with, BLUE.stroke_width(2)))?.label("with gyro-only fallback").legend(|(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], BLUE.stroke_width(2)));
-    chart.configure_series_labels().border_style(BLACK).background_style(WHITE.mix(0.9)).label_font(("sans-serif", 14)).position(SeriesLabelPosition::UpperLeft).draw()?;
+    chart
+        .draw_series(LineSeries::new(without, RED.stroke_width(2)))?
+        .label("compass always trusted")
+        .legend(|(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], RED.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(with, BLUE.stroke_width(2)))?
+        .label("with gyro-only fallback")
+        .legend(|(x, y)| PathElement::new(vec![(x - 10, y), (x + 10, y)], BLUE.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.9))
+        .label_font(("sans-serif", 14))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
     Ok(())
 }
 
@@ -261,6 +302,7 @@ mod tests {
             seeds: 1,
             jitter_rms_deg: jit,
             jitter_peak_deg: jit * 3.0,
+            wander_rms_deg: jit,
             sun_offset_deg: 0.5,
             error_rms_deg: 0.6,
             lag_ms: lag,
@@ -269,9 +311,23 @@ mod tests {
         };
         let report = StabilityReport {
             tradeoff: vec![row("default", 2.0, 0.02), row("fusion kacc=0.1", 5.0, 0.01), row("compass-only tau=0s", 0.0, 0.8)],
-            cases: vec![CaseRow { noise: NoiseLevel::Phone, case: "pitch to +90".into(), setting: "default".into(), max_error_deg: 1.0, rms_error_deg: 0.5, flagged_fraction: None, finite: true }],
+            cases: vec![CaseRow {
+                noise: NoiseLevel::Phone,
+                case: "pitch to +90".into(),
+                setting: "default".into(),
+                max_error_deg: 1.0,
+                rms_error_deg: 0.5,
+                flagged_fraction: None,
+                finite: true,
+            }],
             timing: vec![],
-            disturbance: DisturbanceSeries { t: vec![0.0, 1.0, 2.0], error_with_fallback_deg: vec![0.1, 0.2, 0.1], error_without_fallback_deg: vec![0.1, 5.0, 3.0], flagged: vec![false, true, false], window: (0.5, 1.5) },
+            disturbance: DisturbanceSeries {
+                t: vec![0.0, 1.0, 2.0],
+                error_with_fallback_deg: vec![0.1, 0.2, 0.1],
+                error_without_fallback_deg: vec![0.1, 5.0, 3.0],
+                flagged: vec![false, true, false],
+                window: (0.5, 1.5),
+            },
         };
         let dir = std::env::temp_dir().join(format!("previz-chart-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -284,7 +340,7 @@ mod tests {
         assert!(img.pixels().any(|p| p[0] > 200 && p[1] < 50 && p[2] < 50));
         let csv = report_csv(&report);
         assert_eq!(csv.lines().count(), 1 + 3 + 1);
-        assert!(csv.lines().all(|l| l.split(',').count() == 13), "{csv}");
+        assert!(csv.lines().all(|l| l.split(',').count() == 14), "{csv}");
         assert!(report_markdown(&report, 1).contains("| phone | default |"));
     }
 }

@@ -105,9 +105,7 @@ pub struct HeadingPitchRoll {
 /// heading = pitch = roll = 0 looks north with image up = world up: camera +x → East,
 /// +y → Up, −z → North. The pose is Rz(−heading)·Rx(pitch)·Rx(90°)·Rz(−roll).
 pub fn from_heading_pitch_roll(heading: f64, pitch: f64, roll: f64) -> DQuat {
-    DQuat::from_rotation_z(-heading)
-        * DQuat::from_rotation_x(pitch + FRAC_PI_2)
-        * DQuat::from_rotation_z(-roll)
+    DQuat::from_rotation_z(-heading) * DQuat::from_rotation_x(pitch + FRAC_PI_2) * DQuat::from_rotation_z(-roll)
 }
 
 /// Heading, pitch and roll of a camera pose. Works at pitch ±90°: when the camera looks
@@ -121,11 +119,7 @@ pub fn heading_pitch_roll(camera_to_world: DQuat) -> HeadingPitchRoll {
     let horizontal = f.x.hypot(f.y);
     // Below this the viewing direction is vertical to double precision.
     if horizontal > 1e-9 {
-        HeadingPitchRoll {
-            heading: wrap_radians_tau(f.x.atan2(f.y)),
-            pitch,
-            roll: (-right.z).atan2(up.z),
-        }
+        HeadingPitchRoll { heading: wrap_radians_tau(f.x.atan2(f.y)), pitch, roll: (-right.z).atan2(up.z) }
     } else {
         // Looking straight up, image up points opposite the heading; straight down, along it.
         let s = if f.z > 0.0 { -1.0 } else { 1.0 };

@@ -16,9 +16,11 @@
 //! The bias is the integral term, `k_bias`. A magnetometer reading whose magnitude or dip
 //! differs from the World Magnetic Model's (by more than the configured tolerances) marks a
 //! magnetic disturbance: heading then comes from the gyroscope alone until readings have agreed
-//! with the model again for `recover_after_s`.
+//! with the model again for `recover_after_s`. The magnetometer's hard-iron offset is learnt
+//! online ([`super::hard_iron`]) from readings taken as the phone turns.
 
 use super::frames::{DisplayRotation, angle_difference, camera_pose_from_device};
+use super::hard_iron::HardIronCalibrator;
 use super::magnetic::{MagneticReference, magnetic_to_true};
 use super::tilt_compass::tilt_compass;
 use super::{HeadingSource, OrientationEstimator, Pose};
@@ -59,8 +61,9 @@ pub struct FusionConfig {
     /// Accelerometer readings with |‖a‖ − g| above this fraction of g are ignored; below it
     /// their weight falls linearly from 1 (at ‖a‖ = g) to 0.
     pub accel_tolerance: f64,
-    /// For the first `startup_s` seconds the gains are multiplied by `startup_gain` so the
-    /// initial estimate (one noisy reading) settles quickly.
+    /// At start the gains are multiplied by `startup_gain`, ramping down to 1 over
+    /// `startup_s` seconds, so the initial estimate (one noisy reading) settles quickly; the
+    /// bias is not learnt during that time.
     pub startup_s: f64,
     pub startup_gain: f64,
     /// Output smoothing time constant (s); 0 = off. Applied to the pose, not the state.
@@ -74,8 +77,18 @@ pub struct FusionConfig {
     pub tilt_floor: f64,
     /// Accuracy model: heading error floor with a good magnetometer (residual calibration).
     pub heading_floor: f64,
-    /// Accuracy model: how fast heading error grows in gyro-only mode (rad/s).
+    /// Accuracy model: how fast heading error grows in gyro-only mode once the gyroscope bias
+    /// has been learnt (rad/s).
     pub gyro_drift: f64,
+    /// Accuracy model: the gyroscope bias assumed before it is learnt (rad/s); its share of
+    /// the gyro-only drift decays with a 60 s time constant of magnetometer-corrected running.
+    pub initial_gyro_bias: f64,
+    /// Accuracy model: heading error of a first heading taken from a field that does not match
+    /// the model (radians).
+    pub coarse_heading_sigma: f64,
+    /// Estimate the magnetometer's hard-iron offset online from readings at many orientations
+    /// ([`super::hard_iron`]) and remove it.
+    pub hard_iron_calibration: bool,
     /// Use the platform's fused attitude readings (Android rotation vector, iOS CoreMotion)
     /// instead of fusing the raw sensors.
     pub use_platform_attitude: bool,
@@ -89,7 +102,7 @@ impl Default for FusionConfig {
             k_mag: 0.2,
             k_bias: 0.01,
             accel_tolerance: 0.15,
-            startup_s: 1.0,
+            startup_s: 3.0,
             startup_gain: 10.0,
             smoothing_tau_s: 0.0,
             adaptive_smoothing: true,
@@ -98,6 +111,9 @@ impl Default for FusionConfig {
             tilt_floor: 0.5f64.to_radians(),
             heading_floor: 2f64.to_radians(),
             gyro_drift: 0.05f64.to_radians(),
+            initial_gyro_bias: 0.5f64.to_radians(),
+            coarse_heading_sigma: 30f64.to_radians(),
+            hard_iron_calibration: true,
             use_platform_attitude: false,
         }
     }
@@ -111,6 +127,8 @@ const MAX_GYRO_GAP_S: f64 = 0.5;
 const MAX_BIAS: f64 = 0.1;
 /// Time constant (s) of the running innovation statistics behind the accuracy estimate.
 const INNOVATION_TAU_S: f64 = 2.0;
+/// Tilt error assumed for an orientation started from one accelerometer reading (radians).
+const INITIAL_TILT_SIGMA: f64 = 5.0 * std::f64::consts::PI / 180.0;
 /// Earth's field is 22–67 µT everywhere (WMM); without a model, readings outside a slightly
 /// wider band are disturbed.
 const EARTH_FIELD_RANGE_UT: (f64, f64) = (20.0, 70.0);
@@ -146,6 +164,15 @@ pub struct OrientationFilter {
     rate: f64,
     platform_accuracy: Option<f64>,
     gps_position: Option<(f64, f64)>,
+    calibrator: HardIronCalibrator,
+    /// When the magnetometer was last trusted again after a disturbance.
+    boost_t: Option<f64>,
+    /// Error carried over from a coarse start or a gyro-only stretch, decaying as the
+    /// corrections remove it (radians).
+    carried_heading_sigma: f64,
+    carried_tilt_sigma: f64,
+    /// Seconds of magnetometer-corrected running after start-up (bias learning time).
+    mag_time: f64,
 }
 
 impl OrientationFilter {
@@ -176,6 +203,11 @@ impl OrientationFilter {
             rate: 0.0,
             platform_accuracy: None,
             gps_position: None,
+            calibrator: HardIronCalibrator::default(),
+            boost_t: None,
+            carried_heading_sigma: 0.0,
+            carried_tilt_sigma: 0.0,
+            mag_time: 0.0,
         }
     }
 
@@ -215,8 +247,27 @@ impl OrientationFilter {
         self.disturbed
     }
 
+    /// The hard-iron offset being removed from magnetometer readings (µT, device frame).
+    pub fn hard_iron_offset(&self) -> DVec3 {
+        self.calibrator.offset()
+    }
+
+    /// Gain multiplier: `startup_gain` at initialisation, falling linearly to 1 over
+    /// `startup_s` (a ramped gain, as in x-io's Fusion AHRS), so the first, noisy tilt-compass
+    /// estimate is averaged away quickly and the filter then settles to its steady gains.
+    /// The same ramp restarts when the magnetometer is trusted again after a disturbance.
     fn gain_scale(&self) -> f64 {
-        if self.t - self.init_t < self.cfg.startup_s { self.cfg.startup_gain } else { 1.0 }
+        let ramp = |t0: f64| {
+            let u = if self.cfg.startup_s > 0.0 { ((self.t - t0) / self.cfg.startup_s).clamp(0.0, 1.0) } else { 1.0 };
+            1.0 + (self.cfg.startup_gain - 1.0).max(0.0) * (1.0 - u)
+        };
+        ramp(self.init_t).max(self.boost_t.map_or(1.0, ramp))
+    }
+
+    /// Whether the start-up ramp is still running (no bias learning, no dip check then: the
+    /// estimate is not yet good enough to judge either).
+    fn starting_up(&self) -> bool {
+        self.t - self.init_t < self.cfg.startup_s
     }
 
     fn up_in_device(&self) -> DVec3 {
@@ -225,19 +276,39 @@ impl OrientationFilter {
 
     fn try_initialise(&mut self, t: f64) {
         let Some((_, a)) = self.accel else { return };
-        let mag = self.mag.filter(|&(tm, _)| (t - tm).abs() < FRESH_S && !self.disturbed);
-        if let Some((_, m)) = mag
-            && let Ok(q) = tilt_compass(a, m)
-        {
-            self.q = magnetic_to_true(q, self.applied_declination);
-            self.heading_known = true;
-        } else {
-            // Tilt only: the shortest rotation taking device "up" to world up; heading unknown.
-            self.q = DQuat::from_rotation_arc(a.normalize(), DVec3::Z);
-        }
+        // Tilt only: the shortest rotation taking device "up" to world up; heading unknown
+        // until a magnetometer reading gives one.
+        self.q = DQuat::from_rotation_arc(a.normalize(), DVec3::Z);
         self.smoothed = self.q;
         self.initialised = true;
         self.init_t = t;
+        // One accelerometer reading: the phone's own acceleration tilts it by a few degrees.
+        self.carried_tilt_sigma = INITIAL_TILT_SIGMA;
+        if let Some((tm, m)) = self.mag
+            && (t - tm).abs() < FRESH_S
+        {
+            self.take_heading(t, m);
+        }
+    }
+
+    /// Take the heading from the tilt compass when it is still unknown. A reading that the
+    /// disturbance test rejects but that is within Earth's range still gives a coarse heading
+    /// (an uncalibrated magnetometer reads like that): better than none, reported as gyro-only
+    /// with the coarse accuracy until readings agree with the model.
+    fn take_heading(&mut self, t: f64, m: DVec3) {
+        if self.heading_known || !(EARTH_FIELD_RANGE_UT.0..=EARTH_FIELD_RANGE_UT.1).contains(&m.length()) {
+            return;
+        }
+        let Some((_, a)) = self.accel else { return };
+        let Ok(q) = tilt_compass(a, m) else { return };
+        self.q = magnetic_to_true(q, self.applied_declination);
+        self.smoothed = self.q;
+        self.heading_known = true;
+        self.carried_heading_sigma = self.cfg.coarse_heading_sigma;
+        if self.disturbed {
+            self.heading_sigma_at_loss = self.cfg.coarse_heading_sigma;
+            self.gyro_only_since = Some(t);
+        }
     }
 
     /// Whether a magnetometer reading agrees with the expected field.
@@ -255,13 +326,19 @@ impl OrientationFilter {
                 };
                 let dip = (-m.dot(up) / n).clamp(-1.0, 1.0).asin();
                 (n - r.total_ut).abs() <= self.cfg.disturbance.magnitude_tolerance * r.total_ut
-                    && (dip - r.inclination).abs() <= self.cfg.disturbance.dip_tolerance
+                    && (!self.initialised || self.starting_up() || (dip - r.inclination).abs() <= self.cfg.disturbance.dip_tolerance)
             }
             None => (EARTH_FIELD_RANGE_UT.0..=EARTH_FIELD_RANGE_UT.1).contains(&n),
         }
     }
 
-    fn on_mag(&mut self, t: f64, m: DVec3) {
+    fn on_mag(&mut self, t: f64, raw: DVec3) {
+        let m = if self.cfg.hard_iron_calibration {
+            self.calibrator.add(raw, self.reference.map(|r| r.total_ut));
+            raw - self.calibrator.offset()
+        } else {
+            raw
+        };
         let agrees = !self.cfg.disturbance.enabled || self.field_agrees(m);
         if !agrees {
             if !self.disturbed && self.heading_known {
@@ -273,21 +350,17 @@ impl OrientationFilter {
         } else if self.disturbed {
             let since = *self.good_since.get_or_insert(t);
             if t - since >= self.cfg.disturbance.recover_after_s {
+                self.carried_heading_sigma = self.heading_sigma();
                 self.disturbed = false;
                 self.good_since = None;
                 self.gyro_only_since = None;
+                // The heading drifted while gyro-only: trust the compass more for a while.
+                self.boost_t = Some(t);
             }
         }
         self.mag = Some((t, m));
-        if self.initialised && !self.heading_known && !self.disturbed {
-            // First usable field after a tilt-only start: take the heading from it.
-            if let Some((_, a)) = self.accel
-                && let Ok(q) = tilt_compass(a, m)
-            {
-                self.q = magnetic_to_true(q, self.applied_declination);
-                self.smoothed = self.q;
-                self.heading_known = true;
-            }
+        if self.initialised {
+            self.take_heading(t, m);
         }
     }
 
@@ -295,7 +368,11 @@ impl OrientationFilter {
         let Some(date) = self.date else { return };
         let moved_far = match self.gps_position {
             // About 10 km: the field changes by far less than the magnetometer noise over it.
-            Some((la, lo)) => (lat - la).abs() > 0.09 || angle_difference(lon.to_radians(), lo.to_radians()).abs() > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01),
+            Some((la, lo)) => {
+                (lat - la).abs() > 0.09
+                    || angle_difference(lon.to_radians(), lo.to_radians()).abs()
+                        > 0.09f64.to_radians() / lat.to_radians().cos().abs().max(0.01)
+            }
             None => true,
         };
         if moved_far && let Ok(r) = MagneticReference::wmm(lat, lon, alt, date) {
@@ -327,6 +404,7 @@ impl OrientationFilter {
                 let e = (a / n).cross(self.up_in_device());
                 correction += self.cfg.k_acc * scale * w * e;
                 bias_error += w * e;
+                self.carried_tilt_sigma *= (-self.cfg.k_acc * scale * w * dt).exp();
                 let angle = e.length().min(1.0).asin();
                 self.tilt_innov_var += innov_alpha * (angle * angle - self.tilt_innov_var);
             }
@@ -345,12 +423,16 @@ impl OrientationFilter {
                 let z = self.up_in_device();
                 correction += self.cfg.k_mag * scale * delta * z;
                 bias_error += delta * z;
+                self.carried_heading_sigma *= (-self.cfg.k_mag * scale * dt).exp();
+                if !self.starting_up() {
+                    self.mag_time += dt;
+                }
                 self.heading_innov_var += innov_alpha * (delta * delta - self.heading_innov_var);
             }
         }
 
-        if integrate_bias && self.cfg.k_bias > 0.0 {
-            self.bias -= self.cfg.k_bias * scale * bias_error * dt;
+        if integrate_bias && self.cfg.k_bias > 0.0 && !self.starting_up() {
+            self.bias -= self.cfg.k_bias * bias_error * dt;
             self.bias = self.bias.clamp_length_max(MAX_BIAS);
         }
         self.q = (self.q * DQuat::from_scaled_axis(correction * dt)).normalize();
@@ -381,12 +463,12 @@ impl OrientationFilter {
         let alpha = (k * 0.02).min(1.0);
         let filtered = self.heading_innov_var * alpha / (2.0 - alpha);
         let decl = self.reference.map_or(0.0, |r| r.declination_sigma);
-        (self.cfg.heading_floor.powi(2) + filtered + decl * decl).sqrt()
+        (self.cfg.heading_floor.powi(2) + filtered + decl * decl + self.carried_heading_sigma.powi(2)).sqrt()
     }
 
     fn tilt_sigma(&self) -> f64 {
         let alpha = (self.cfg.k_acc * self.gain_scale() * 0.01).min(1.0);
-        (self.cfg.tilt_floor.powi(2) + self.tilt_innov_var * alpha / (2.0 - alpha)).sqrt()
+        (self.cfg.tilt_floor.powi(2) + self.tilt_innov_var * alpha / (2.0 - alpha) + self.carried_tilt_sigma.powi(2)).sqrt()
     }
 
     fn heading_sigma(&self) -> f64 {
@@ -394,7 +476,10 @@ impl OrientationFilter {
             return std::f64::consts::PI;
         }
         match self.gyro_only_since {
-            Some(t0) => (self.heading_sigma_at_loss + self.cfg.gyro_drift * (self.t - t0)).min(std::f64::consts::PI),
+            Some(t0) => {
+                let drift = self.cfg.gyro_drift + self.cfg.initial_gyro_bias * (-self.mag_time / 60.0).exp();
+                (self.heading_sigma_at_loss + drift * (self.t - t0)).min(std::f64::consts::PI)
+            }
             None => self.heading_sigma_mag(),
         }
     }
@@ -442,12 +527,13 @@ impl OrientationEstimator for OrientationFilter {
             }
             Reading::Gyro { t, v } => {
                 self.gyro_seen = true;
-                if self.initialised && !self.cfg.use_platform_attitude {
-                    if let Some(t0) = self.gyro_t {
-                        let dt = t - t0;
-                        if dt > 0.0 && dt < MAX_GYRO_GAP_S {
-                            self.step(t, dt, v, true);
-                        }
+                if self.initialised
+                    && !self.cfg.use_platform_attitude
+                    && let Some(t0) = self.gyro_t
+                {
+                    let dt = t - t0;
+                    if dt > 0.0 && dt < MAX_GYRO_GAP_S {
+                        self.step(t, dt, v, true);
                     }
                 }
                 self.gyro_t = Some(t);
@@ -500,12 +586,13 @@ mod tests {
 
     const FIELD: DVec3 = DVec3::new(-0.4, 19.5, -44.6);
 
-    /// Exact readings for a device rotating at a constant body rate from `q0`.
+    /// Exact readings for a device rotating at a constant body rate from `q0` at `t0`. At
+    /// t0 = 0 the first sample is fed too; otherwise it continues a previous call ending at t0.
     fn feed_rotation(f: &mut OrientationFilter, q0: DQuat, omega: DVec3, t0: f64, secs: f64, field: DVec3) -> DQuat {
         let dt = 0.01;
         let mut q = q0;
         let n = (secs / dt).round() as usize;
-        for i in 0..=n {
+        for i in usize::from(t0 != 0.0)..=n {
             let t = t0 + i as f64 * dt;
             if i > 0 {
                 q = (q * DQuat::from_scaled_axis(omega * dt)).normalize();
@@ -530,9 +617,9 @@ mod tests {
         let q0 = DQuat::from_rotation_z(0.3);
         let q = feed_rotation(&mut f, q0, DVec3::ZERO, 0.0, 1.0, FIELD);
         assert!(angle_between(f.device_orientation().unwrap(), q) < 1e-9);
-        let q = feed_rotation(&mut f, q, DVec3::new(1.2, 0.0, 0.0), 1.01, 3.0, FIELD);
+        let q = feed_rotation(&mut f, q, DVec3::new(1.2, 0.0, 0.0), 1.0, 3.0, FIELD);
         assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 1e-6);
-        let q = feed_rotation(&mut f, q, DVec3::new(-0.3, 0.8, 0.5), 4.02, 4.0, FIELD);
+        let q = feed_rotation(&mut f, q, DVec3::new(-0.3, 0.8, 0.5), 4.0, 4.0, FIELD);
         assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 1e-6);
         assert_eq!(f.pose(DisplayRotation::R0).unwrap().heading_source, HeadingSource::Magnetometer);
     }
@@ -614,7 +701,7 @@ mod tests {
         let q = DQuat::IDENTITY;
         feed_rotation(&mut f, q, DVec3::ZERO, 0.0, 2.0, FIELD);
         // 25 µT east added: the compass swings the heading towards the disturbed field.
-        feed_rotation(&mut f, q, DVec3::ZERO, 2.01, 10.0, FIELD + DVec3::new(25.0, 0.0, 0.0));
+        feed_rotation(&mut f, q, DVec3::ZERO, 2.0, 10.0, FIELD + DVec3::new(25.0, 0.0, 0.0));
         assert!(!f.magnetic_disturbance());
         assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() > 20.0);
     }
@@ -662,6 +749,68 @@ mod tests {
             }
         }
         assert!(angle_between(f.device_orientation().unwrap(), q2).to_degrees() < 0.2);
+    }
+
+    #[test]
+    fn hard_iron_offset_is_learnt_while_turning() {
+        // An uncalibrated magnetometer: 6 µT offsets, enough to look like a disturbance.
+        let offset = DVec3::new(6.0, -4.0, 3.0);
+        let run = |cfg: FusionConfig| {
+            let mut f = OrientationFilter::new(cfg);
+            f.set_reference(reference());
+            let dt = 0.01;
+            let mut q = DQuat::from_rotation_z(0.4);
+            let mut disturbed = 0;
+            let n = 6000;
+            for i in 0..n {
+                let t = i as f64 * dt;
+                // Tumbling about a slowly changing axis, like a figure-of-eight.
+                let omega = DVec3::new((0.3 * t).sin(), (0.23 * t).cos(), 0.5) * 1.2;
+                if i > 0 {
+                    q = (q * DQuat::from_scaled_axis(omega * dt)).normalize();
+                }
+                f.update(&Reading::Accel { t, v: q.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+                f.update(&Reading::Mag { t, v: q.inverse() * FIELD + offset }).unwrap();
+                f.update(&Reading::Gyro { t, v: omega }).unwrap();
+                disturbed += usize::from(f.magnetic_disturbance());
+            }
+            (f, q, disturbed as f64 / n as f64)
+        };
+        let (f, q, disturbed) = run(FusionConfig::default());
+        assert!((f.hard_iron_offset() - offset).length() < 0.05, "{:?}", f.hard_iron_offset());
+        assert!(!f.magnetic_disturbance() && disturbed < 0.2, "{disturbed}");
+        assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 0.2);
+        // Without calibration the same readings look disturbed much of the time.
+        let (g, _, disturbed) = run(FusionConfig { hard_iron_calibration: false, ..Default::default() });
+        assert_eq!(g.hard_iron_offset(), DVec3::ZERO);
+        assert!(disturbed > 0.3, "{disturbed}");
+    }
+
+    #[test]
+    fn gps_fix_with_a_date_sets_the_wmm_reference() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        let fix = crate::sensors::GpsFix {
+            t: 0.0,
+            lat_deg: 51.4545,
+            lon_deg: -2.5879,
+            alt_m: 20.0,
+            horizontal_accuracy_m: 10.0,
+            vertical_accuracy_m: 15.0,
+        };
+        // Without a date the model cannot be evaluated: no reference.
+        f.update(&Reading::Gps(fix)).unwrap();
+        assert!(f.reference().is_none());
+        let date = chrono::NaiveDate::from_ymd_opt(2026, 11, 21).unwrap();
+        f.set_date(date);
+        f.update(&Reading::Gps(fix)).unwrap();
+        let here = MagneticReference::wmm(51.4545, -2.5879, 20.0, date).unwrap();
+        assert_eq!(f.reference(), Some(&here));
+        // A fix 1 km away keeps it; one 50 km away re-evaluates the model there.
+        f.update(&Reading::Gps(crate::sensors::GpsFix { lat_deg: 51.4635, ..fix })).unwrap();
+        assert_eq!(f.reference(), Some(&here));
+        f.update(&Reading::Gps(crate::sensors::GpsFix { lat_deg: 51.9, ..fix })).unwrap();
+        assert_eq!(f.reference(), Some(&MagneticReference::wmm(51.9, -2.5879, 20.0, date).unwrap()));
+        assert!(f.update(&Reading::Gps(crate::sensors::GpsFix { lon_deg: f64::NAN, ..fix })).is_err());
     }
 
     #[test]

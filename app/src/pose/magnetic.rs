@@ -38,8 +38,7 @@ impl MagneticReference {
         }
         let lon = if lon_deg > 180.0 { lon_deg - 360.0 } else { lon_deg };
         let ordinal = u16::try_from(date.ordinal()).context("WMM: day of year out of range")?;
-        let wmm_date = Date::from_ordinal_date(date.year(), ordinal)
-            .with_context(|| format!("WMM: cannot represent the date {date}"))?;
+        let wmm_date = Date::from_ordinal_date(date.year(), ordinal).with_context(|| format!("WMM: cannot represent the date {date}"))?;
         let field = GeomagneticField::new(
             Length::new::<meter>(height_m as f32),
             Angle::new::<degree>(lat_deg as f32),
@@ -88,7 +87,9 @@ mod tests {
     /// NOAA/BGS WMM2025 report, table of test values (WMM2025testvalues.pdf, the same numbers as
     /// WMM2025_TestValues.txt in WMM2025COF.zip): decimal year, height (km), lat, lon,
     /// X, Y, Z (nT), D (deg). 2025.0 = 1 January 2025; 2027.5 = 2 July 2027.
-    const WMM2025_TEST_VALUES: [(f64, f64, f64, f64, f64, f64, f64, f64); 6] = [
+    /// (decimal year, height km, lat, lon, X, Y, Z, D).
+    type TestValue = (f64, f64, f64, f64, f64, f64, f64, f64);
+    const WMM2025_TEST_VALUES: [TestValue; 6] = [
         (2025.0, 0.0, 80.0, 0.0, 6521.6, 145.9, 54791.5, 1.28),
         (2025.0, 0.0, 0.0, 120.0, 39677.8, -109.6, -10580.2, -0.16),
         (2025.0, 0.0, -80.0, 240.0, 6117.5, 15751.9, -52022.5, 68.78),
@@ -100,11 +101,8 @@ mod tests {
     #[test]
     fn declination_and_field_match_published_wmm2025_test_values() {
         for &(year, h_km, lat, lon, x, y, z, d) in &WMM2025_TEST_VALUES {
-            let date = if year == 2025.0 {
-                NaiveDate::from_ymd_opt(2025, 1, 1).unwrap()
-            } else {
-                NaiveDate::from_ymd_opt(2027, 7, 2).unwrap()
-            };
+            let date =
+                if year == 2025.0 { NaiveDate::from_ymd_opt(2025, 1, 1).unwrap() } else { NaiveDate::from_ymd_opt(2027, 7, 2).unwrap() };
             let r = MagneticReference::wmm(lat, lon, h_km * 1000.0, date).unwrap();
             // Published to 0.01°; the crate computes in f32 (its own tests allow 0.006°).
             assert!((r.declination.to_degrees() - d).abs() < 0.012, "{lat},{lon} {year}: D {} vs {d}", r.declination.to_degrees());

@@ -14,6 +14,7 @@ use glam::{DQuat, Quat};
 
 pub mod frames;
 pub mod fusion;
+pub mod hard_iron;
 pub mod magnetic;
 pub mod stability;
 pub mod tilt_compass;

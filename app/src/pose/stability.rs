@@ -6,8 +6,9 @@
 //!   on the model. Reported as RMS and peak in degrees.
 //! - Lag: a 90° turn at 90°/s; the delay τ that best aligns estimated and true heading (with a
 //!   free constant offset) over the turn and the holds around it.
-//! - Failure cases with the default setting: headings across 0/360°, pitch to ±90°, and a
-//!   magnetic disturbance with and without the gyro-only fallback.
+//! - Failure cases with the default setting: headings across 0/360°, pitch to ±90°, a
+//!   magnetic disturbance with and without the gyro-only fallback, and whole simulated captures
+//!   (orientation error while the faces are held).
 //!
 //! Each setting sees exactly the same simulated readings (same seeds), so the comparison is
 //! paired.
@@ -29,7 +30,9 @@ use glam::{DQuat, DVec3};
 pub enum Estimator {
     Fusion(FusionConfig),
     /// Seed 000's compass-only orientation, low-passed with this time constant (s).
-    CompassOnly { tau_s: f64 },
+    CompassOnly {
+        tau_s: f64,
+    },
 }
 
 /// A named estimator setting.
@@ -79,22 +82,72 @@ pub fn default_sun() -> DVec3 {
     DVec3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
 }
 
-/// Jitter of a sequence of small direction errors (estimated − true unit vectors): the
-/// deviation of each from their mean, RMS and peak, in radians (small-angle).
-pub fn jitter(errors: &[DVec3]) -> (f64, f64) {
-    if errors.is_empty() {
-        return (0.0, 0.0);
-    }
-    let mean = errors.iter().sum::<DVec3>() / errors.len() as f64;
-    let mut sum = 0.0;
-    let mut peak: f64 = 0.0;
-    for e in errors {
-        let d = (*e - mean).length();
-        sum += d * d;
-        peak = peak.max(d);
-    }
-    ((sum / errors.len() as f64).sqrt(), peak)
+/// Flicker and wander of a sequence of small direction errors (estimated − true unit vectors,
+/// radians, small-angle) sampled at a fixed rate.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JitterStats {
+    /// RMS deviation of each error from the moving mean over `window` samples centred on it:
+    /// the frame-to-frame flicker a user sees.
+    pub flicker_rms: f64,
+    pub flicker_peak: f64,
+    /// RMS deviation of that moving mean from the overall mean: slow swimming of the model.
+    pub wander_rms: f64,
+    /// Length of the overall mean: a steady offset (a misplaced sun, no motion).
+    pub offset: f64,
+    pub samples: usize,
 }
+
+/// Split errors into flicker and wander (see [`JitterStats`]). The moving mean's window is
+/// centred and shrinks symmetrically at the ends, so a linear drift is all wander.
+pub fn jitter(errors: &[DVec3], window: usize) -> JitterStats {
+    let n = errors.len();
+    if n == 0 {
+        return JitterStats::default();
+    }
+    let mut prefix = Vec::with_capacity(n + 1);
+    prefix.push(DVec3::ZERO);
+    for e in errors {
+        let last = prefix[prefix.len() - 1];
+        prefix.push(last + *e);
+    }
+    let mean = prefix[n] / n as f64;
+    let half = window / 2;
+    let (mut f2, mut peak, mut w2) = (0.0, 0f64, 0.0);
+    for (i, e) in errors.iter().enumerate() {
+        let h = half.min(i).min(n - 1 - i);
+        let local = (prefix[i + h + 1] - prefix[i - h]) / (2 * h + 1) as f64;
+        let f = (*e - local).length();
+        f2 += f * f;
+        peak = peak.max(f);
+        w2 += (local - mean).length_squared();
+    }
+    JitterStats {
+        flicker_rms: (f2 / n as f64).sqrt(),
+        flicker_peak: peak,
+        wander_rms: (w2 / n as f64).sqrt(),
+        offset: mean.length(),
+        samples: n,
+    }
+}
+
+/// Pool per-run statistics (RMS values weighted by sample counts, peaks maximal).
+pub fn pool(stats: &[JitterStats]) -> JitterStats {
+    let n: usize = stats.iter().map(|s| s.samples).sum();
+    if n == 0 {
+        return JitterStats::default();
+    }
+    let w = |f: fn(&JitterStats) -> f64| (stats.iter().map(|s| f(s).powi(2) * s.samples as f64).sum::<f64>() / n as f64).sqrt();
+    JitterStats {
+        flicker_rms: w(|s| s.flicker_rms),
+        flicker_peak: stats.iter().map(|s| s.flicker_peak).fold(0.0, f64::max),
+        wander_rms: w(|s| s.wander_rms),
+        offset: w(|s| s.offset),
+        samples: n,
+    }
+}
+
+/// The moving-mean window for flicker: 1 s at 100 Hz.
+pub const FLICKER_WINDOW: usize = 101;
 
 /// The delay τ (s, searched from −0.2 to 0.8 s in 1 ms steps) that best explains `estimated`
 /// headings (time, radians) as `true_heading(t − τ)` plus a constant offset. Needs motion that
@@ -196,9 +249,13 @@ pub struct TradeoffRow {
     pub noise: NoiseLevel,
     pub setting: String,
     pub seeds: u64,
+    /// Sun-direction flicker (degrees): RMS and peak deviation from the 1 s moving mean.
     pub jitter_rms_deg: f64,
     pub jitter_peak_deg: f64,
-    /// Mean sun-direction offset (degrees): steady, so no flicker, but a misplaced shadow.
+    /// Slow swimming of the sun direction (degrees RMS of the 1 s moving mean about its mean).
+    pub wander_rms_deg: f64,
+    /// Mean sun-direction offset (degrees RMS over seeds): steady, so no flicker, but a
+    /// misplaced shadow.
     pub sun_offset_deg: f64,
     /// RMS orientation error while held still (degrees).
     pub error_rms_deg: f64,
@@ -219,7 +276,8 @@ pub struct CaseRow {
     pub setting: String,
     pub max_error_deg: f64,
     pub rms_error_deg: f64,
-    /// Fraction of the disturbance during which the filter flagged it (disturbance case only).
+    /// Fraction of the disturbance during which the filter flagged it (disturbance case), or
+    /// of the held faces during which it was flagged (capture path).
     pub flagged_fraction: Option<f64>,
     /// Whether every pose and its heading/pitch/roll were finite.
     pub finite: bool,
@@ -263,7 +321,13 @@ pub struct StabilityConfig {
 
 impl Default for StabilityConfig {
     fn default() -> Self {
-        StabilityConfig { seeds: 20, noise_levels: vec![NoiseLevel::Phone, NoiseLevel::Bad], sun_enu: default_sun(), settings: default_settings(), hold_s: 30.0 }
+        StabilityConfig {
+            seeds: 20,
+            noise_levels: vec![NoiseLevel::Phone, NoiseLevel::Bad],
+            sun_enu: default_sun(),
+            settings: default_settings(),
+            hold_s: 30.0,
+        }
     }
 }
 
@@ -280,7 +344,7 @@ pub fn measure_tradeoff(cfg: &StabilityConfig, mut progress: impl FnMut()) -> Re
     let mut rows = Vec::new();
     for &noise in &cfg.noise_levels {
         let n = cfg.settings.len();
-        let mut errors: Vec<Vec<DVec3>> = vec![Vec::new(); n];
+        let mut stats: Vec<Vec<JitterStats>> = vec![Vec::new(); n];
         let mut orient_sq = vec![(0.0, 0usize); n];
         let mut covered = vec![(0usize, 0usize); n];
         let mut lags: Vec<Vec<f64>> = vec![Vec::new(); n];
@@ -289,11 +353,12 @@ pub fn measure_tradeoff(cfg: &StabilityConfig, mut progress: impl FnMut()) -> Re
             let hold = simulate(scripted(seed, cfg.hold_s, hold_base)?, noise, seed, Vec::new())?;
             let turn = simulate(scripted(seed, 9.0, turn_base)?, noise, seed, Vec::new())?;
             for (i, s) in cfg.settings.iter().enumerate() {
+                let mut errors = Vec::new();
                 evaluate(&hold, s, |t, truth, p| {
                     if t < WARM_UP_S {
                         return;
                     }
-                    errors[i].push(sun_error(cfg.sun_enu, truth, p));
+                    errors.push(sun_error(cfg.sun_enu, truth, p));
                     let e = angle_between(truth, p.q.as_dquat());
                     orient_sq[i].0 += e * e;
                     orient_sq[i].1 += 1;
@@ -304,6 +369,7 @@ pub fn measure_tradeoff(cfg: &StabilityConfig, mut progress: impl FnMut()) -> Re
                         }
                     }
                 })?;
+                stats[i].push(jitter(&errors, FLICKER_WINDOW));
                 let mut est_heading = Vec::new();
                 evaluate(&turn, s, |t, truth, p| {
                     if (TURN_START - 1.0..TURN_START + 3.0).contains(&t) {
@@ -316,16 +382,16 @@ pub fn measure_tradeoff(cfg: &StabilityConfig, mut progress: impl FnMut()) -> Re
             progress();
         }
         for (i, s) in cfg.settings.iter().enumerate() {
-            let (rms, peak) = jitter(&errors[i]);
-            let mean = errors[i].iter().sum::<DVec3>() / errors[i].len().max(1) as f64;
+            let j = pool(&stats[i]);
             lags[i].sort_by(f64::total_cmp);
             rows.push(TradeoffRow {
                 noise,
                 setting: s.name.clone(),
                 seeds: cfg.seeds,
-                jitter_rms_deg: rms.to_degrees(),
-                jitter_peak_deg: peak.to_degrees(),
-                sun_offset_deg: mean.length().to_degrees(),
+                jitter_rms_deg: j.flicker_rms.to_degrees(),
+                jitter_peak_deg: j.flicker_peak.to_degrees(),
+                wander_rms_deg: j.wander_rms.to_degrees(),
+                sun_offset_deg: j.offset.to_degrees(),
                 error_rms_deg: (orient_sq[i].0 / orient_sq[i].1.max(1) as f64).sqrt().to_degrees(),
                 lag_ms: lags[i].get(lags[i].len() / 2).copied().unwrap_or(f64::NAN) * 1000.0,
                 turn_peak_error_deg: turn_peak[i],
@@ -351,13 +417,19 @@ pub fn measure_cases(cfg: &StabilityConfig, setting: &Setting, mut progress: imp
     };
     // A steel object passes: 25 µT for 6 s, from 8 s.
     let window = (8.0, 14.0);
-    let disturbance = Disturbance { start: window.0, duration: window.1 - window.0, field_enu_ut: DVec3::new(0.8, -0.4, 0.45).normalize() * 25.0 };
+    let disturbance =
+        Disturbance { start: window.0, duration: window.1 - window.0, field_enu_ut: DVec3::new(0.8, -0.4, 0.45).normalize() * 25.0 };
     type Base = fn(f64) -> DQuat;
-    let wrap_base: Base = |t| from_heading_pitch_roll(355f64.to_radians() + trapezoid_turn(t, 6.0, 20f64.to_radians(), 10f64.to_radians(), 0.3), 0.0, 0.0);
+    let wrap_base: Base =
+        |t| from_heading_pitch_roll(355f64.to_radians() + trapezoid_turn(t, 6.0, 20f64.to_radians(), 10f64.to_radians(), 0.3), 0.0, 0.0);
     let up_base: Base = |t| from_heading_pitch_roll(0.5, minimum_jerk((t - 6.0) / 1.5) * std::f64::consts::FRAC_PI_2, 0.0);
     let down_base: Base = |t| from_heading_pitch_roll(0.5, -minimum_jerk((t - 6.0) / 1.5) * std::f64::consts::FRAC_PI_2, 0.0);
-    let cases: [(&str, f64, Base, bool); 4] =
-        [("heading across 0/360", 14.0, wrap_base, false), ("pitch to +90", 14.0, up_base, false), ("pitch to -90", 14.0, down_base, false), ("magnetic disturbance", 24.0, hold_base, true)];
+    let cases: [(&str, f64, Base, bool); 4] = [
+        ("heading across 0/360", 14.0, wrap_base, false),
+        ("pitch to +90", 14.0, up_base, false),
+        ("pitch to -90", 14.0, down_base, false),
+        ("magnetic disturbance", 24.0, hold_base, true),
+    ];
     for &noise in &cfg.noise_levels {
         for (name, secs, base, disturbed) in cases {
             let mut runs: Vec<(&Setting, f64, f64, usize, usize, usize, bool)> = Vec::new();
@@ -419,6 +491,35 @@ pub fn measure_cases(cfg: &StabilityConfig, setting: &Setting, mut progress: imp
             }
         }
     }
+    // A whole simulated capture (user_path): orientation error while the faces are held.
+    for &noise in &cfg.noise_levels {
+        let (mut max_e, mut sum_sq, mut count, mut flagged, mut finite) = (0f64, 0.0, 0usize, 0usize, true);
+        for seed in 0..cfg.seeds {
+            let path = super::user_path::simulate_user_path(seed, &UserPathParams::default())?;
+            let holds = path.holds.clone();
+            let run = simulate(TruthTrace::new(path.samples)?, noise, seed, Vec::new())?;
+            evaluate(&run, setting, |t, truth, p| {
+                finite &= p.q.is_finite();
+                if holds.iter().any(|h| (h.start..h.end).contains(&t)) {
+                    let e = angle_between(truth, p.q.as_dquat());
+                    max_e = max_e.max(e);
+                    sum_sq += e * e;
+                    count += 1;
+                    flagged += usize::from(p.magnetic_disturbance);
+                }
+            })?;
+            progress();
+        }
+        rows.push(CaseRow {
+            noise,
+            case: "capture path (holds)".into(),
+            setting: setting.name.clone(),
+            max_error_deg: max_e.to_degrees(),
+            rms_error_deg: (sum_sq / count.max(1) as f64).sqrt().to_degrees(),
+            flagged_fraction: Some(flagged as f64 / count.max(1) as f64),
+            finite,
+        });
+    }
     series.window = window;
     Ok((rows, series))
 }
@@ -453,15 +554,33 @@ mod tests {
 
     #[test]
     fn jitter_of_known_sequences() {
-        // A constant offset does not flicker.
-        let c = vec![DVec3::new(0.01, 0.0, 0.0); 10];
-        assert_eq!(jitter(&c), (0.0, 0.0));
-        // ±δ alternating about an offset: RMS and peak δ.
+        // A constant offset neither flickers nor wanders.
+        let c = vec![DVec3::new(0.01, 0.0, 0.0); 300];
+        let j = jitter(&c, FLICKER_WINDOW);
+        assert!(j.flicker_rms < 1e-15 && j.flicker_peak < 1e-15 && j.wander_rms < 1e-15);
+        assert!((j.offset - 0.01).abs() < 1e-15);
+        // ±δ alternating about an offset: flicker δ (the 101-sample mean is within δ/101 of
+        // the offset; near the ends, where the window shrinks to 3 samples, up to 4δ/3), and
+        // hardly any wander.
         let d = 0.002;
-        let alt: Vec<DVec3> = (0..10).map(|i| DVec3::new(0.01 + if i % 2 == 0 { d } else { -d }, 0.0, 0.0)).collect();
-        let (rms, peak) = jitter(&alt);
-        assert!((rms - d).abs() < 1e-15 && (peak - d).abs() < 1e-15);
-        assert_eq!(jitter(&[]), (0.0, 0.0));
+        let alt: Vec<DVec3> = (0..300).map(|i| DVec3::new(0.01 + if i % 2 == 0 { d } else { -d }, 0.0, 0.0)).collect();
+        let j = jitter(&alt, FLICKER_WINDOW);
+        assert!((j.flicker_rms - d).abs() < 0.02 * d, "{j:?}");
+        assert!(j.flicker_peak >= d && j.flicker_peak <= 4.0 * d / 3.0 + 1e-12, "{j:?}");
+        assert!(j.wander_rms < 0.1 * d, "{j:?}");
+        // A linear drift from −a to +a is all wander: RMS a/√3 (uniform distribution).
+        let a = 0.01;
+        let ramp: Vec<DVec3> = (0..1001).map(|i| DVec3::new(-a + 2.0 * a * i as f64 / 1000.0, 0.0, 0.0)).collect();
+        let j = jitter(&ramp, FLICKER_WINDOW);
+        assert!(j.flicker_peak < 1e-12, "{j:?}");
+        assert!((j.wander_rms - a / 3f64.sqrt()).abs() < 1e-3 * a, "{j:?}");
+        assert_eq!(jitter(&[], FLICKER_WINDOW), JitterStats::default());
+        // Pooling weights by samples.
+        let p = pool(&[
+            JitterStats { flicker_rms: 1.0, flicker_peak: 2.0, wander_rms: 0.0, offset: 0.0, samples: 3 },
+            JitterStats { flicker_rms: 0.0, flicker_peak: 5.0, wander_rms: 0.0, offset: 0.0, samples: 1 },
+        ]);
+        assert!((p.flicker_rms - 0.75f64.sqrt()).abs() < 1e-15 && p.flicker_peak == 5.0 && p.samples == 4);
     }
 
     #[test]
@@ -492,7 +611,13 @@ mod tests {
             Setting { name: "default".into(), estimator: Estimator::Fusion(FusionConfig::default()) },
             Setting { name: "compass".into(), estimator: Estimator::CompassOnly { tau_s: 0.0 } },
         ];
-        let cfg = StabilityConfig { seeds: 1, noise_levels: vec![NoiseLevel::Phone], sun_enu: default_sun(), settings: settings.clone(), hold_s: 10.0 };
+        let cfg = StabilityConfig {
+            seeds: 1,
+            noise_levels: vec![NoiseLevel::Phone],
+            sun_enu: default_sun(),
+            settings: settings.clone(),
+            hold_s: 10.0,
+        };
         let rows = measure_tradeoff(&cfg, || {}).unwrap();
         assert_eq!(rows.len(), 2);
         assert!(rows[0].jitter_rms_deg * 5.0 < rows[1].jitter_rms_deg, "{rows:?}");

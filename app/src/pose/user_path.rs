@@ -220,7 +220,19 @@ impl HandShake {
 }
 
 fn check_params(p: &UserPathParams) -> Result<()> {
-    let finite = [p.rate_hz, p.vertical_pitch_deg, p.aim_error_deg, p.roll_deg, p.hold_s.0, p.hold_s.1, p.mean_speed_deg_s, p.overshoot.0, p.overshoot.1, p.tremor_deg, p.sway_deg];
+    let finite = [
+        p.rate_hz,
+        p.vertical_pitch_deg,
+        p.aim_error_deg,
+        p.roll_deg,
+        p.hold_s.0,
+        p.hold_s.1,
+        p.mean_speed_deg_s,
+        p.overshoot.0,
+        p.overshoot.1,
+        p.tremor_deg,
+        p.sway_deg,
+    ];
     if finite.iter().any(|v| !v.is_finite()) || p.reference_heading_deg.is_some_and(|h| !h.is_finite()) {
         bail!("user path parameters must be finite: {p:?}");
     }
@@ -230,10 +242,10 @@ fn check_params(p: &UserPathParams) -> Result<()> {
     if !(0.0..=90.0).contains(&p.vertical_pitch_deg) {
         bail!("vertical pitch must be within 0..=90 degrees, got {}", p.vertical_pitch_deg);
     }
-    if let Some(o) = &p.order {
-        if o.contains(&Target::Front) || o.len() != 5 || (0..o.len()).any(|i| o[i + 1..].contains(&o[i])) {
-            bail!("the face order must list right, back, left, up and down once each, got {o:?}");
-        }
+    if let Some(o) = &p.order
+        && (o.contains(&Target::Front) || o.len() != 5 || (0..o.len()).any(|i| o[i + 1..].contains(&o[i])))
+    {
+        bail!("the face order must list right, back, left, up and down once each, got {o:?}");
     }
     Ok(())
 }
@@ -263,7 +275,8 @@ pub fn simulate_user_path(seed: u64, params: &UserPathParams) -> Result<Simulate
     let mut segments = Vec::new();
     let mut holds = Vec::new();
     let front = aim(&mut rng, Target::Front);
-    let start = Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
+    let start =
+        Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
     let mut t = 0.0;
     let mut at = start;
     let first_hold = 0.4;
@@ -313,7 +326,8 @@ pub fn simulate_user_path(seed: u64, params: &UserPathParams) -> Result<Simulate
         }
         let s = &segments[seg];
         let u = minimum_jerk((ti - s.t0) / (s.t1 - s.t0));
-        let base = Hpr { h: s.from.h + (s.to.h - s.from.h) * u, p: s.from.p + (s.to.p - s.from.p) * u, r: s.from.r + (s.to.r - s.from.r) * u };
+        let base =
+            Hpr { h: s.from.h + (s.to.h - s.from.h) * u, p: s.from.p + (s.to.p - s.from.p) * u, r: s.from.r + (s.to.r - s.from.r) * u };
         let q = shake.apply(base.quat(), ti);
         samples.push(TruthSample { t: ti, q, tap: i == tap_index });
     }

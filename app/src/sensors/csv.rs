@@ -32,11 +32,7 @@ impl Table {
 
     /// Parse CSV text as if read from `path` (used for error messages).
     pub fn parse(path: &Path, text: &str, required: &[&str]) -> Result<Table> {
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim()))
-            .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+        let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())).filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
         let Some((header_line, header)) = lines.next() else {
             bail!("{}: empty file (expected a header: {})", path.display(), required.join(","));
         };

@@ -111,7 +111,8 @@ impl LocationBridge {
     /// Whether the app holds the fine-location permission.
     pub fn has_permission(&self, env: &mut Env<'_>) -> Result<bool> {
         let name = jstring(env, FINE_LOCATION)?;
-        let r = env.call_method(&self.activity, jni_str!("checkSelfPermission"), jni_sig!("(Ljava/lang/String;)I"), &[JValue::Object(&name)]);
+        let r =
+            env.call_method(&self.activity, jni_str!("checkSelfPermission"), jni_sig!("(Ljava/lang/String;)I"), &[JValue::Object(&name)]);
         let v = checked(env, "Context.checkSelfPermission", r)?;
         Ok(checked(env, "checkSelfPermission result", v.i())? == PERMISSION_GRANTED)
     }
@@ -140,7 +141,12 @@ impl LocationBridge {
             return checked(env, "NewGlobalRef(manager)", r);
         }
         let name = jstring(env, "location")?;
-        let r = env.call_method(&self.activity, jni_str!("getSystemService"), jni_sig!("(Ljava/lang/String;)Ljava/lang/Object;"), &[JValue::Object(&name)]);
+        let r = env.call_method(
+            &self.activity,
+            jni_str!("getSystemService"),
+            jni_sig!("(Ljava/lang/String;)Ljava/lang/Object;"),
+            &[JValue::Object(&name)],
+        );
         let obj = checked(env, "Context.getSystemService(\"location\")", r.and_then(|v| v.l()))?;
         if obj.is_null() {
             anyhow::bail!("Context.getSystemService(\"location\") returned null: no location service");
@@ -156,7 +162,7 @@ impl LocationBridge {
         let gps = jstring(env, GPS_PROVIDER)?;
         let r = env.call_method(manager, jni_str!("isProviderEnabled"), jni_sig!("(Ljava/lang/String;)Z"), &[JValue::Object(&gps)]);
         let v = checked(env, "LocationManager.isProviderEnabled", r)?;
-        Ok(checked(env, "isProviderEnabled result", v.z())?)
+        checked(env, "isProviderEnabled result", v.z())
     }
 
     fn start_updates(&mut self, env: &mut Env<'_>, manager: &JObject<'_>) -> Result<()> {
@@ -164,7 +170,12 @@ impl LocationBridge {
         let r = env.call_method(&self.activity, jni_str!("getClassLoader"), jni_sig!("()Ljava/lang/ClassLoader;"), &[]);
         let loader = checked(env, "Context.getClassLoader", r.and_then(|v| v.l()))?;
         let class_name = jstring(env, LISTENER_CLASS)?;
-        let r = env.call_method(&loader, jni_str!("loadClass"), jni_sig!("(Ljava/lang/String;)Ljava/lang/Class;"), &[JValue::Object(&class_name)]);
+        let r = env.call_method(
+            &loader,
+            jni_str!("loadClass"),
+            jni_sig!("(Ljava/lang/String;)Ljava/lang/Class;"),
+            &[JValue::Object(&class_name)],
+        );
         let class_obj = checked(env, "ClassLoader.loadClass(org.previz.LocationListenerBridge)", r.and_then(|v| v.l()))?;
         let r = env.cast_local::<jni::objects::JClass>(class_obj);
         let class = checked(env, "cast to Class", r)?;
@@ -177,7 +188,13 @@ impl LocationBridge {
             manager,
             jni_str!("requestLocationUpdates"),
             jni_sig!("(Ljava/lang/String;JFLandroid/location/LocationListener;Landroid/os/Looper;)V"),
-            &[JValue::Object(&gps), JValue::Long(UPDATE_INTERVAL_MS), JValue::Float(0.0), JValue::Object(&listener), JValue::Object(&looper)],
+            &[
+                JValue::Object(&gps),
+                JValue::Long(UPDATE_INTERVAL_MS),
+                JValue::Float(0.0),
+                JValue::Object(&listener),
+                JValue::Object(&looper),
+            ],
         );
         checked(env, "LocationManager.requestLocationUpdates", r)?;
         let r = env.new_global_ref(&listener);
@@ -207,7 +224,12 @@ impl LocationBridge {
             let mut best: Option<GpsFix> = None;
             for provider in [GPS_PROVIDER, NETWORK_PROVIDER] {
                 let p = jstring(env, provider)?;
-                let r = env.call_method(&manager, jni_str!("getLastKnownLocation"), jni_sig!("(Ljava/lang/String;)Landroid/location/Location;"), &[JValue::Object(&p)]);
+                let r = env.call_method(
+                    &manager,
+                    jni_str!("getLastKnownLocation"),
+                    jni_sig!("(Ljava/lang/String;)Landroid/location/Location;"),
+                    &[JValue::Object(&p)],
+                );
                 let loc = checked(env, "LocationManager.getLastKnownLocation", r.and_then(|v| v.l()))?;
                 if !loc.is_null()
                     && let Some(fix) = self.read_fix(env, &loc)?
@@ -272,7 +294,13 @@ impl LocationBridge {
             lon_deg: lon,
             alt_m: if has_alt { alt } else { 0.0 },
             horizontal_accuracy_m: if has_acc { acc } else { 1000.0 },
-            vertical_accuracy_m: if has_vacc { vacc } else if has_alt { 1000.0 } else { 10_000.0 },
+            vertical_accuracy_m: if has_vacc {
+                vacc
+            } else if has_alt {
+                1000.0
+            } else {
+                10_000.0
+            },
         };
         if super::Reading::Gps(fix).validate().is_err() {
             self.rejected += 1;
@@ -284,7 +312,12 @@ impl LocationBridge {
     /// Stop location updates (also done on drop by the Android backend).
     pub fn stop(&mut self, env: &mut Env<'_>) -> Result<()> {
         if let (Some(manager), Some(listener)) = (&self.manager, self.listener.take()) {
-            let r = env.call_method(manager, jni_str!("removeUpdates"), jni_sig!("(Landroid/location/LocationListener;)V"), &[JValue::Object(&listener)]);
+            let r = env.call_method(
+                manager,
+                jni_str!("removeUpdates"),
+                jni_sig!("(Landroid/location/LocationListener;)V"),
+                &[JValue::Object(&listener)],
+            );
             checked(env, "LocationManager.removeUpdates", r)?;
         }
         Ok(())

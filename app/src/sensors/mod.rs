@@ -61,14 +61,28 @@ pub enum North {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Reading {
     /// Specific force (m/s², device frame).
-    Accel { t: f64, v: DVec3 },
+    Accel {
+        t: f64,
+        v: DVec3,
+    },
     /// Angular rate (rad/s, device frame).
-    Gyro { t: f64, v: DVec3 },
+    Gyro {
+        t: f64,
+        v: DVec3,
+    },
     /// Magnetic field (µT, device frame).
-    Mag { t: f64, v: DVec3 },
+    Mag {
+        t: f64,
+        v: DVec3,
+    },
     Gps(GpsFix),
     /// The platform's own fused orientation, device → ENU.
-    Attitude { t: f64, q: DQuat, north: North, heading_accuracy_rad: Option<f64> },
+    Attitude {
+        t: f64,
+        q: DQuat,
+        north: North,
+        heading_accuracy_rad: Option<f64>,
+    },
 }
 
 impl Reading {

@@ -109,7 +109,9 @@ mod tests {
         let device_to_enu = DQuat::from_euler(glam::EulerRot::ZXY, 0.7, 1.1, -0.3);
         let device_to_ref = ios_reference_to_enu().inverse() * device_to_enu;
         let gravity = device_to_enu.inverse() * DVec3::NEG_Z;
-        for (q, c) in [(device_to_ref, AttitudeConvention::DeviceToReference), (device_to_ref.inverse(), AttitudeConvention::ReferenceToDevice)] {
+        for (q, c) in
+            [(device_to_ref, AttitudeConvention::DeviceToReference), (device_to_ref.inverse(), AttitudeConvention::ReferenceToDevice)]
+        {
             assert_eq!(ios_attitude_convention(q, gravity), Some(c));
             assert!(angle_between(ios_attitude_to_enu(q, c), device_to_enu) < 1e-12);
         }

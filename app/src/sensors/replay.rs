@@ -61,14 +61,13 @@ pub fn load_sensor_trace(path: &Path) -> Result<Vec<Reading>> {
                 let heading_accuracy_rad = rec.optional_number("accuracy")?.map(f64::to_radians);
                 Reading::Attitude { t, q, north, heading_accuracy_rad }
             }
-            other => bail!(
-                "{}: unknown sensor '{other}' (expected accel, gyro, mag, gps, attitude_magnetic or attitude_true)",
-                rec.at()
-            ),
+            other => bail!("{}: unknown sensor '{other}' (expected accel, gyro, mag, gps, attitude_magnetic or attitude_true)", rec.at()),
         };
         reading.validate().with_context(|| rec.at())?;
         let reading = match reading {
-            Reading::Attitude { t, q, north, heading_accuracy_rad } => Reading::Attitude { t, q: q.normalize(), north, heading_accuracy_rad },
+            Reading::Attitude { t, q, north, heading_accuracy_rad } => {
+                Reading::Attitude { t, q: q.normalize(), north, heading_accuracy_rad }
+            }
             r => r,
         };
         out.push(reading);
@@ -85,7 +84,9 @@ pub fn format_sensor_trace(readings: &[Reading]) -> String {
         let name = r.sensor_name();
         let _ = match *r {
             Reading::Accel { t, v } | Reading::Gyro { t, v } | Reading::Mag { t, v } => writeln!(s, "{t},{name},{},{},{},,", v.x, v.y, v.z),
-            Reading::Gps(f) => writeln!(s, "{},{name},{},{},{},{},{}", f.t, f.lat_deg, f.lon_deg, f.alt_m, f.vertical_accuracy_m, f.horizontal_accuracy_m),
+            Reading::Gps(f) => {
+                writeln!(s, "{},{name},{},{},{},{},{}", f.t, f.lat_deg, f.lon_deg, f.alt_m, f.vertical_accuracy_m, f.horizontal_accuracy_m)
+            }
             Reading::Attitude { t, q, heading_accuracy_rad, .. } => {
                 let acc = heading_accuracy_rad.map(|a| a.to_degrees().to_string()).unwrap_or_default();
                 writeln!(s, "{t},{name},{},{},{},{},{acc}", q.x, q.y, q.z, q.w)
@@ -164,7 +165,9 @@ mod tests {
     #[test]
     fn sim_recording_replays_identically() {
         let truth = TruthTrace::new(
-            (0..200).map(|i| TruthSample { t: i as f64 * 0.01, q: from_heading_pitch_roll(i as f64 * 0.01, 0.2, 0.0), tap: false }).collect(),
+            (0..200)
+                .map(|i| TruthSample { t: i as f64 * 0.01, q: from_heading_pitch_roll(i as f64 * 0.01, 0.2, 0.0), tap: false })
+                .collect(),
         )
         .unwrap();
         let mut sim = SimSensors::new(truth, NoiseLevel::Phone, 9).unwrap();
@@ -217,6 +220,9 @@ mod tests {
         let r = load_sensor_trace(&p).unwrap();
         assert_eq!(r.len(), 3);
         assert!(matches!(r[2], Reading::Gps(GpsFix { horizontal_accuracy_m: 10.0, vertical_accuracy_m: 15.0, .. })));
-        assert!(ReplaySource::from_readings("mem", vec![Reading::Gyro { t: 1.0, v: DVec3::ZERO }, Reading::Gyro { t: 0.0, v: DVec3::ZERO }]).is_err());
+        assert!(
+            ReplaySource::from_readings("mem", vec![Reading::Gyro { t: 1.0, v: DVec3::ZERO }, Reading::Gyro { t: 0.0, v: DVec3::ZERO }])
+                .is_err()
+        );
     }
 }

@@ -330,6 +330,11 @@ impl SimSensors {
         self.field
     }
 
+    /// The magnetometer's hard-iron offset in this run (µT, device frame).
+    pub fn hard_iron(&self) -> DVec3 {
+        self.hard_iron
+    }
+
     /// All disturbances of this run (given and random).
     pub fn disturbances(&self) -> &[Disturbance] {
         &self.disturbances

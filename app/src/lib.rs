@@ -7,6 +7,7 @@
 
 pub mod bench;
 pub mod camera;
+pub mod capture;
 pub mod chart;
 pub mod cli;
 pub mod colour;
@@ -17,3 +18,4 @@ pub mod render;
 pub mod scene;
 pub mod sensors;
 pub mod sun;
+pub mod ui;

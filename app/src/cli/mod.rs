@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 
 pub mod bench;
 pub mod colour_transfer;
+pub mod capture;
 pub mod composite;
 pub mod pose_stability;
 pub mod priors;
@@ -33,6 +34,9 @@ pub enum Command {
     /// Measure the pose filter on simulated sensors: sun jitter while held still, lag in a
     /// turn, headings across 0/360°, pitch ±90°, magnetic disturbance (CSV + chart).
     PoseStability(pose_stability::Args),
+    /// Replay a trace (or a simulated user) through the virtual phone into the cube-map capture
+    /// assistant and write the capture folder; `capture stability` runs the stability study.
+    Capture(capture::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -43,5 +47,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Priors(a) => priors::run(a),
         Command::Sun(a) => sun::run(a),
         Command::PoseStability(a) => pose_stability::run(a),
+        Command::Capture(a) => capture::run(a),
     }
 }

@@ -1,0 +1,638 @@
+//! The capture assistant as a state machine fed (frame, estimated pose, time).
+//!
+//! 1. Waiting for the tap: the user aims at what should be the front and taps; that frame is
+//!    the front shot and its heading the reference (seed 000 Fig. 12b, lines 1–2).
+//! 2. Capturing: every other target (up, down, right, back, left, and in stitch mode the extra
+//!    aims) is taken automatically, in any order, once the camera has been within tolerance of
+//!    it ([`super::targets`]) *and* turning slower than `max_rate_deg_s` for `dwell_s`
+//!    seconds — a shot taken while swinging through a target would be blurred and its pose
+//!    stale.
+//! 3. Complete: every target has a shot; [`Assistant::finish`] assembles the faces.
+//!
+//! The angular rate is measured from the estimated poses over the last `RATE_WINDOW_S`
+//! seconds (robust to per-sample jitter). Frames are only needed when a shot is taken: the
+//! driver can call [`Assistant::observe`] every frame and render/fetch the image only when
+//! it returns a target ([`Assistant::feed`] does both for a ready frame).
+
+use super::Mode;
+use super::folder::{CaptureMeta, CubeCapture, FaceMeta, ShotMeta};
+use super::projection::Pinhole;
+use super::reproject::{FaceImage, Shot, assemble_face};
+use super::targets::{Face, Target, plan_targets};
+use crate::pose::frames::{angle_between_f32, heading_pitch_roll};
+use crate::pose::{HeadingSource, Pose};
+use crate::scene::Rgba8Image;
+use anyhow::{Result, bail};
+use glam::{Quat, Vec2};
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+/// Seconds of pose history the angular rate is measured over.
+pub const RATE_WINDOW_S: f64 = 0.1;
+
+/// Settings of the assistant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AssistantConfig {
+    pub mode: Mode,
+    /// The phone camera the frames come from.
+    pub camera: Pinhole,
+    /// Aim tolerance (degrees, ± on heading and pitch; seed 000: 2).
+    pub tolerance_deg: f64,
+    /// Above this angular rate (degrees/s) the user is asked to hold still and nothing is taken.
+    pub max_rate_deg_s: f64,
+    /// How long (s) the camera must stay on target and steady before the shot is taken.
+    pub dwell_s: f64,
+    /// Face size in pixels (a power of two; seed 000: 256).
+    pub face_size: u32,
+}
+
+impl AssistantConfig {
+    pub fn new(mode: Mode, camera: Pinhole) -> Self {
+        AssistantConfig { mode, camera, tolerance_deg: 2.0, max_rate_deg_s: 10.0, dwell_s: 0.2, face_size: 256 }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if !(self.tolerance_deg.is_finite() && self.tolerance_deg > 0.0 && self.tolerance_deg <= 45.0) {
+            bail!("tolerance must be more than 0 and at most 45 degrees, got {}", self.tolerance_deg);
+        }
+        if !(self.max_rate_deg_s.is_finite() && self.max_rate_deg_s > 0.0) {
+            bail!("the steadiness limit must be a positive angular rate, got {} deg/s", self.max_rate_deg_s);
+        }
+        if !(self.dwell_s.is_finite() && self.dwell_s >= 0.0) {
+            bail!("the dwell time must be zero or more seconds, got {}", self.dwell_s);
+        }
+        if !self.face_size.is_power_of_two() || !(16..=4096).contains(&self.face_size) {
+            bail!("face size must be a power of two from 16 to 4096 pixels, got {}", self.face_size);
+        }
+        Ok(())
+    }
+}
+
+/// Where the assistant is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    WaitingForTap,
+    Capturing,
+    Complete,
+}
+
+/// What the overlay shows about the next target.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NextTarget {
+    pub index: usize,
+    pub name: String,
+    pub face: Face,
+    /// Unit direction on screen (x right, y up) to turn towards; zero when on target.
+    pub arrow: Vec2,
+    /// Normalised image position (−1..1, y up) of the target when it is in view.
+    pub on_screen: Option<Vec2>,
+    /// Angle between the view direction and the target (degrees).
+    pub angle_deg: f64,
+    /// Within tolerance right now.
+    pub within: bool,
+}
+
+/// Everything the on-screen guidance needs, in one snapshot.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Guidance {
+    pub phase: Phase,
+    pub next: Option<NextTarget>,
+    /// Faces with all their shots taken (n of 6).
+    pub faces_done: usize,
+    pub shots_done: usize,
+    pub shots_total: usize,
+    /// Captured state per face, in [`Face::ALL`] order.
+    pub face_done: [bool; 6],
+    /// The camera turns faster than the steadiness limit.
+    pub hold_still: bool,
+    pub rate_deg_s: f64,
+    /// The pose's heading comes from the gyroscope alone (magnetometer disturbed).
+    pub gyro_only: bool,
+    /// One line for the user.
+    pub message: String,
+}
+
+/// Per-target bookkeeping: the shot, and why it was not taken yet.
+#[derive(Clone, Debug)]
+struct TargetState {
+    target: Target,
+    shot: Option<Shot>,
+    heading_source: Option<HeadingSource>,
+    accuracy_deg: f32,
+    /// Closest the view came (degrees) and when.
+    closest_deg: f64,
+    closest_t: f64,
+    ever_within: bool,
+    /// Slowest rate seen while within tolerance (degrees/s).
+    slowest_within: f64,
+    /// Longest stretch on target and steady (s).
+    longest_dwell: f64,
+}
+
+/// The capture assistant (see the module documentation).
+#[derive(Debug)]
+pub struct Assistant {
+    cfg: AssistantConfig,
+    states: Vec<TargetState>,
+    reference_heading_deg: Option<f64>,
+    history: VecDeque<(f64, Quat)>,
+    last_t: Option<f64>,
+    rate_deg_s: f64,
+    /// Target the camera is steadily on, and since when.
+    on_target: Option<(usize, f64)>,
+    last_pose: Option<Pose>,
+}
+
+/// Largest deviation from unit length accepted for a pose quaternion.
+const UNIT_TOLERANCE: f32 = 1e-3;
+
+fn check_input(t: f64, pose: &Pose, last_t: Option<f64>) -> Result<Quat> {
+    if !t.is_finite() {
+        bail!("time {t} is not a finite number of seconds");
+    }
+    if let Some(last) = last_t
+        && t < last
+    {
+        bail!("time went backwards: {t} s after {last} s");
+    }
+    let q = pose.q;
+    if !q.is_finite() || (q.length() - 1.0).abs() > UNIT_TOLERANCE {
+        bail!("pose at {t} s is not a unit quaternion: {q:?}");
+    }
+    Ok(q.normalize())
+}
+
+impl Assistant {
+    pub fn new(cfg: AssistantConfig) -> Result<Assistant> {
+        cfg.validate()?;
+        let states = plan_targets(cfg.mode, &cfg.camera, cfg.tolerance_deg)
+            .into_iter()
+            .map(|target| TargetState {
+                target,
+                shot: None,
+                heading_source: None,
+                accuracy_deg: f32::NAN,
+                closest_deg: f64::INFINITY,
+                closest_t: f64::NAN,
+                ever_within: false,
+                slowest_within: f64::INFINITY,
+                longest_dwell: 0.0,
+            })
+            .collect();
+        Ok(Assistant {
+            cfg,
+            states,
+            reference_heading_deg: None,
+            history: VecDeque::new(),
+            last_t: None,
+            rate_deg_s: 0.0,
+            on_target: None,
+            last_pose: None,
+        })
+    }
+
+    pub fn config(&self) -> &AssistantConfig {
+        &self.cfg
+    }
+
+    /// All targets, the front first.
+    pub fn targets(&self) -> Vec<&Target> {
+        self.states.iter().map(|s| &s.target).collect()
+    }
+
+    /// The reference heading (degrees, clockwise from North) once the front is taken.
+    pub fn reference_heading_deg(&self) -> Option<f64> {
+        self.reference_heading_deg
+    }
+
+    pub fn phase(&self) -> Phase {
+        if self.reference_heading_deg.is_none() {
+            Phase::WaitingForTap
+        } else if self.states.iter().all(|s| s.shot.is_some()) {
+            Phase::Complete
+        } else {
+            Phase::Capturing
+        }
+    }
+
+    /// The shot taken for target `index`, if any.
+    pub fn shot(&self, index: usize) -> Option<&Shot> {
+        self.states.get(index).and_then(|s| s.shot.as_ref())
+    }
+
+    /// The latest measured angular rate (degrees/s).
+    pub fn rate_deg_s(&self) -> f64 {
+        self.rate_deg_s
+    }
+
+    fn push_pose(&mut self, t: f64, q: Quat) {
+        self.history.push_back((t, q));
+        // Keep the samples inside the window, and always the previous one.
+        while self.history.len() > 2 && self.history[0].0 < t - RATE_WINDOW_S {
+            self.history.pop_front();
+        }
+        let (t0, q0) = self.history[0];
+        self.rate_deg_s = if t > t0 { angle_between_f32(q0, q).to_degrees() / (t - t0) } else { self.rate_deg_s };
+        self.last_t = Some(t);
+    }
+
+    /// The user taps the shutter: while waiting for the tap, `frame` becomes the front shot
+    /// and the pose's heading the reference. Returns whether the tap was used (later taps are
+    /// ignored: the other faces are taken automatically).
+    pub fn tap(&mut self, t: f64, pose: &Pose, frame: Arc<Rgba8Image>) -> Result<bool> {
+        let q = check_input(t, pose, self.last_t)?;
+        if self.phase() != Phase::WaitingForTap {
+            return Ok(false);
+        }
+        self.push_pose(t, q);
+        self.last_pose = Some(*pose);
+        let heading = heading_pitch_roll(q.as_dquat()).heading.to_degrees();
+        self.reference_heading_deg = Some(heading);
+        let front = self.states.iter().position(|s| s.target.primary && s.target.face == Face::Front).unwrap_or(0);
+        self.store(front, t, pose, q, frame);
+        Ok(true)
+    }
+
+    fn store(&mut self, index: usize, t: f64, pose: &Pose, q: Quat, image: Arc<Rgba8Image>) {
+        let s = &mut self.states[index];
+        s.shot = Some(Shot { target: index, t, pose: q, image });
+        s.heading_source = Some(pose.heading_source);
+        s.accuracy_deg = pose.accuracy_deg;
+        self.on_target = None;
+    }
+
+    /// A new estimated pose at time `t`: updates the rate and the per-target records, and
+    /// returns the target to take *now* (the caller then passes the current frame to
+    /// [`Assistant::capture`]). Time must not go backwards; the pose must be a unit quaternion.
+    pub fn observe(&mut self, t: f64, pose: &Pose) -> Result<Option<usize>> {
+        let q = check_input(t, pose, self.last_t)?;
+        self.push_pose(t, q);
+        self.last_pose = Some(*pose);
+        let Some(href) = self.reference_heading_deg else { return Ok(None) };
+        let steady = self.rate_deg_s <= self.cfg.max_rate_deg_s;
+        let dq = q.as_dquat();
+        let hpr = heading_pitch_roll(dq);
+        let mut best: Option<(usize, f64)> = None;
+        for (i, s) in self.states.iter_mut().enumerate().filter(|(_, s)| s.shot.is_none()) {
+            let e = s.target.aim_error_hpr(href, dq, hpr);
+            if e.angle_deg < s.closest_deg {
+                s.closest_deg = e.angle_deg;
+                s.closest_t = t;
+            }
+            if e.within(self.cfg.tolerance_deg) {
+                s.ever_within = true;
+                s.slowest_within = s.slowest_within.min(self.rate_deg_s);
+                if best.is_none_or(|(_, a)| e.angle_deg < a) {
+                    best = Some((i, e.angle_deg));
+                }
+            }
+        }
+        match (best, steady) {
+            (Some((i, _)), true) => {
+                let since = match self.on_target {
+                    Some((j, since)) if j == i => since,
+                    _ => t,
+                };
+                self.on_target = Some((i, since));
+                let s = &mut self.states[i];
+                s.longest_dwell = s.longest_dwell.max(t - since);
+                Ok((t - since >= self.cfg.dwell_s).then_some(i))
+            }
+            _ => {
+                self.on_target = None;
+                Ok(None)
+            }
+        }
+    }
+
+    /// Take the shot for target `index` (as returned by [`Assistant::observe`]) from `frame`
+    /// seen at pose `pose` and time `t`.
+    pub fn capture(&mut self, index: usize, t: f64, pose: &Pose, frame: Arc<Rgba8Image>) -> Result<()> {
+        let q = check_input(t, pose, None)?;
+        let Some(s) = self.states.get(index) else { bail!("no capture target {index}") };
+        if s.shot.is_some() {
+            bail!("target {} is already captured", s.target.name);
+        }
+        if self.phase() == Phase::WaitingForTap {
+            bail!("the front must be taken (tap) before other targets");
+        }
+        if (frame.width, frame.height) != (self.cfg.camera.width, self.cfg.camera.height) {
+            bail!(
+                "frame is {}x{}, the assistant was set up for {}x{}",
+                frame.width,
+                frame.height,
+                self.cfg.camera.width,
+                self.cfg.camera.height
+            );
+        }
+        self.store(index, t, pose, q, frame);
+        Ok(())
+    }
+
+    /// One frame: tap (when `tap`), else observe and, if a target is due, take it from `frame`.
+    /// Returns the target taken, if any.
+    pub fn feed(&mut self, frame: &Arc<Rgba8Image>, pose: &Pose, t: f64, tap: bool) -> Result<Option<usize>> {
+        if tap && self.phase() == Phase::WaitingForTap {
+            self.tap(t, pose, frame.clone())?;
+            return Ok(Some(0));
+        }
+        match self.observe(t, pose)? {
+            Some(i) => {
+                self.capture(i, t, pose, frame.clone())?;
+                Ok(Some(i))
+            }
+            None => Ok(None),
+        }
+    }
+
+    fn face_done(&self, face: Face) -> bool {
+        self.states.iter().filter(|s| s.target.face == face).all(|s| s.shot.is_some())
+    }
+
+    /// What to show the user now.
+    pub fn guidance(&self) -> Guidance {
+        let phase = self.phase();
+        let face_done = Face::ALL.map(|f| phase != Phase::WaitingForTap && self.face_done(f));
+        let gyro_only = self.last_pose.is_some_and(|p| p.heading_source == HeadingSource::GyroOnly || p.magnetic_disturbance);
+        let hold_still = self.rate_deg_s > self.cfg.max_rate_deg_s;
+        let next = match (self.reference_heading_deg, self.last_pose) {
+            (Some(href), Some(pose)) => self
+                .states
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.shot.is_none())
+                .map(|(i, s)| (i, s, s.target.aim_error(href, pose.q.as_dquat())))
+                .min_by(|a, b| a.2.angle_deg.total_cmp(&b.2.angle_deg))
+                .map(|(i, s, e)| {
+                    let dir = pose.q.inverse() * s.target.direction(href).as_vec3();
+                    let within = e.within(self.cfg.tolerance_deg);
+                    NextTarget {
+                        index: i,
+                        name: s.target.name.clone(),
+                        face: s.target.face,
+                        arrow: if within { Vec2::ZERO } else { Vec2::new(dir.x, dir.y).normalize_or_zero() },
+                        on_screen: self.cfg.camera.to_ndc(dir).filter(|n| n.abs().max_element() <= 1.0),
+                        angle_deg: e.angle_deg,
+                        within,
+                    }
+                }),
+            _ => None,
+        };
+        let shots_done = self.states.iter().filter(|s| s.shot.is_some()).count();
+        let message = match (phase, &next) {
+            (Phase::WaitingForTap, _) => "Aim at the front and tap".to_string(),
+            (Phase::Complete, _) => "Capture complete".to_string(),
+            _ if hold_still => "Hold still".to_string(),
+            (_, Some(n)) if n.within => format!("Hold on {}…", n.name),
+            (_, Some(n)) => format!("Turn to {}", n.name),
+            (_, None) => String::new(),
+        };
+        Guidance {
+            phase,
+            next,
+            faces_done: face_done.iter().filter(|d| **d).count(),
+            shots_done,
+            shots_total: self.states.len(),
+            face_done,
+            hold_still,
+            rate_deg_s: self.rate_deg_s,
+            gyro_only,
+            message,
+        }
+    }
+
+    /// The faces not complete yet, each with the reason in words.
+    pub fn missing(&self) -> Vec<(Face, String)> {
+        let tol = self.cfg.tolerance_deg;
+        Face::ALL
+            .iter()
+            .filter(|&&f| self.reference_heading_deg.is_none() || !self.face_done(f))
+            .map(|&f| {
+                if self.reference_heading_deg.is_none() {
+                    return (f, "no tap: the front (and with it the reference heading) was never taken".to_string());
+                }
+                let reasons: Vec<String> = self
+                    .states
+                    .iter()
+                    .filter(|s| s.target.face == f && s.shot.is_none())
+                    .map(|s| {
+                        let why = if !s.ever_within {
+                            if s.closest_deg.is_finite() {
+                                format!("never within ±{tol}° (closest {:.1}° off, at {:.2} s)", s.closest_deg, s.closest_t)
+                            } else {
+                                "never aimed at after the tap".to_string()
+                            }
+                        } else if s.slowest_within > self.cfg.max_rate_deg_s {
+                            format!(
+                                "within ±{tol}° but never held steady (slowest {:.1}°/s, limit {}°/s)",
+                                s.slowest_within, self.cfg.max_rate_deg_s
+                            )
+                        } else {
+                            format!("held on target only {:.2} s (needs {} s)", s.longest_dwell, self.cfg.dwell_s)
+                        };
+                        if s.target.primary { why } else { format!("{}: {why}", s.target.name) }
+                    })
+                    .collect();
+                // Stitch mode can leave many shots of a face untaken: name a few.
+                const SHOWN: usize = 3;
+                let mut text = reasons.iter().take(SHOWN).cloned().collect::<Vec<_>>().join("; ");
+                if reasons.len() > SHOWN {
+                    text += &format!("; and {} more shot(s) not taken", reasons.len() - SHOWN);
+                }
+                (f, text)
+            })
+            .collect()
+    }
+
+    /// Assemble the six faces (in parallel) once every target has its shot; otherwise an
+    /// error naming each missing face and why.
+    pub fn finish(&self) -> Result<CubeCapture> {
+        let missing = self.missing();
+        let Some(href) = self.reference_heading_deg.filter(|_| missing.is_empty()) else {
+            let lines: Vec<String> = missing.iter().map(|(f, why)| format!("  {}: {why}", f.name())).collect();
+            bail!("capture incomplete: {} face(s) missing\n{}", missing.len(), lines.join("\n"));
+        };
+        let shots: Vec<Shot> = self.states.iter().filter_map(|s| s.shot.clone()).collect();
+        let primary = |face: Face| self.states.iter().find(|s| s.target.primary && s.target.face == face);
+        let cfg = &self.cfg;
+        let faces: Vec<FaceImage> = std::thread::scope(|scope| {
+            let handles: Vec<_> = Face::ALL
+                .iter()
+                .filter_map(|&face| {
+                    let shot = primary(face)?.shot.as_ref()?;
+                    let shots = &shots;
+                    Some(scope.spawn(move || assemble_face(face, cfg.mode, shot, shots, &cfg.camera, href, cfg.face_size)))
+                })
+                .collect();
+            handles.into_iter().filter_map(|h| h.join().ok()).collect()
+        });
+        if faces.len() != 6 {
+            bail!("face assembly failed for {} face(s)", 6 - faces.len());
+        }
+        let face_meta = faces
+            .iter()
+            .filter_map(|f| {
+                let s = primary(f.face)?;
+                let shot = s.shot.as_ref()?;
+                Some(FaceMeta::new(f.face, shot, s.heading_source, s.accuracy_deg, f.coverage))
+            })
+            .collect();
+        let shot_meta =
+            self.states.iter().filter_map(|s| s.shot.as_ref().map(|shot| ShotMeta::new(&s.target, shot, s.heading_source))).collect();
+        let meta = CaptureMeta::new(cfg, href, face_meta, shot_meta);
+        CubeCapture::new(meta, faces)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pose::frames::from_heading_pitch_roll;
+
+    fn pose(q: glam::DQuat) -> Pose {
+        Pose {
+            t: 0.0,
+            q: q.as_quat(),
+            accuracy_deg: 1.0,
+            heading_accuracy_deg: 1.0,
+            tilt_accuracy_deg: 0.5,
+            heading_source: HeadingSource::Magnetometer,
+            magnetic_disturbance: false,
+        }
+    }
+
+    fn aim(h: f64, p: f64) -> Pose {
+        pose(from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0))
+    }
+
+    fn frame(cam: &Pinhole) -> Arc<Rgba8Image> {
+        Arc::new(Rgba8Image { width: cam.width, height: cam.height, pixels: vec![128; (cam.width * cam.height * 4) as usize] })
+    }
+
+    fn assistant(mode: Mode) -> (Assistant, Arc<Rgba8Image>) {
+        let cam = Pinhole::from_vfov(64, 48, 60.0).unwrap();
+        let mut cfg = AssistantConfig::new(mode, cam);
+        cfg.face_size = 16;
+        (Assistant::new(cfg).unwrap(), frame(&cam))
+    }
+
+    /// Hold an aim from t0 for `secs` at 30 Hz; returns the targets taken.
+    fn hold(a: &mut Assistant, f: &Arc<Rgba8Image>, p: Pose, t0: f64, secs: f64) -> Vec<usize> {
+        let mut taken = Vec::new();
+        let n = (secs * 30.0) as usize;
+        for k in 0..=n {
+            if let Some(i) = a.feed(f, &p, t0 + k as f64 / 30.0, false).unwrap() {
+                taken.push(i);
+            }
+        }
+        taken
+    }
+
+    #[test]
+    fn faces_in_any_order_across_the_wrap() {
+        let (mut a, f) = assistant(Mode::Stretch);
+        assert_eq!(a.guidance().message, "Aim at the front and tap");
+        // Nothing is taken before the tap, even on a face target.
+        assert!(hold(&mut a, &f, aim(0.0, 90.0), 0.0, 1.0).is_empty());
+        // Tap facing 358.5°: reference heading 358.5.
+        assert!(a.tap(1.1, &aim(358.5, 0.0), f.clone()).unwrap());
+        assert!((a.reference_heading_deg().unwrap() - 358.5).abs() < 1e-3);
+        assert_eq!(a.phase(), Phase::Capturing);
+        let mut t = 1.2;
+        // Right is at 88.5°, back at 178.5°, left at 268.5° (across 0/360 from the reference).
+        for (h, p, name) in [(0.0, -89.0, "down"), (87.0, 1.0, "right"), (268.5, -1.5, "left"), (180.0, 0.5, "back"), (40.0, 88.2, "up")]
+        {
+            let taken = hold(&mut a, &f, aim(h, p), t, 0.5);
+            assert_eq!(taken.len(), 1, "{name}: {taken:?}");
+            assert_eq!(a.targets()[taken[0]].name, name);
+            t += 0.6;
+        }
+        assert_eq!(a.phase(), Phase::Complete);
+        let g = a.guidance();
+        assert_eq!((g.faces_done, g.shots_done, g.shots_total), (6, 6, 6));
+        let cap = a.finish().unwrap();
+        assert_eq!(cap.faces.len(), 6);
+        assert!((cap.meta.reference_heading_deg - 358.5).abs() < 1e-3);
+    }
+
+    #[test]
+    fn off_target_or_moving_takes_nothing_and_says_why() {
+        let (mut a, f) = assistant(Mode::Stretch);
+        a.tap(0.0, &aim(10.0, 0.0), f.clone()).unwrap();
+        // 2.5° off the right face: never taken.
+        assert!(hold(&mut a, &f, aim(102.5, 0.0), 0.1, 1.0).is_empty());
+        // Sweeping through the back target at 30°/s: within tolerance but too fast.
+        let mut t = 1.2;
+        for k in 0..60 {
+            let h = 180.0 + (k as f64 - 30.0) * 1.0;
+            assert_eq!(a.feed(&f, &aim(h, 0.0), t, false).unwrap(), None, "at {h}");
+            t += 1.0 / 30.0;
+        }
+        assert!(a.guidance().hold_still);
+        let err = format!("{:#}", a.finish().unwrap_err());
+        assert!(err.contains("5 face(s) missing"), "{err}");
+        assert!(err.contains("right: never within ±2° (closest 2.5° off"), "{err}");
+        assert!(err.contains("back: within ±2° but never held steady"), "{err}");
+        assert!(err.contains("up: never within"), "{err}");
+        // Steady but for less than the dwell time: not taken, and the reason says so.
+        assert!(hold(&mut a, &f, aim(100.0, 0.0), 5.0, 0.15).is_empty());
+        assert!(format!("{:#}", a.finish().unwrap_err()).contains("right: held on target only 0.1"));
+    }
+
+    #[test]
+    fn bad_input_is_refused() {
+        let (mut a, f) = assistant(Mode::Stretch);
+        a.tap(1.0, &aim(0.0, 0.0), f.clone()).unwrap();
+        assert!(a.observe(0.5, &aim(0.0, 0.0)).unwrap_err().to_string().contains("backwards"));
+        let mut bad = aim(0.0, 0.0);
+        bad.q = Quat::from_xyzw(0.0, 0.0, 0.0, 2.0);
+        assert!(a.observe(2.0, &bad).unwrap_err().to_string().contains("unit quaternion"));
+        bad.q = Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0);
+        assert!(a.observe(2.0, &bad).is_err());
+        assert!(a.observe(f64::NAN, &aim(0.0, 0.0)).is_err());
+        let small = Arc::new(Rgba8Image { width: 2, height: 2, pixels: vec![0; 16] });
+        assert!(a.capture(1, 3.0, &aim(0.0, 90.0), small).is_err());
+        assert!(a.capture(99, 3.0, &aim(0.0, 90.0), f.clone()).is_err());
+        let cam = Pinhole::from_vfov(64, 48, 60.0).unwrap();
+        let mut cfg = AssistantConfig::new(Mode::Stretch, cam);
+        cfg.face_size = 100;
+        assert!(Assistant::new(cfg.clone()).unwrap_err().to_string().contains("power of two"));
+        cfg.face_size = 256;
+        cfg.tolerance_deg = f64::NAN;
+        assert!(Assistant::new(cfg).is_err());
+        // No tap at all: every face missing, the reason says so.
+        let (b, _) = assistant(Mode::Stretch);
+        assert!(format!("{:#}", b.finish().unwrap_err()).contains("front: no tap"));
+    }
+
+    #[test]
+    fn guidance_points_at_the_nearest_target_and_flags_gyro_only() {
+        let (mut a, f) = assistant(Mode::Stretch);
+        a.tap(0.0, &aim(0.0, 0.0), f.clone()).unwrap();
+        // A quick turn to heading 60: "Hold still" while the rate is high.
+        a.observe(0.1, &aim(60.0, 0.0)).unwrap();
+        assert!(a.guidance().hold_still);
+        assert_eq!(a.guidance().message, "Hold still");
+        // Held there: the nearest target is right (30° away), arrow to the right.
+        a.observe(0.25, &aim(60.0, 0.0)).unwrap();
+        let g = a.guidance();
+        assert!(!g.hold_still);
+        let n = g.next.unwrap();
+        assert_eq!(n.name, "right");
+        assert!((n.angle_deg - 30.0).abs() < 1e-3);
+        assert!(n.arrow.x > 0.99 && n.arrow.y.abs() < 1e-3, "{:?}", n.arrow);
+        // Hfov of a 4:3 60° lens is 75.2°: 30° off is in view, right of centre.
+        assert!(n.on_screen.unwrap().x > 0.5);
+        assert_eq!(g.message, "Turn to right");
+        assert_eq!(g.faces_done, 1);
+        // Looking slightly down from level: nearest is... the arrow for "down" points down.
+        a.observe(0.4, &aim(0.0, -60.0)).unwrap();
+        let n = a.guidance().next.unwrap();
+        assert_eq!(n.name, "down");
+        assert!(n.arrow.y < -0.99);
+        let mut p = aim(0.0, -60.0);
+        p.heading_source = HeadingSource::GyroOnly;
+        a.observe(0.5, &p).unwrap();
+        assert!(a.guidance().gyro_only);
+    }
+}

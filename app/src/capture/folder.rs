@@ -1,0 +1,343 @@
+//! A capture on disk: a folder with the six faces as PNG (posx.png … negz.png, the capture
+//! convention of [`super`]: +Z = front = reference heading) and `capture.json` with the
+//! metadata (reference heading, poses, timestamps, location, time). See docs/capture.md.
+//!
+//! Saving never leaves a half-written capture: everything is written into a temporary sibling
+//! folder that is renamed into place at the end (an existing capture at the destination is
+//! replaced only then).
+
+use super::Mode;
+use super::assistant::AssistantConfig;
+use super::reproject::{FaceImage, Shot};
+use super::targets::{Face, Target};
+use crate::output::{write_atomic, write_png_rgb8};
+use crate::pose::HeadingSource;
+use crate::pose::frames::heading_pitch_roll;
+use crate::scene::CubeMap;
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+
+/// Name of the metadata file in a capture folder.
+pub const META_FILE: &str = "capture.json";
+/// Value of the `format` field.
+pub const FORMAT: &str = "previz-capture";
+
+fn heading_source_name(s: Option<HeadingSource>) -> String {
+    match s {
+        Some(HeadingSource::Magnetometer) => "compass",
+        Some(HeadingSource::GyroOnly) => "gyro-only",
+        Some(HeadingSource::Platform) => "platform",
+        Some(HeadingSource::Unknown) | None => "unknown",
+    }
+    .to_string()
+}
+
+/// Where a capture was taken.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Location {
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub alt_m: f64,
+}
+
+/// The phone camera of the capture.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CameraMeta {
+    pub width: u32,
+    pub height: u32,
+    pub vfov_deg: f32,
+}
+
+/// One face: which shot it is centred on and how much of it was observed.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FaceMeta {
+    pub face: Face,
+    pub file: String,
+    /// Time (s, the sensors' clock) of the face's own shot.
+    pub t: f64,
+    /// Estimated camera pose (camera → ENU) of that shot, as w, x, y, z.
+    pub pose_wxyz: [f64; 4],
+    pub heading_deg: f64,
+    pub pitch_deg: f64,
+    pub roll_deg: f64,
+    /// "compass", "gyro-only", "platform" or "unknown".
+    pub heading_source: String,
+    /// The pose filter's own 1σ accuracy estimate (degrees); null when not known.
+    pub accuracy_deg: Option<f32>,
+    /// Fraction of the face's pixels some shot actually observed.
+    pub coverage: f32,
+}
+
+fn wxyz(q: glam::Quat) -> [f64; 4] {
+    [q.w as f64, q.x as f64, q.y as f64, q.z as f64]
+}
+
+impl FaceMeta {
+    pub fn new(face: Face, shot: &Shot, source: Option<HeadingSource>, accuracy_deg: f32, coverage: f32) -> Self {
+        let hpr = heading_pitch_roll(shot.pose.as_dquat());
+        FaceMeta {
+            face,
+            file: face.file_name().into(),
+            t: shot.t,
+            pose_wxyz: wxyz(shot.pose),
+            heading_deg: hpr.heading.to_degrees(),
+            pitch_deg: hpr.pitch.to_degrees(),
+            roll_deg: hpr.roll.to_degrees(),
+            heading_source: heading_source_name(source),
+            accuracy_deg: accuracy_deg.is_finite().then_some(accuracy_deg),
+            coverage,
+        }
+    }
+}
+
+/// Every shot taken (stretch mode: one per face; stitch mode: also the extra targets).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ShotMeta {
+    pub target: String,
+    pub face: Face,
+    pub t: f64,
+    pub pose_wxyz: [f64; 4],
+    pub heading_source: String,
+}
+
+impl ShotMeta {
+    pub fn new(target: &Target, shot: &Shot, source: Option<HeadingSource>) -> Self {
+        ShotMeta { target: target.name.clone(), face: target.face, t: shot.t, pose_wxyz: wxyz(shot.pose), heading_source: heading_source_name(source) }
+    }
+}
+
+/// The contents of `capture.json`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CaptureMeta {
+    pub format: String,
+    pub version: u32,
+    pub mode: Mode,
+    pub face_size: u32,
+    /// Heading (degrees clockwise from true North) of the front face (+Z).
+    pub reference_heading_deg: f64,
+    pub tolerance_deg: f64,
+    pub camera: CameraMeta,
+    /// Exposure (multiplier on scene radiance) the faces were taken at, when known.
+    pub exposure: Option<f32>,
+    pub location: Option<Location>,
+    /// When the capture was taken (RFC 3339, UTC), when known.
+    pub time_utc: Option<String>,
+    /// In cube-layer order (+X, −X, +Y, −Y, +Z, −Z).
+    pub faces: Vec<FaceMeta>,
+    pub shots: Vec<ShotMeta>,
+}
+
+impl CaptureMeta {
+    pub fn new(cfg: &AssistantConfig, reference_heading_deg: f64, faces: Vec<FaceMeta>, shots: Vec<ShotMeta>) -> Self {
+        CaptureMeta {
+            format: FORMAT.into(),
+            version: 1,
+            mode: cfg.mode,
+            face_size: cfg.face_size,
+            reference_heading_deg,
+            tolerance_deg: cfg.tolerance_deg,
+            camera: CameraMeta { width: cfg.camera.width, height: cfg.camera.height, vfov_deg: cfg.camera.vfov_deg() },
+            exposure: None,
+            location: None,
+            time_utc: None,
+            faces,
+            shots,
+        }
+    }
+
+    pub fn face(&self, face: Face) -> Option<&FaceMeta> {
+        self.faces.iter().find(|f| f.face == face)
+    }
+}
+
+/// A complete capture: metadata and the six faces in cube-layer order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CubeCapture {
+    pub meta: CaptureMeta,
+    /// Index = cube layer (wgpu order +X, −X, +Y, −Y, +Z, −Z).
+    pub faces: Vec<FaceImage>,
+}
+
+impl CubeCapture {
+    /// Check and order the faces (one per face, all the metadata's size).
+    pub fn new(mut meta: CaptureMeta, faces: Vec<FaceImage>) -> Result<Self> {
+        let mut ordered: Vec<Option<FaceImage>> = vec![None; 6];
+        for f in faces {
+            if f.size != meta.face_size || f.rgb.len() != (f.size * f.size * 3) as usize {
+                bail!("face {} is {} px with {} bytes, expected {} px", f.face.name(), f.size, f.rgb.len(), meta.face_size);
+            }
+            let slot = &mut ordered[f.face.layer()];
+            if slot.is_some() {
+                bail!("face {} given twice", f.face.name());
+            }
+            *slot = Some(f);
+        }
+        let missing: Vec<&str> = Face::ALL.iter().filter(|f| ordered[f.layer()].is_none()).map(|f| f.name()).collect();
+        if !missing.is_empty() {
+            bail!("capture is missing face(s): {}", missing.join(", "));
+        }
+        meta.faces.sort_by_key(|f| f.face.layer());
+        Ok(CubeCapture { meta, faces: ordered.into_iter().flatten().collect() })
+    }
+
+    pub fn face(&self, face: Face) -> &FaceImage {
+        &self.faces[face.layer()]
+    }
+
+    /// The faces as a cube map in linear light (sRGB decoded; the camera's tone curve is not
+    /// undone), in the capture's own frame: front = +Z. Render it with the reference heading
+    /// as the map's heading ([`crate::render::Compositor::set_environment`]).
+    pub fn to_cube_map(&self) -> CubeMap {
+        let lut: [f32; 256] = std::array::from_fn(|i| crate::colour::srgb_to_linear(i as f32 / 255.0));
+        let faces = std::array::from_fn(|layer| self.faces[layer].rgb.chunks_exact(3).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect());
+        CubeMap { size: self.meta.face_size, faces }
+    }
+}
+
+fn sibling(path: &Path, tag: &str) -> Result<PathBuf> {
+    let name = path.file_name().with_context(|| format!("{} is not a folder name", path.display()))?;
+    Ok(path.with_file_name(format!(".{}.{tag}-{}", name.to_string_lossy(), std::process::id())))
+}
+
+/// Write a capture to `dir` (created; an existing capture folder there is replaced, any other
+/// non-empty folder is refused). Nothing is left half-written on failure.
+pub fn save_capture(capture: &CubeCapture, dir: &Path) -> Result<()> {
+    if dir.exists() {
+        let is_capture = dir.join(META_FILE).is_file();
+        let empty = std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?.next().is_none();
+        if !is_capture && !empty {
+            bail!("{} exists and is not a capture folder; refusing to overwrite it", dir.display());
+        }
+    }
+    let tmp = sibling(dir, "partial")?;
+    let result = (|| -> Result<()> {
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).with_context(|| format!("cannot clear {}", tmp.display()))?;
+        }
+        std::fs::create_dir_all(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        for f in &capture.faces {
+            write_png_rgb8(&tmp.join(f.face.file_name()), f.size, f.size, &f.rgb)?;
+        }
+        let json = serde_json::to_string_pretty(&capture.meta).context("cannot encode the capture metadata")?;
+        write_atomic(&tmp.join(META_FILE), json.as_bytes())?;
+        if dir.exists() {
+            let old = sibling(dir, "old")?;
+            std::fs::rename(dir, &old).with_context(|| format!("cannot move the old {} aside", dir.display()))?;
+            std::fs::rename(&tmp, dir).with_context(|| format!("cannot move the capture into {}", dir.display()))?;
+            let _ = std::fs::remove_dir_all(&old);
+        } else {
+            std::fs::rename(&tmp, dir).with_context(|| format!("cannot move the capture into {}", dir.display()))?;
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
+/// Read a capture folder written by [`save_capture`]. A missing or unreadable face, a face of
+/// the wrong size or bad metadata is an error naming the file.
+pub fn load_capture(dir: &Path) -> Result<CubeCapture> {
+    let meta_path = dir.join(META_FILE);
+    let text = std::fs::read_to_string(&meta_path).with_context(|| format!("cannot read the capture metadata {}", meta_path.display()))?;
+    let meta: CaptureMeta = serde_json::from_str(&text).with_context(|| format!("{}: not valid capture metadata", meta_path.display()))?;
+    if meta.format != FORMAT {
+        bail!("{}: format is {:?}, expected {FORMAT:?}", meta_path.display(), meta.format);
+    }
+    if !meta.reference_heading_deg.is_finite() {
+        bail!("{}: reference heading is not a number", meta_path.display());
+    }
+    let missing: Vec<String> =
+        Face::ALL.iter().filter(|f| !dir.join(f.file_name()).is_file()).map(|f| format!("{} ({})", f.file_name(), f.name())).collect();
+    if !missing.is_empty() {
+        bail!("capture folder {} is missing face(s): {}", dir.display(), missing.join(", "));
+    }
+    let mut faces = Vec::with_capacity(6);
+    for face in Face::ALL {
+        let path = dir.join(face.file_name());
+        let img = image::open(&path).with_context(|| format!("cannot read face {}", path.display()))?.to_rgb8();
+        if img.width() != meta.face_size || img.height() != meta.face_size {
+            bail!("{} is {}x{}, the metadata says {} px faces", path.display(), img.width(), img.height(), meta.face_size);
+        }
+        let coverage = meta.face(face).map_or(f32::NAN, |m| m.coverage);
+        faces.push(FaceImage { face, size: meta.face_size, rgb: img.into_raw(), coverage });
+    }
+    CubeCapture::new(meta, faces).with_context(|| format!("capture folder {}", dir.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capture::projection::Pinhole;
+
+    fn capture(size: u32) -> CubeCapture {
+        let cfg = AssistantConfig { face_size: size, ..AssistantConfig::new(Mode::Stretch, Pinhole::from_vfov(64, 48, 50.0).unwrap()) };
+        let mut meta = CaptureMeta::new(&cfg, 359.5, Vec::new(), Vec::new());
+        meta.location = Some(Location { lat_deg: 51.45, lon_deg: -2.59, alt_m: 20.0 });
+        let faces = Face::ALL
+            .iter()
+            .map(|&face| FaceImage { face, size, rgb: vec![face.layer() as u8 * 40; (size * size * 3) as usize], coverage: 1.0 })
+            .collect();
+        CubeCapture::new(meta, faces).unwrap()
+    }
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("previz-capture-folder-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn round_trip_and_replace() {
+        let dir = tmp("rt");
+        let c = capture(16);
+        save_capture(&c, &dir).unwrap();
+        for f in Face::ALL {
+            assert!(dir.join(f.file_name()).is_file());
+        }
+        let back = load_capture(&dir).unwrap();
+        assert_eq!(back.meta.reference_heading_deg, 359.5);
+        assert_eq!(back.meta.location, c.meta.location);
+        // posz.png is the front (layer 4): its pixels carry the layer number.
+        assert_eq!(back.face(Face::Front).rgb[0], 4 * 40);
+        assert_eq!(back.faces.iter().map(|f| f.rgb.clone()).collect::<Vec<_>>(), c.faces.iter().map(|f| f.rgb.clone()).collect::<Vec<_>>());
+        // Saving again over a capture replaces it, leaving no temporary folders behind.
+        save_capture(&capture(32), &dir).unwrap();
+        assert_eq!(load_capture(&dir).unwrap().meta.face_size, 32);
+        let parent = dir.parent().unwrap();
+        let leftovers = std::fs::read_dir(parent)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().contains(&format!("previz-capture-folder-{}-rt.", std::process::id())))
+            .count();
+        assert_eq!(leftovers, 0);
+        // The linear cube map decodes sRGB: 160 -> 0.3515 (IEC 61966-2-1).
+        let cube = back.to_cube_map();
+        assert!((cube.faces[4][0][0] - crate::colour::srgb_to_linear(160.0 / 255.0)).abs() < 1e-6);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn missing_face_and_bad_folders_are_clear_errors() {
+        let dir = tmp("missing");
+        save_capture(&capture(16), &dir).unwrap();
+        std::fs::remove_file(dir.join("negy.png")).unwrap();
+        let e = format!("{:#}", load_capture(&dir).unwrap_err());
+        assert!(e.contains("missing face(s): negy.png (down)"), "{e}");
+        // Wrong size.
+        image::save_buffer(dir.join("negy.png"), &[0u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8).unwrap();
+        assert!(format!("{:#}", load_capture(&dir).unwrap_err()).contains("negy.png is 8x8"));
+        std::fs::write(dir.join(META_FILE), "{").unwrap();
+        assert!(format!("{:#}", load_capture(&dir).unwrap_err()).contains("not valid capture metadata"));
+        assert!(load_capture(&dir.join("nope")).unwrap_err().to_string().contains("capture.json"));
+        // A folder with other files is not overwritten.
+        let other = tmp("other");
+        std::fs::create_dir_all(&other).unwrap();
+        std::fs::write(other.join("notes.txt"), "keep").unwrap();
+        assert!(save_capture(&capture(16), &other).unwrap_err().to_string().contains("refusing"));
+        assert_eq!(std::fs::read_to_string(other.join("notes.txt")).unwrap(), "keep");
+        std::fs::remove_dir_all(&dir).unwrap();
+        std::fs::remove_dir_all(&other).unwrap();
+    }
+}

@@ -1,0 +1,457 @@
+//! Replaying a true orientation path through the virtual phone and the simulated sensors into
+//! the assistant — what `previz capture` does — and scoring the result against the ideal faces.
+//!
+//! Per camera frame (30 Hz by default): the simulated sensors deliver their readings up to the
+//! frame's time, the fusion filter updates, and the assistant sees the *estimated* pose. The
+//! virtual phone renders at the *true* pose, so estimation error shows up as misplaced faces.
+//! Exposure: the phone meters and adapts (auto-exposure) until the tap, then the assistant
+//! locks it, as camera apps do for panoramas, so every shot and the ideal faces share one
+//! exposure. Frames are rendered only when a shot is taken (metering runs every frame).
+//!
+//! Scores per face: orientation error (estimated vs true pose of its shot), coverage, and PSNR
+//! and mean FLIP (NVIDIA FLIP, Andersson et al. 2020) against the ideal face rendered straight
+//! from the environment at the capture's reference heading with the same exposure and tone
+//! curve.
+
+use super::assistant::{Assistant, AssistantConfig, Phase};
+use super::folder::{CubeCapture, Location};
+use super::projection::{Pinhole, face_pixel_dir_local, local_to_world};
+use super::targets::Face;
+use super::Mode;
+use crate::camera::exposure::{AutoExposure, ExposureMode, ToneLut};
+use crate::camera::sim::{SimSettings, VirtualPhone};
+use crate::pose::fusion::{FusionConfig, OrientationFilter};
+use crate::pose::trace::TruthTrace;
+use crate::pose::frames::angle_between;
+use crate::pose::user_path::UserPathParams;
+use super::targets::{AimError, Target};
+use super::user_path::{AimShift, CapturePath, simulate_guided_path};
+use crate::pose::{HeadingSource, OrientationEstimator};
+use crate::scene::CubeMap;
+use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
+use crate::sensors::{Reading, SensorSource};
+use anyhow::{Context, Result, bail};
+use glam::{DQuat, Quat};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Settings of a replay.
+#[derive(Clone, Debug)]
+pub struct ReplayConfig {
+    pub mode: Mode,
+    /// The virtual phone: landscape frame size and vertical field of view (degrees).
+    pub width: u32,
+    pub height: u32,
+    pub vfov_deg: f32,
+    pub noise: NoiseLevel,
+    pub seed: u64,
+    pub tolerance_deg: f64,
+    pub face_size: u32,
+    /// Camera frames per second fed to the assistant.
+    pub frame_hz: f64,
+    pub fusion: FusionConfig,
+    /// Magnetic disturbances in addition to the noise level's random ones.
+    pub disturbances: Vec<Disturbance>,
+    /// Compute PSNR and FLIP against the ideal faces.
+    pub score: bool,
+    /// Threads the virtual phone renders with (1 when many replays run in parallel).
+    pub render_threads: usize,
+}
+
+impl Default for ReplayConfig {
+    fn default() -> Self {
+        ReplayConfig {
+            mode: Mode::Stitch,
+            width: 640,
+            height: 480,
+            vfov_deg: 50.0,
+            noise: NoiseLevel::Phone,
+            seed: 0,
+            tolerance_deg: 2.0,
+            face_size: 256,
+            frame_hz: 30.0,
+            fusion: FusionConfig::default(),
+            disturbances: Vec::new(),
+            score: true,
+            render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        }
+    }
+}
+
+impl ReplayConfig {
+    pub fn camera(&self) -> Result<Pinhole> {
+        Pinhole::from_vfov(self.width, self.height, self.vfov_deg)
+    }
+
+    pub fn assistant(&self) -> Result<AssistantConfig> {
+        let mut cfg = AssistantConfig::new(self.mode, self.camera()?);
+        cfg.tolerance_deg = self.tolerance_deg;
+        cfg.face_size = self.face_size;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
+
+/// Scores of one face.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FaceReport {
+    pub face: Face,
+    /// Time of the face's own shot (s, the trace's clock).
+    pub capture_t: f64,
+    /// Angle between the estimated and the true camera orientation of that shot (degrees).
+    pub orientation_error_deg: f64,
+    /// The largest such error over every shot aimed within this face (stitch mode).
+    pub max_shot_error_deg: f64,
+    pub coverage: f32,
+    /// PSNR (dB, 8-bit sRGB RGB) against the ideal face; null when identical.
+    pub psnr_db: Option<f64>,
+    /// Mean FLIP error against the ideal face (0 = identical).
+    pub mean_flip: Option<f32>,
+    pub heading_source: String,
+}
+
+/// What a replay produced.
+pub struct ReplayResult {
+    /// The capture, when every target was taken.
+    pub capture: Option<CubeCapture>,
+    /// Why the capture is incomplete (the missing faces and the reason for each).
+    pub incomplete: Option<String>,
+    pub faces: Vec<FaceReport>,
+    pub tap_t: Option<f64>,
+    /// Time of the last shot.
+    pub complete_t: Option<f64>,
+    pub shots: usize,
+    pub targets: usize,
+    /// Fraction of frames whose pose was gyro-only (magnetometer disturbed).
+    pub gyro_only_fraction: f64,
+    pub frames: usize,
+    /// Wall time spent assembling the faces (ms).
+    pub assembly_ms: f64,
+    pub exposure: Option<f32>,
+    /// Per camera frame: time, estimated pose and true pose (camera → world).
+    pub track: Vec<(f64, Quat, DQuat)>,
+    /// Per target (the assistant's order): whether its shot was taken.
+    pub taken: Vec<bool>,
+    /// The assistant's reference heading (degrees), once the front was taken.
+    pub reference_heading_deg: Option<f64>,
+}
+
+impl ReplayResult {
+    /// Seconds from the tap to the last shot.
+    pub fn time_to_complete(&self) -> Option<f64> {
+        Some(self.complete_t? - self.tap_t?)
+    }
+}
+
+/// The ideal face: every texel straight from the environment at the capture's reference
+/// heading, exposed and tone-mapped exactly as the virtual phone does (sRGB RGB8).
+pub fn ideal_face(env: &CubeMap, reference_heading_deg: f64, face: Face, size: u32, exposure: f32) -> Vec<u8> {
+    let lut = ToneLut::new();
+    let to_world = local_to_world(reference_heading_deg.to_radians()).as_quat();
+    let mut out = Vec::with_capacity((size * size * 3) as usize);
+    for y in 0..size {
+        for x in 0..size {
+            let c = env.sample_enu(to_world * face_pixel_dir_local(face.layer(), x, y, size, 1.0));
+            out.extend(c.map(|v| lut.map(v * exposure)));
+        }
+    }
+    out
+}
+
+/// PSNR (dB) of two 8-bit images; `None` when they are identical. Definition: 10·log10(255²/MSE)
+/// over all channels (e.g. Gonzalez & Woods, Digital Image Processing, 3rd ed., eq. 8.1-10).
+pub fn psnr(a: &[u8], b: &[u8]) -> Option<f64> {
+    if a.len() != b.len() || a.is_empty() {
+        return None;
+    }
+    let mse = a.iter().zip(b).map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2)).sum::<f64>() / a.len() as f64;
+    (mse > 0.0).then(|| 10.0 * (255.0 * 255.0 / mse).log10())
+}
+
+/// Mean FLIP error (NVIDIA FLIP at the default 67 pixels per degree) of two RGB8 images.
+/// `None` on mobile builds, which do not link FLIP.
+pub fn mean_flip(reference: &[u8], test: &[u8], width: u32, height: u32) -> Option<f32> {
+    #[cfg(not(any(target_os = "android", target_os = "ios")))]
+    {
+        let error = nv_flip::flip(
+            nv_flip::FlipImageRgb8::with_data(width, height, reference),
+            nv_flip::FlipImageRgb8::with_data(width, height, test),
+            nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+        );
+        Some(nv_flip::FlipPool::from_image(&error).mean())
+    }
+    #[cfg(any(target_os = "android", target_os = "ios"))]
+    {
+        let _ = (reference, test, width, height);
+        None
+    }
+}
+
+/// Replay `trace` (true camera orientation, with one tap) through the virtual phone looking into
+/// `env` and the simulated sensors, into the assistant. An incomplete capture is not an error:
+/// see [`ReplayResult::incomplete`].
+pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Result<ReplayResult> {
+    if !(cfg.frame_hz.is_finite() && cfg.frame_hz > 0.0) {
+        bail!("frame rate must be a positive number, got {}", cfg.frame_hz);
+    }
+    let mut assistant = Assistant::new(cfg.assistant()?)?;
+    let mut phone = VirtualPhone::new(
+        env.clone(),
+        &SimSettings { width: cfg.width, height: cfg.height, vfov_deg: cfg.vfov_deg, exposure: ExposureMode::Fixed(1.0) },
+    )?;
+    phone.set_threads(cfg.render_threads);
+    let mut ae = AutoExposure::new(ExposureMode::default())?;
+    let mut sim_cfg = SimConfig::new(cfg.noise, cfg.seed);
+    sim_cfg.disturbances = cfg.disturbances.clone();
+    let rotation = sim_cfg.rotation;
+    let mut sensors = SimSensors::with_config(trace.clone(), sim_cfg)?;
+    let mut filter = OrientationFilter::new(cfg.fusion);
+    filter.set_reference(sensors.magnetic_reference());
+
+    let tap_t = trace.tap_times().first().copied();
+    let mut tapped = None;
+    let mut locked: Option<f32> = None;
+    let mut last_exposure_t: Option<f64> = None;
+    let mut readings = Vec::new();
+    let mut location = None;
+    let (mut frames, mut gyro_only) = (0usize, 0usize);
+    let mut complete_t = None;
+    let mut track = Vec::new();
+    let n = ((trace.end() - trace.start()) * cfg.frame_hz).floor() as usize;
+    for k in 0..=n {
+        let t = trace.start() + k as f64 / cfg.frame_hz;
+        readings.clear();
+        sensors.poll(t, &mut readings)?;
+        for r in &readings {
+            filter.update(r)?;
+            if let Reading::Gps(f) = r {
+                location = Some(Location { lat_deg: f.lat_deg, lon_deg: f.lon_deg, alt_m: f.alt_m });
+            }
+        }
+        let Some(pose) = filter.pose(rotation) else { continue };
+        frames += 1;
+        if pose.heading_source == HeadingSource::GyroOnly {
+            gyro_only += 1;
+        }
+        let truth_d = trace.orientation_at(t);
+        track.push((t, pose.q, truth_d));
+        let truth = truth_d.as_quat();
+        let exposure = match locked {
+            Some(e) => e,
+            None => {
+                let dt = last_exposure_t.map_or(0.0, |l| t - l);
+                last_exposure_t = Some(t);
+                ae.update(phone.meter(truth)?, dt)
+            }
+        };
+        if tapped.is_none() && tap_t.is_some_and(|tt| t >= tt) {
+            let frame = phone.render_with_exposure(truth, exposure)?;
+            assistant.tap(t, &pose, Arc::new(frame))?;
+            tapped = Some(t);
+            locked = Some(exposure);
+            continue;
+        }
+        if let Some(i) = assistant.observe(t, &pose)? {
+            let frame = phone.render_with_exposure(truth, exposure)?;
+            assistant.capture(i, t, &pose, Arc::new(frame))?;
+            if assistant.phase() == Phase::Complete {
+                complete_t = Some(t);
+                break;
+            }
+        }
+    }
+    let targets = assistant.targets().len();
+    let taken: Vec<bool> = (0..targets).map(|i| assistant.shot(i).is_some()).collect();
+    let shots = taken.iter().filter(|t| **t).count();
+    let started = Instant::now();
+    let finished = assistant.finish();
+    let assembly_ms = started.elapsed().as_secs_f64() * 1e3;
+    let mut result = ReplayResult {
+        capture: None,
+        incomplete: None,
+        faces: Vec::new(),
+        tap_t: tapped,
+        complete_t,
+        shots,
+        targets,
+        gyro_only_fraction: if frames > 0 { gyro_only as f64 / frames as f64 } else { 0.0 },
+        frames,
+        assembly_ms,
+        exposure: locked,
+        track,
+        taken,
+        reference_heading_deg: assistant.reference_heading_deg(),
+    };
+    match finished {
+        Err(e) => result.incomplete = Some(format!("{e:#}")),
+        Ok(mut capture) => {
+            capture.meta.exposure = locked;
+            capture.meta.location = location;
+            capture.meta.time_utc = Some(chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
+            result.faces = score(env, trace, &capture, cfg.score)?;
+            result.capture = Some(capture);
+        }
+    }
+    Ok(result)
+}
+
+/// A simulated user who follows the on-screen guidance, and what they captured.
+pub struct GuidedRun {
+    pub result: ReplayResult,
+    pub path: CapturePath,
+    /// Passes the user needed (1 = the first path completed the capture).
+    pub attempts: usize,
+}
+
+/// Targets whose aims are this close to a pole get no heading correction (heading is free there).
+const POLE_PITCH_DEG: f64 = 80.0;
+
+/// Replay a simulated user ([`simulate_guided_path`], seeded by `path_seed`) who follows the
+/// guidance. The guidance is drawn from the *estimated* pose, so a user watching it aims where
+/// the estimate says the target is, not where it truly is. Simulated in passes: when a pass
+/// leaves targets untaken, the mean aim error shown during each of their holds shifts the
+/// user's aim for the next pass, up to `max_attempts`
+/// passes. The result is the last pass. The user does not see the true target, only the
+/// screen: the shift is the aim error the assistant showed (from the estimated pose and its
+/// estimated reference heading).
+pub fn replay_guided(
+    env: &Arc<CubeMap>,
+    cfg: &ReplayConfig,
+    path_seed: u64,
+    params: &UserPathParams,
+    max_attempts: usize,
+) -> Result<GuidedRun> {
+    let targets: Vec<Target> = Assistant::new(cfg.assistant()?)?.targets().into_iter().cloned().collect();
+    let mut shifts = vec![AimShift::default(); targets.len()];
+    let mut attempts = 0;
+    loop {
+        attempts += 1;
+        let path = simulate_guided_path(path_seed, &targets, params, &shifts)?;
+        let result = replay(env, &TruthTrace::new(path.samples.clone())?, cfg)?;
+        if result.capture.is_some() || attempts >= max_attempts.max(1) {
+            return Ok(GuidedRun { result, path, attempts });
+        }
+        let Some(href) = result.reference_heading_deg else {
+            // No tap: guidance cannot help.
+            return Ok(GuidedRun { result, path, attempts });
+        };
+        for v in path.visits.iter().filter(|v| v.target != 0 && !result.taken.get(v.target).copied().unwrap_or(true)) {
+            let target = &targets[v.target];
+            // Where the screen showed the target relative to the view during the hold.
+            let errors: Vec<AimError> = result
+                .track
+                .iter()
+                .filter(|(t, _, _)| *t >= v.start + 0.3 && *t <= v.end)
+                .map(|(_, est, _)| target.aim_error(href, est.as_dquat()))
+                .collect();
+            if errors.is_empty() {
+                continue;
+            }
+            let n = errors.len() as f64;
+            let shift = &mut shifts[v.target];
+            if target.pitch_deg.abs() < POLE_PITCH_DEG {
+                shift.heading_deg -= errors.iter().map(|e| e.heading_deg).sum::<f64>() / n / target.pitch_deg.to_radians().cos();
+            }
+            shift.pitch_deg -= errors.iter().map(|e| e.pitch_deg).sum::<f64>() / n;
+        }
+    }
+}
+
+fn quat_of(wxyz: [f64; 4]) -> DQuat {
+    DQuat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0]).normalize()
+}
+
+/// Per-face scores of a complete capture (PSNR/FLIP only when `images`).
+fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool) -> Result<Vec<FaceReport>> {
+    let meta = &capture.meta;
+    let exposure = meta.exposure.context("the capture has no locked exposure to score against")?;
+    let error = |t: f64, wxyz: [f64; 4]| angle_between(quat_of(wxyz), trace.orientation_at(t)).to_degrees();
+    let mut out = Vec::with_capacity(6);
+    for face in Face::ALL {
+        let fm = meta.face(face).with_context(|| format!("capture metadata has no {} face", face.name()))?;
+        let img = capture.face(face);
+        let max_shot = meta.shots.iter().filter(|s| s.face == face).map(|s| error(s.t, s.pose_wxyz)).fold(0.0, f64::max);
+        let (psnr_db, flip) = if images {
+            let ideal = ideal_face(env, meta.reference_heading_deg, face, img.size, exposure);
+            (psnr(&ideal, &img.rgb), mean_flip(&ideal, &img.rgb, img.size, img.size))
+        } else {
+            (None, None)
+        };
+        out.push(FaceReport {
+            face,
+            capture_t: fm.t,
+            orientation_error_deg: error(fm.t, fm.pose_wxyz),
+            max_shot_error_deg: max_shot,
+            coverage: img.coverage,
+            psnr_db,
+            mean_flip: flip,
+            heading_source: fm.heading_source.clone(),
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capture::user_path::simulate_capture_path;
+    use crate::pose::user_path::UserPathParams;
+
+    #[test]
+    fn psnr_reference_values() {
+        // One code value off everywhere: MSE 1 -> 20·log10(255) = 48.13 dB.
+        assert!((psnr(&[10, 20, 30], &[11, 21, 31]).unwrap() - 48.1308).abs() < 1e-3);
+        assert_eq!(psnr(&[1, 2], &[1, 2]), None);
+        assert_eq!(psnr(&[1], &[1, 2]), None);
+    }
+
+    /// A smooth synthetic environment (sky gradient, coloured horizon bands) to replay into.
+    fn env() -> Arc<CubeMap> {
+        Arc::new(CubeMap::from_fn(32, |d| {
+            let h = d.x.atan2(d.y);
+            [0.3 + 0.25 * h.sin(), 0.3 + 0.2 * d.z, 0.3 + 0.25 * (2.0 * h).cos()]
+        }))
+    }
+
+    fn run(mode: Mode, noise: NoiseLevel, seed: u64) -> ReplayResult {
+        let cfg = ReplayConfig { mode, noise, seed, width: 160, height: 120, face_size: 32, render_threads: 1, ..Default::default() };
+        let targets = Assistant::new(cfg.assistant().unwrap()).unwrap().targets().into_iter().cloned().collect::<Vec<_>>();
+        let params = UserPathParams { reference_heading_deg: Some(359.5), ..Default::default() };
+        let path = simulate_capture_path(seed, &targets, &params).unwrap();
+        replay(&env(), &TruthTrace::new(path.samples).unwrap(), &cfg).unwrap()
+    }
+
+    #[test]
+    fn noiseless_replays_complete_with_small_errors() {
+        for mode in [Mode::Stretch, Mode::Stitch] {
+            let r = run(mode, NoiseLevel::None, 3);
+            assert!(r.incomplete.is_none(), "{mode:?}: {:?}", r.incomplete);
+            let cap = r.capture.as_ref().unwrap();
+            // The tap was near heading 359.5 (aim error ≤ 0.8° plus tremor).
+            let dh = crate::pose::frames::heading_difference_deg(cap.meta.reference_heading_deg, 359.5);
+            assert!(dh.abs() < 1.5, "{dh}");
+            for f in &r.faces {
+                assert!(f.orientation_error_deg < 1.0, "{mode:?} {f:?}");
+                match mode {
+                    Mode::Stitch => {
+                        assert_eq!(f.coverage, 1.0, "{f:?}");
+                        assert!(f.psnr_db.unwrap() > 25.0, "{f:?}");
+                    }
+                    Mode::Stretch => assert!(f.coverage < 0.5, "{f:?}"),
+                }
+            }
+            assert!(r.time_to_complete().unwrap() > 0.0);
+            assert_eq!(r.shots, r.targets);
+        }
+    }
+
+    #[test]
+    fn a_trace_without_a_tap_is_incomplete_not_a_crash() {
+        let cfg = ReplayConfig { mode: Mode::Stretch, width: 80, height: 60, face_size: 16, render_threads: 1, ..Default::default() };
+        let samples = (0..200)
+            .map(|i| crate::pose::trace::TruthSample { t: i as f64 * 0.01, q: crate::pose::frames::from_heading_pitch_roll(0.0, 0.0, 0.0), tap: false })
+            .collect();
+        let r = replay(&env(), &TruthTrace::new(samples).unwrap(), &cfg).unwrap();
+        assert!(r.incomplete.unwrap().contains("no tap"));
+    }
+}

@@ -1,0 +1,348 @@
+//! Capture targets: the six face centres and, in stitch mode, the extra aims a narrow lens
+//! needs; when the camera counts as "on" a target; how many extra targets a lens needs.
+//!
+//! Tolerance rule (seed 000 Fig. 12b, generalised): the camera is on a target when its pitch
+//! is within ±tol of the target's pitch and its heading, measured along the target's circle
+//! of latitude (heading error × cos(target pitch)), is within ±tol. For the four side faces
+//! (pitch 0) this is the seed's ±2° box on azimuth and zenith angle; for up and down (pitch
+//! ±90°) the heading term vanishes and only pitch counts, as in the seed's `ROLL > 88`.
+//! Heading differences are taken the short way round, so 359° and 1° are 2° apart.
+
+use super::Mode;
+use super::projection::{Pinhole, local_to_world};
+use crate::pose::frames::{HeadingPitchRoll, from_heading_pitch_roll, heading_difference_deg, heading_pitch_roll};
+use glam::{DQuat, DVec3, Quat, Vec3};
+
+/// The six faces of a capture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Face {
+    Front,
+    Right,
+    Back,
+    Left,
+    Up,
+    Down,
+}
+
+impl Face {
+    /// In the order the assistant lists them (front first, then any order).
+    pub const ALL: [Face; 6] = [Face::Front, Face::Up, Face::Down, Face::Right, Face::Back, Face::Left];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Face::Front => "front",
+            Face::Right => "right",
+            Face::Back => "back",
+            Face::Left => "left",
+            Face::Up => "up",
+            Face::Down => "down",
+        }
+    }
+
+    /// Cube layer in wgpu order (+X, −X, +Y, −Y, +Z, −Z) under the capture convention:
+    /// +Z front, +X right, +Y up.
+    pub fn layer(self) -> usize {
+        match self {
+            Face::Right => 0,
+            Face::Left => 1,
+            Face::Up => 2,
+            Face::Down => 3,
+            Face::Front => 4,
+            Face::Back => 5,
+        }
+    }
+
+    /// The face stored in cube layer `layer` (0..6).
+    pub fn from_layer(layer: usize) -> Option<Face> {
+        Face::ALL.into_iter().find(|f| f.layer() == layer)
+    }
+
+    /// File name in a capture folder (the common posx/negx/... naming of cube faces).
+    pub fn file_name(self) -> &'static str {
+        ["posx.png", "negx.png", "posy.png", "negy.png", "posz.png", "negz.png"][self.layer()]
+    }
+
+    /// Heading offset from the reference and pitch of the face centre, degrees.
+    pub fn aim_deg(self) -> (f64, f64) {
+        match self {
+            Face::Front => (0.0, 0.0),
+            Face::Right => (90.0, 0.0),
+            Face::Back => (180.0, 0.0),
+            Face::Left => (270.0, 0.0),
+            Face::Up => (0.0, 90.0),
+            Face::Down => (0.0, -90.0),
+        }
+    }
+
+    /// The face a capture-local direction falls in.
+    pub fn of_local_dir(d: Vec3) -> Face {
+        let (layer, _, _) = crate::scene::cubemap::cube_dir_to_face_uv(crate::scene::enu_to_cube(d));
+        Face::from_layer(layer).unwrap_or(Face::Front)
+    }
+}
+
+/// One aim the user is guided to.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Target {
+    /// "front", "up", ..., or "right+2" for the second extra shot within the right face.
+    pub name: String,
+    /// The face whose centre this is, or the face its aim falls in for extra targets.
+    pub face: Face,
+    /// Whether this is the face's own centre target (the shot stretch mode uses).
+    pub primary: bool,
+    /// Heading offset from the reference heading (degrees, clockwise) and pitch (degrees).
+    pub heading_offset_deg: f64,
+    pub pitch_deg: f64,
+}
+
+/// How far the camera is from a target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AimError {
+    /// Heading error along the target's circle of latitude (degrees, signed: + = turn right).
+    pub heading_deg: f64,
+    /// Pitch error (degrees, signed: + = tilt up).
+    pub pitch_deg: f64,
+    /// Angle between the viewing direction and the target's direction (degrees).
+    pub angle_deg: f64,
+}
+
+impl AimError {
+    pub fn within(&self, tolerance_deg: f64) -> bool {
+        self.heading_deg.abs() <= tolerance_deg && self.pitch_deg.abs() <= tolerance_deg
+    }
+}
+
+impl Target {
+    pub fn for_face(face: Face) -> Target {
+        let (h, p) = face.aim_deg();
+        Target { name: face.name().into(), face, primary: true, heading_offset_deg: h, pitch_deg: p }
+    }
+
+    /// The target's direction in the world for a reference heading (degrees).
+    pub fn direction(&self, reference_heading_deg: f64) -> DVec3 {
+        let (h, p) = ((reference_heading_deg + self.heading_offset_deg).to_radians(), self.pitch_deg.to_radians());
+        DVec3::new(h.sin() * p.cos(), h.cos() * p.cos(), p.sin())
+    }
+
+    /// The level camera pose (roll 0) aimed at the target, camera → world.
+    pub fn pose(&self, reference_heading_deg: f64) -> DQuat {
+        from_heading_pitch_roll((reference_heading_deg + self.heading_offset_deg).to_radians(), self.pitch_deg.to_radians(), 0.0)
+    }
+
+    /// Whether the heading is free (the target is so close to a pole that any heading is
+    /// within tolerance).
+    pub fn heading_free(&self, tolerance_deg: f64) -> bool {
+        self.pitch_deg.to_radians().cos() * 180.0 <= tolerance_deg
+    }
+
+    /// How far a camera pose (camera → world) is from this target.
+    pub fn aim_error(&self, reference_heading_deg: f64, pose: DQuat) -> AimError {
+        self.aim_error_hpr(reference_heading_deg, pose, heading_pitch_roll(pose))
+    }
+
+    /// [`Target::aim_error`] with the pose's heading, pitch and roll already computed.
+    pub fn aim_error_hpr(&self, reference_heading_deg: f64, pose: DQuat, hpr: HeadingPitchRoll) -> AimError {
+        let target_heading = reference_heading_deg + self.heading_offset_deg;
+        let dh = heading_difference_deg(hpr.heading.to_degrees(), target_heading);
+        let forward = pose * DVec3::NEG_Z;
+        let angle = forward.normalize().dot(self.direction(reference_heading_deg)).clamp(-1.0, 1.0).acos().to_degrees();
+        AimError { heading_deg: dh * self.pitch_deg.to_radians().cos(), pitch_deg: hpr.pitch.to_degrees() - self.pitch_deg, angle_deg: angle }
+    }
+}
+
+/// Candidate aims for extra stitch targets: pitch every `CANDIDATE_STEP` from −80° to 80°,
+/// heading every `CANDIDATE_STEP` (degrees).
+const CANDIDATE_STEP: f64 = 5.0;
+const CANDIDATE_MAX_PITCH: f64 = 80.0;
+/// Face samples per side used to plan coverage.
+const PLAN_SAMPLES: u32 = 16;
+/// Most roll (degrees) the planner allows the user while aiming; shots must cover their
+/// part of a face at roll −r, 0 and +r.
+pub const PLAN_ROLL_DEG: f64 = 5.0;
+
+/// Which plan samples a shot surely covers, as a bitset.
+fn coverage_bits(t: &Target, samples: &[Vec3], half_tan: (f32, f32), disc: f32, tolerance_deg: f64) -> Vec<u64> {
+    let mut bits = vec![0u64; samples.len().div_ceil(64)];
+    let rolls: Vec<Quat> = if t.heading_free(tolerance_deg) {
+        vec![t.pose(0.0).as_quat().inverse()]
+    } else {
+        [-PLAN_ROLL_DEG, 0.0, PLAN_ROLL_DEG]
+            .iter()
+            .map(|roll| from_heading_pitch_roll(t.heading_offset_deg.to_radians(), t.pitch_deg.to_radians(), roll.to_radians()).as_quat().inverse())
+            .collect()
+    };
+    for (i, d) in samples.iter().enumerate() {
+        let inside = if t.heading_free(tolerance_deg) {
+            let c = rolls[0] * *d;
+            c.z < 0.0 && (c.x * c.x + c.y * c.y).sqrt() <= disc * -c.z
+        } else {
+            rolls.iter().all(|q| {
+                let c = *q * *d;
+                c.z < 0.0 && c.x.abs() <= half_tan.0 * -c.z && c.y.abs() <= half_tan.1 * -c.z
+            })
+        };
+        if inside {
+            bits[i / 64] |= 1 << (i % 64);
+        }
+    }
+    bits
+}
+
+/// The targets for a mode and lens: the six face centres, and in stitch mode the extra aims
+/// (greedy set cover over a 5° lattice of aims) that make every face pixel seen by some shot
+/// even when each shot is off by the tolerance and rolled by up to [`PLAN_ROLL_DEG`]. A shot is
+/// counted on the frame shrunk by the tolerance plus one degree; near the poles, where the
+/// heading is free, only on the disc inscribed in that shrunk frame (any rotation about the
+/// view axis). Plans are cached per (mode, lens, tolerance).
+pub fn plan_targets(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target> {
+    type Key = (Mode, u32, u32, u64);
+    static CACHE: std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<Key, Vec<Target>>>> = std::sync::OnceLock::new();
+    let key = (mode, camera.tan_half_h.to_bits(), camera.tan_half_v.to_bits(), tolerance_deg.to_bits());
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(t) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return t.clone();
+    }
+    let targets = plan_uncached(mode, camera, tolerance_deg);
+    cache.lock().unwrap_or_else(|e| e.into_inner()).insert(key, targets.clone());
+    targets
+}
+
+fn plan_uncached(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target> {
+    let mut targets: Vec<Target> = Face::ALL.iter().map(|&f| Target::for_face(f)).collect();
+    if mode == Mode::Stretch {
+        return targets;
+    }
+    let samples: Vec<Vec3> = (0..6)
+        .flat_map(|layer| {
+            (0..PLAN_SAMPLES * PLAN_SAMPLES).map(move |i| {
+                super::projection::face_pixel_dir_local(layer, i % PLAN_SAMPLES, i / PLAN_SAMPLES, PLAN_SAMPLES, 1.0)
+            })
+        })
+        .collect();
+    let margin = (tolerance_deg + 1.0).to_radians() as f32;
+    // Half-angles of the usable frame, as tangents.
+    let th = (camera.tan_half_h.atan() - margin).max(0.0).tan();
+    let tv = (camera.tan_half_v.atan() - margin).max(0.0).tan();
+    let bits = |t: &Target| coverage_bits(t, &samples, (th, tv), th.min(tv), tolerance_deg);
+    let mut covered = vec![0u64; samples.len().div_ceil(64)];
+    for t in &targets {
+        for (c, b) in covered.iter_mut().zip(bits(t)) {
+            *c |= b;
+        }
+    }
+    let steps = (CANDIDATE_MAX_PITCH / CANDIDATE_STEP) as i32;
+    let candidates: Vec<(Target, Vec<u64>)> = (-steps..=steps)
+        .flat_map(|j| {
+            let p = f64::from(j) * CANDIDATE_STEP;
+            (0..(360.0 / CANDIDATE_STEP) as u32).map(move |i| {
+                let h = f64::from(i) * CANDIDATE_STEP;
+                let (hr, pr) = (h.to_radians(), p.to_radians());
+                let dir = Vec3::new((hr.sin() * pr.cos()) as f32, (hr.cos() * pr.cos()) as f32, pr.sin() as f32);
+                Target { name: String::new(), face: Face::of_local_dir(dir), primary: false, heading_offset_deg: h, pitch_deg: p }
+            })
+        })
+        .map(|t| {
+            let b = bits(&t);
+            (t, b)
+        })
+        .collect();
+    let all = samples.len();
+    let count = |c: &[u64]| c.iter().map(|w| w.count_ones() as usize).sum::<usize>();
+    let mut per_face = [0u32; 6];
+    while count(&covered) < all {
+        let gain = |b: &[u64]| b.iter().zip(&covered).map(|(x, c)| (x & !c).count_ones() as usize).sum::<usize>();
+        let Some((best, b)) = candidates.iter().max_by_key(|(_, b)| gain(b)) else { break };
+        if gain(b) == 0 {
+            // The lens is too narrow for the candidate lattice; the holes show as coverage.
+            break;
+        }
+        for (c, x) in covered.iter_mut().zip(b) {
+            *c |= x;
+        }
+        let k = &mut per_face[best.face.layer()];
+        *k += 1;
+        targets.push(Target { name: format!("{}+{}", best.face.name(), *k), ..best.clone() });
+    }
+    targets
+}
+
+/// Rotation taking a world direction to the capture's local frame.
+pub fn world_to_local(reference_heading_deg: f64) -> DQuat {
+    local_to_world(reference_heading_deg.to_radians()).inverse()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn aim(h: f64, p: f64) -> DQuat {
+        from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0)
+    }
+
+    #[test]
+    fn seed_fig_12b_boxes_and_the_wrap() {
+        let tol = 2.0;
+        let right = Target::for_face(Face::Right);
+        // Seed 000 Fig. 12b: right when REFERENCE+88 < HEADING < REFERENCE+92 and |ROLL| < 2.
+        assert!(right.aim_error(10.0, aim(101.5, 1.5)).within(tol));
+        assert!(!right.aim_error(10.0, aim(97.5, 0.0)).within(tol));
+        assert!(!right.aim_error(10.0, aim(100.0, 2.5)).within(tol));
+        // Across 0/360: reference 300°, right target at 30° (=390°); 28.5° and 31.9° are on it.
+        assert!(right.aim_error(300.0, aim(28.5, 0.0)).within(tol));
+        assert!(right.aim_error(300.0, aim(31.9, 0.0)).within(tol));
+        assert!(!right.aim_error(300.0, aim(27.9, 0.0)).within(tol));
+        // Front with reference 359.5: heading 1.0 is 1.5° off, signed (turn left).
+        let e = Target::for_face(Face::Front).aim_error(359.5, aim(1.0, 0.0));
+        assert!((e.heading_deg - 1.5).abs() < 1e-9 && e.within(tol), "{e:?}");
+        // Up/down: pitch only (seed: ROLL > 88), any heading, any roll.
+        let up = Target::for_face(Face::Up);
+        assert!(up.aim_error(0.0, from_heading_pitch_roll(3.0, 88.5f64.to_radians(), 0.7)).within(tol));
+        assert!(up.aim_error(0.0, from_heading_pitch_roll(1.0, 90f64.to_radians(), 0.0)).within(tol));
+        assert!(!up.aim_error(0.0, aim(0.0, 87.5)).within(tol));
+        let down = Target::for_face(Face::Down);
+        assert!(down.aim_error(123.0, aim(250.0, -89.0)).within(tol));
+        assert!(!down.aim_error(123.0, aim(250.0, 89.0)).within(tol));
+        // The angle to the target is the true angular distance: 90° from front to up.
+        assert!((Target::for_face(Face::Front).aim_error(0.0, aim(0.0, 90.0)).angle_deg - 90.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn face_layers_and_files_follow_the_cube_convention() {
+        for f in Face::ALL {
+            assert_eq!(Face::from_layer(f.layer()), Some(f));
+            // The face centre target points at the middle of its own cube layer.
+            let d = world_to_local(37.0) * Target::for_face(f).direction(37.0);
+            assert_eq!(Face::of_local_dir(d.as_vec3()), f, "{f:?}");
+        }
+        assert_eq!(Face::Front.file_name(), "posz.png");
+        assert_eq!(Face::Right.file_name(), "posx.png");
+        assert_eq!(Face::Up.file_name(), "posy.png");
+        assert_eq!(Face::Left.file_name(), "negx.png");
+    }
+
+    #[test]
+    fn stitch_plan_covers_every_face_and_scales_with_the_lens() {
+        let narrow = Pinhole::from_vfov(640, 480, 50.0).unwrap();
+        let wide = Pinhole::from_vfov(640, 480, 100.0).unwrap();
+        assert_eq!(plan_targets(Mode::Stretch, &narrow, 2.0).len(), 6);
+        let n = plan_targets(Mode::Stitch, &narrow, 2.0);
+        let w = plan_targets(Mode::Stitch, &wide, 2.0);
+        assert!(n.len() > 6 && n.len() > w.len(), "narrow {} wide {}", n.len(), w.len());
+        // Every direction on a fine face grid lies inside some level, exactly aimed shot.
+        for targets in [&n, &w] {
+            let cam = if targets.len() == n.len() { &narrow } else { &wide };
+            for layer in 0..6 {
+                for i in 0..(40 * 40) {
+                    let d = super::super::projection::face_pixel_dir_local(layer, i % 40, i / 40, 40, 1.0);
+                    assert!(targets.iter().any(|t| cam.sees(t.pose(0.0).as_quat(), d, 0.0)), "layer {layer} sample {i}");
+                }
+            }
+        }
+        // Names are unique.
+        let mut names: Vec<_> = n.iter().map(|t| t.name.clone()).collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), n.len());
+    }
+}

@@ -1,0 +1,206 @@
+//! A simulated user following the assistant through any list of targets (the six faces, or
+//! the stitch mode's extra aims): aim at the front and tap, then turn to the nearest target
+//! not yet visited — what the on-screen guidance points at — hold it, and so on.
+//!
+//! The motion model is the one of [`crate::pose::user_path`] (minimum-jerk turns with an
+//! over/undershoot and a corrective movement, held aims off the target by up to
+//! `aim_error_deg` per axis, a slight roll, hand tremor and sway), generalised from the six
+//! fixed faces to arbitrary targets.
+
+use super::targets::Target;
+use crate::pose::frames::{angle_between, from_heading_pitch_roll, heading_difference_deg, wrap_degrees_360};
+use crate::pose::trace::TruthSample;
+use crate::pose::user_path::{HandShake, UserPathParams, minimum_jerk};
+use anyhow::{Result, bail};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A held aim of the simulated user.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Visit {
+    /// Index into the target list.
+    pub target: usize,
+    pub start: f64,
+    pub end: f64,
+}
+
+/// A generated path: samples (one tap, during the front hold) and the visits in order.
+#[derive(Clone, Debug)]
+pub struct CapturePath {
+    pub samples: Vec<TruthSample>,
+    pub visits: Vec<Visit>,
+    pub reference_heading_deg: f64,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Hpr {
+    h: f64,
+    p: f64,
+    r: f64,
+}
+
+impl Hpr {
+    fn quat(self) -> glam::DQuat {
+        from_heading_pitch_roll(self.h.to_radians(), self.p.to_radians(), self.r.to_radians())
+    }
+
+    fn lerp(a: Hpr, b: Hpr, u: f64) -> Hpr {
+        Hpr { h: a.h + (b.h - a.h) * u, p: a.p + (b.p - a.p) * u, r: a.r + (b.r - a.r) * u }
+    }
+}
+
+struct Segment {
+    t0: f64,
+    t1: f64,
+    from: Hpr,
+    to: Hpr,
+}
+
+fn uniform(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
+    if hi > lo { rng.random_range(lo..hi) } else { lo }
+}
+
+/// How far the user shifts their aim for a target from where it truly is (degrees): what the
+/// on-screen guidance, drawn from the *estimated* pose, makes them do. Heading is along the
+/// horizon (a true heading change), pitch is elevation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AimShift {
+    pub heading_deg: f64,
+    pub pitch_deg: f64,
+}
+
+/// Generate the path of a user visiting `targets` (the first must be the front). Same seed
+/// and parameters, same path. `params.order` is ignored (the user follows the guidance);
+/// `params.vertical_pitch_deg` scales the pitch of targets at ±90°.
+pub fn simulate_capture_path(seed: u64, targets: &[Target], params: &UserPathParams) -> Result<CapturePath> {
+    simulate_guided_path(seed, targets, params, &[])
+}
+
+/// [`simulate_capture_path`] with the user's aim for target `i` shifted by `shifts[i]` (missing
+/// entries: no shift). The random draws do not depend on the shifts, so a shifted path is the
+/// same user making the same movements to slightly different places.
+pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathParams, shifts: &[AimShift]) -> Result<CapturePath> {
+    if shifts.iter().any(|s| !(s.heading_deg.is_finite() && s.pitch_deg.is_finite())) {
+        bail!("aim shifts must be finite: {shifts:?}");
+    }
+    let finite = [params.rate_hz, params.aim_error_deg, params.roll_deg, params.hold_s.0, params.hold_s.1, params.mean_speed_deg_s];
+    if finite.iter().any(|v| !v.is_finite()) || params.rate_hz <= 0.0 || params.mean_speed_deg_s <= 0.0 || params.hold_s.0 <= 0.0 {
+        bail!("user path parameters must be finite and positive: {params:?}");
+    }
+    if params.hold_s.1 < params.hold_s.0 || params.overshoot.1 < params.overshoot.0 {
+        bail!("user path ranges must be ordered: {params:?}");
+    }
+    let Some(first) = targets.first().filter(|t| t.heading_offset_deg == 0.0 && t.pitch_deg == 0.0) else {
+        bail!("the first target must be the front (heading offset 0, pitch 0)");
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let href = params.reference_heading_deg.unwrap_or_else(|| rng.random_range(0.0..360.0));
+    let e = params.aim_error_deg;
+    let pole_pitch = params.vertical_pitch_deg;
+    let aim = |rng: &mut ChaCha8Rng, t: &Target, from_h: f64| {
+        let ep = uniform(rng, (-e, e));
+        let p = if t.pitch_deg.abs() >= 90.0 { pole_pitch * t.pitch_deg.signum() } else { t.pitch_deg };
+        // The user cannot tilt past the vertical: err towards the horizon.
+        let p = if p.abs() + ep > 90.0 { p - ep.abs() * p.signum() } else { p + ep };
+        // Looking straight up or down people keep the heading they came from.
+        let h = if t.pitch_deg.abs() >= 90.0 { from_h } else { href + t.heading_offset_deg + uniform(rng, (-e, e)) };
+        Hpr { h, p, r: uniform(rng, (-params.roll_deg, params.roll_deg)) }
+    };
+    let front = aim(&mut rng, first, href);
+    let start = Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
+    let mut segments = vec![Segment { t0: 0.0, t1: 0.4, from: start, to: start }];
+    let mut t = 0.4;
+    let mut at = start;
+    let mut visits = Vec::with_capacity(targets.len());
+    let mut todo: Vec<usize> = (1..targets.len()).collect();
+    let mut tap_t = 0.0;
+    let mut next = Some(0usize);
+    while let Some(index) = next {
+        let target = &targets[index];
+        let goal = if index == 0 { front } else { aim(&mut rng, target, at.h) };
+        let shift = shifts.get(index).copied().unwrap_or_default();
+        // Shifts cannot take the aim past the vertical.
+        let goal = Hpr { h: goal.h + shift.heading_deg, p: (goal.p + shift.pitch_deg).clamp(-90.0, 90.0), ..goal };
+        let dh = heading_difference_deg(goal.h, at.h);
+        let goal = Hpr { h: at.h + dh, ..goal };
+        let angle = angle_between(at.quat(), goal.quat()).to_degrees();
+        let os = uniform(&mut rng, params.overshoot);
+        let primary = Hpr::lerp(at, goal, 1.0 + os);
+        let speed = params.mean_speed_deg_s * uniform(&mut rng, (0.8, 1.25));
+        let t1 = 0.2 + angle * (1.0 + os).abs() / speed;
+        segments.push(Segment { t0: t, t1: t + t1, from: at, to: primary });
+        t += t1;
+        let corr = angle * os.abs();
+        if corr > 0.2 {
+            let t2 = 0.15 + corr / 30.0;
+            segments.push(Segment { t0: t, t1: t + t2, from: primary, to: goal });
+            t += t2;
+        }
+        let hold = uniform(&mut rng, params.hold_s);
+        if index == 0 {
+            tap_t = t + uniform(&mut rng, (0.3, 0.6)).min(hold * 0.8);
+        }
+        segments.push(Segment { t0: t, t1: t + hold, from: goal, to: goal });
+        visits.push(Visit { target: index, start: t, end: t + hold });
+        t += hold;
+        at = goal;
+        // The nearest target not yet visited (as the guidance shows it); near-ties at random.
+        let here = at.quat() * glam::DVec3::NEG_Z;
+        let dist = |i: &usize| targets[*i].direction(href).angle_between(here);
+        let best = todo.iter().map(dist).fold(f64::INFINITY, f64::min);
+        let near: Vec<usize> = todo.iter().copied().filter(|i| dist(i) <= best + 1f64.to_radians()).collect();
+        next = if near.is_empty() { None } else { Some(near[rng.random_range(0..near.len())]) };
+        todo.retain(|i| Some(*i) != next);
+    }
+    let shake = HandShake::seeded(rng.random(), params);
+    let n = (t * params.rate_hz).floor() as usize;
+    let tap_index = (tap_t * params.rate_hz).round() as usize;
+    let mut samples = Vec::with_capacity(n + 1);
+    let mut seg = 0;
+    for i in 0..=n {
+        let ti = i as f64 / params.rate_hz;
+        while seg + 1 < segments.len() && ti >= segments[seg].t1 {
+            seg += 1;
+        }
+        let s = &segments[seg];
+        let base = Hpr::lerp(s.from, s.to, minimum_jerk((ti - s.t0) / (s.t1 - s.t0)));
+        samples.push(TruthSample { t: ti, q: shake.apply(base.quat(), ti), tap: i == tap_index });
+    }
+    Ok(CapturePath { samples, visits, reference_heading_deg: wrap_degrees_360(href) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capture::Mode;
+    use crate::capture::projection::Pinhole;
+    use crate::capture::targets::plan_targets;
+    use crate::pose::trace::TruthTrace;
+
+    #[test]
+    fn visits_every_target_once_within_the_aim_error() {
+        let cam = Pinhole::from_vfov(640, 480, 50.0).unwrap();
+        let targets = plan_targets(Mode::Stitch, &cam, 2.0);
+        let p = UserPathParams { reference_heading_deg: Some(359.6), ..UserPathParams::default() };
+        let a = simulate_capture_path(4, &targets, &p).unwrap();
+        let b = simulate_capture_path(4, &targets, &p).unwrap();
+        assert_eq!(a.samples, b.samples);
+        let mut seen: Vec<usize> = a.visits.iter().map(|v| v.target).collect();
+        seen.sort();
+        assert_eq!(seen, (0..targets.len()).collect::<Vec<_>>());
+        assert_eq!(a.visits[0].target, 0);
+        let trace = TruthTrace::new(a.samples.clone()).unwrap();
+        let tap = trace.tap_times();
+        assert_eq!(tap.len(), 1);
+        assert!(tap[0] > a.visits[0].start && tap[0] < a.visits[0].end);
+        for v in &a.visits {
+            // Mid-hold the camera is within aim error + tremor/sway of the target (the
+            // tolerance rule of the assistant, which the guided user satisfies).
+            let mid = 0.5 * (v.start + v.end);
+            let e = targets[v.target].aim_error(a.reference_heading_deg, trace.orientation_at(mid));
+            assert!(e.within(p.aim_error_deg + 0.5), "{} {e:?}", targets[v.target].name);
+        }
+        assert!(simulate_capture_path(1, &targets[1..], &p).is_err());
+        assert!(simulate_capture_path(1, &targets, &UserPathParams { rate_hz: f64::NAN, ..p }).is_err());
+    }
+}

@@ -1,0 +1,7 @@
+//! egui panels and overlays, and a headless egui renderer for tests and screenshots.
+//!
+//! - [`capture_overlay`]: the capture assistant's guidance over the camera view.
+//! - [`headless`]: draw any egui UI over an image offscreen (egui-wgpu), read the pixels back.
+
+pub mod capture_overlay;
+pub mod headless;

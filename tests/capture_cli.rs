@@ -1,0 +1,118 @@
+//! `previz capture` end to end: a simulated capture with --json, and bad input — each a clear
+//! error, a non-zero exit, no panic, nothing written.
+
+mod common;
+
+use common::data;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn previz(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_previz")).current_dir(dir).args(args).output().unwrap()
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("previz-capture-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn entries(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    v.sort();
+    v
+}
+
+/// Non-zero exit, every needle in stderr, no panic, and the folder unchanged.
+fn assert_clean_failure(out: &Output, dir: &Path, before: &[PathBuf], needles: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "panic: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "stderr should mention {n:?}: {stderr}");
+    }
+    assert_eq!(entries(dir), before, "files left behind");
+}
+
+/// A small environment: the Pisa cube faces (256 px PNG).
+fn env_dir() -> String {
+    data("cubemaps/pisa_ldr_png").to_string_lossy().into_owned()
+}
+
+#[test]
+fn simulated_capture_writes_a_loadable_folder_and_json() {
+    let dir = tempdir("sim");
+    let out = previz(
+        &dir,
+        &["capture", "--env", &env_dir(), "--simulate", "--seed", "2", "--noise", "none", "--mode", "stretch", "--face-size", "64", "-o", "cap", "--json"],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let faces = json["faces"].as_array().unwrap();
+    assert_eq!(faces.len(), 6);
+    for f in faces {
+        // Noise-free sensors: the shots' orientation error is the filter's residual only.
+        assert!(f["orientation_error_deg"].as_f64().unwrap() < 1.0, "{f}");
+        assert!(f["capture_t"].as_f64().unwrap() >= json["tap_t"].as_f64().unwrap());
+        // Stretch mode: a 50° lens observes under a third of each face.
+        let c = f["coverage"].as_f64().unwrap();
+        assert!(c > 0.2 && c < 0.4, "{f}");
+        assert!(f["psnr_db"].as_f64().unwrap() > 5.0 && f["mean_flip"].as_f64().unwrap() > 0.0, "{f}");
+    }
+    let cap = previz::capture::load_capture(&dir.join("cap")).unwrap();
+    assert_eq!(cap.meta.face_size, 64);
+    assert_eq!(cap.meta.faces.len(), 6);
+    assert!(cap.meta.location.is_some() && cap.meta.time_utc.is_some() && cap.meta.exposure.is_some());
+    assert!((cap.meta.reference_heading_deg - json["reference_heading_deg"].as_f64().unwrap()).abs() < 1e-9);
+    // A capture folder with a face missing: loading it (as a capture or as --env) fails clearly.
+    std::fs::remove_file(dir.join("cap/negy.png")).unwrap();
+    let e = format!("{:#}", previz::capture::load_capture(&dir.join("cap")).unwrap_err());
+    assert!(e.contains("negy.png (down)"), "{e}");
+    let before = entries(&dir);
+    let out = previz(&dir, &["capture", "--env", "cap", "--simulate", "-o", "cap2"]);
+    assert_clean_failure(&out, &dir, &before, &["cap", "negy"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_traces_and_inputs_fail_cleanly() {
+    let dir = tempdir("bad");
+    let good_rows = "0,1,0,0,0,0\n0.1,1,0,0,0,1\n";
+    let traces = [
+        ("nan.csv", format!("t,qw,qx,qy,qz,tap\n{good_rows}0.2,NaN,0,0,0,0\n"), vec!["nan.csv"]),
+        ("nonunit.csv", format!("t,qw,qx,qy,qz,tap\n{good_rows}0.2,1,1,0,0,0\n"), vec!["nonunit.csv", "unit"]),
+        ("back.csv", format!("t,qw,qx,qy,qz,tap\n{good_rows}0.05,1,0,0,0,0\n"), vec!["back.csv", "backwards"]),
+        ("missing.csv", "t,qw,qx,qy,tap\n0,1,0,0,0\n".to_string(), vec!["missing.csv", "qz"]),
+        ("empty.csv", String::new(), vec!["empty.csv"]),
+    ];
+    for (name, text, _) in &traces {
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+    let before = entries(&dir);
+    let env = env_dir();
+    for (name, _, needles) in &traces {
+        let out = previz(&dir, &["capture", "--env", &env, "--trace", name, "-o", "out"]);
+        assert_clean_failure(&out, &dir, &before, needles);
+    }
+    // A valid trace where the user taps and never turns: incomplete, naming the faces and why.
+    let still: String = std::iter::once("t,qw,qx,qy,qz,tap\n".to_string())
+        .chain((0..300).map(|i| format!("{},0.7071068,0.7071068,0,0,{}\n", i as f64 * 0.01, u8::from(i == 150))))
+        .collect();
+    std::fs::write(dir.join("still.csv"), still).unwrap();
+    let before = entries(&dir);
+    let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--noise", "none", "--mode", "stretch", "-o", "out"]);
+    assert_clean_failure(&out, &dir, &before, &["capture incomplete", "5 face(s) missing", "up: never within ±2° (closest 90.0° off", "left:"]);
+    // Stitch mode (the default) also misses the front's extra shots, and says how many.
+    let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--noise", "none", "-o", "out"]);
+    assert_clean_failure(&out, &dir, &before, &["6 face(s) missing", "front: front+1:", "more shot(s) not taken"]);
+    // An environment that fails to load, a bad face size, no trace.
+    let out = previz(&dir, &["capture", "--env", "nope.hdr", "--trace", "still.csv", "-o", "out"]);
+    assert_clean_failure(&out, &dir, &before, &["nope.hdr"]);
+    let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--face-size", "100", "-o", "out"]);
+    assert_clean_failure(&out, &dir, &before, &["--face-size", "power of two"]);
+    let out = previz(&dir, &["capture", "--env", &env, "-o", "out"]);
+    assert_clean_failure(&out, &dir, &before, &["--trace", "--simulate"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,130 @@
+//! The capture assistant's guidance drawn headless (egui + egui-wgpu on lavapipe) over a
+//! virtual-phone frame, kept as golden images and compared with NVIDIA FLIP.
+
+mod common;
+
+use previz::camera::sim::{SimSettings, VirtualPhone};
+use previz::camera::exposure::ExposureMode;
+use previz::capture::assistant::{Assistant, AssistantConfig};
+use previz::capture::projection::Pinhole;
+use previz::capture::targets::Face;
+use previz::capture::Mode;
+use previz::pose::frames::from_heading_pitch_roll;
+use previz::pose::{HeadingSource, Pose};
+use previz::render::{Rendered, Timings};
+use previz::scene::environment::load_environment;
+use previz::scene::Rgba8Image;
+use previz::ui::capture_overlay::{GYRO_ONLY_TEXT, draw_capture_overlay, thumbnail};
+use previz::ui::headless::HeadlessUi;
+use std::sync::Arc;
+
+const W: u32 = 640;
+const H: u32 = 480;
+
+fn pose(h: f64, p: f64, source: HeadingSource) -> Pose {
+    Pose {
+        t: 0.0,
+        q: from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0).as_quat(),
+        accuracy_deg: 1.0,
+        heading_accuracy_deg: 1.0,
+        tilt_accuracy_deg: 0.5,
+        heading_source: source,
+        magnetic_disturbance: source == HeadingSource::GyroOnly,
+    }
+}
+
+struct Scene {
+    phone: VirtualPhone,
+    assistant: Assistant,
+    t: f64,
+}
+
+impl Scene {
+    fn new() -> Scene {
+        let env = Arc::new(load_environment(&common::data("hdri/polyhaven_1k/quarry_01_1k.hdr")).unwrap());
+        let phone = VirtualPhone::new(env, &SimSettings { width: W, height: H, vfov_deg: 50.0, exposure: ExposureMode::Fixed(1.0) }).unwrap();
+        let mut cfg = AssistantConfig::new(Mode::Stretch, Pinhole::from_vfov(W, H, 50.0).unwrap());
+        cfg.face_size = 64;
+        Scene { phone, assistant: Assistant::new(cfg).unwrap(), t: 0.0 }
+    }
+
+    fn frame(&self, p: &Pose) -> Rgba8Image {
+        // A fixed exposure keeps the golden independent of metering details.
+        self.phone.render_with_exposure(p.q, 0.5).unwrap()
+    }
+
+    /// Hold `p` until the assistant takes a shot.
+    fn take(&mut self, p: Pose) {
+        let frame = Arc::new(self.frame(&p));
+        for _ in 0..30 {
+            self.t += 1.0 / 30.0;
+            if self.assistant.feed(&frame, &p, self.t, false).unwrap().is_some() {
+                return;
+            }
+        }
+        panic!("no shot taken");
+    }
+
+    fn thumbs(&self, ui: &HeadlessUi) -> [Option<egui::TextureHandle>; 6] {
+        let targets = self.assistant.targets();
+        Face::ALL.map(|face| {
+            let i = targets.iter().position(|t| t.primary && t.face == face)?;
+            let shot = self.assistant.shot(i)?;
+            Some(ui.context().load_texture(face.name(), thumbnail(&shot.image, 64), egui::TextureOptions::LINEAR))
+        })
+    }
+
+    fn draw(&mut self, ui: &mut HeadlessUi, p: &Pose) -> Rendered {
+        let background = self.frame(p);
+        let thumbs = self.thumbs(ui);
+        let g = self.assistant.guidance();
+        let img = ui.render(common::gpu(), &background, |ctx| draw_capture_overlay(ctx, &g, &thumbs)).unwrap();
+        Rendered { width: img.width, height: img.height, rgba: img.pixels, timings: Timings::default() }
+    }
+}
+
+#[test]
+fn capture_guidance_golden_images() {
+    let mut s = Scene::new();
+    let mut ui = HeadlessUi::new(common::gpu(), W, H, 1.0).unwrap();
+    // Tap facing 200° (towards the quarry's sun side), then take up and right (290°).
+    let front = pose(200.0, 0.0, HeadingSource::Magnetometer);
+    let frame = Arc::new(s.frame(&front));
+    s.assistant.tap(0.0, &front, frame).unwrap();
+    s.take(pose(200.0, 89.5, HeadingSource::Magnetometer));
+    s.take(pose(290.5, 0.5, HeadingSource::Magnetometer));
+    assert_eq!(s.assistant.guidance().faces_done, 3);
+
+    // 1: turning quickly towards back (20°), which is in view 18° to the right; the compass is
+    // disturbed. Expect: "Hold still", the ring on the target, 3/6, three thumbnails, the badge.
+    s.t += 1.0 / 30.0;
+    s.assistant.observe(s.t, &pose(354.0, 2.0, HeadingSource::GyroOnly)).unwrap();
+    s.t += 1.0 / 30.0;
+    let p = pose(2.0, 2.0, HeadingSource::GyroOnly);
+    s.assistant.observe(s.t, &p).unwrap();
+    let g = s.assistant.guidance();
+    assert!(g.hold_still && g.gyro_only, "{g:?}");
+    let next = g.next.as_ref().unwrap();
+    assert_eq!(next.name, "back");
+    assert!(next.on_screen.is_some_and(|n| n.x > 0.3 && n.x < 0.8), "{next:?}");
+    let r = s.draw(&mut ui, &p);
+    common::assert_golden("capture_overlay_in_view", &r);
+
+    // 2: after back, held still looking 40° down at 300°: the nearest target (down, 50° away) is
+    // out of view; an arrow points down. Compass fine: no badge, no "Hold still".
+    s.take(pose(20.0, -0.5, HeadingSource::Magnetometer));
+    let p = pose(300.0, -40.0, HeadingSource::Magnetometer);
+    for _ in 0..6 {
+        s.t += 1.0 / 30.0;
+        s.assistant.observe(s.t, &p).unwrap();
+    }
+    let g = s.assistant.guidance();
+    assert!(!g.hold_still && !g.gyro_only);
+    let next = g.next.as_ref().unwrap();
+    assert_eq!(next.name, "down");
+    assert!(next.on_screen.is_none() && next.arrow.y < -0.99, "{next:?}");
+    assert_eq!(g.message, "Turn to down");
+    let r = s.draw(&mut ui, &p);
+    common::assert_golden("capture_overlay_arrow", &r);
+    assert!(!GYRO_ONLY_TEXT.is_empty());
+}

@@ -45,7 +45,23 @@ fn simulated_capture_writes_a_loadable_folder_and_json() {
     let dir = tempdir("sim");
     let out = previz(
         &dir,
-        &["capture", "--env", &env_dir(), "--simulate", "--seed", "2", "--noise", "none", "--mode", "stretch", "--face-size", "64", "-o", "cap", "--json"],
+        &[
+            "capture",
+            "--env",
+            &env_dir(),
+            "--simulate",
+            "--seed",
+            "2",
+            "--noise",
+            "none",
+            "--mode",
+            "stretch",
+            "--face-size",
+            "64",
+            "-o",
+            "cap",
+            "--json",
+        ],
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
@@ -103,7 +119,12 @@ fn bad_traces_and_inputs_fail_cleanly() {
     std::fs::write(dir.join("still.csv"), still).unwrap();
     let before = entries(&dir);
     let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--noise", "none", "--mode", "stretch", "-o", "out"]);
-    assert_clean_failure(&out, &dir, &before, &["capture incomplete", "5 face(s) missing", "up: never within ±2° (closest 90.0° off", "left:"]);
+    assert_clean_failure(
+        &out,
+        &dir,
+        &before,
+        &["capture incomplete", "5 face(s) missing", "up: never within ±2° (closest 90.0° off", "left:"],
+    );
     // Stitch mode (the default) also misses the front's extra shots, and says how many.
     let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--noise", "none", "-o", "out"]);
     assert_clean_failure(&out, &dir, &before, &["6 face(s) missing", "front: front+1:", "more shot(s) not taken"]);

@@ -3,17 +3,17 @@
 
 mod common;
 
-use previz::camera::sim::{SimSettings, VirtualPhone};
 use previz::camera::exposure::ExposureMode;
+use previz::camera::sim::{SimSettings, VirtualPhone};
+use previz::capture::Mode;
 use previz::capture::assistant::{Assistant, AssistantConfig};
 use previz::capture::projection::Pinhole;
 use previz::capture::targets::Face;
-use previz::capture::Mode;
 use previz::pose::frames::from_heading_pitch_roll;
 use previz::pose::{HeadingSource, Pose};
 use previz::render::{Rendered, Timings};
-use previz::scene::environment::load_environment;
 use previz::scene::Rgba8Image;
+use previz::scene::environment::load_environment;
 use previz::ui::capture_overlay::{GYRO_ONLY_TEXT, draw_capture_overlay, thumbnail};
 use previz::ui::headless::HeadlessUi;
 use std::sync::Arc;
@@ -42,7 +42,8 @@ struct Scene {
 impl Scene {
     fn new() -> Scene {
         let env = Arc::new(load_environment(&common::data("hdri/polyhaven_1k/quarry_01_1k.hdr")).unwrap());
-        let phone = VirtualPhone::new(env, &SimSettings { width: W, height: H, vfov_deg: 50.0, exposure: ExposureMode::Fixed(1.0) }).unwrap();
+        let phone =
+            VirtualPhone::new(env, &SimSettings { width: W, height: H, vfov_deg: 50.0, exposure: ExposureMode::Fixed(1.0) }).unwrap();
         let mut cfg = AssistantConfig::new(Mode::Stretch, Pinhole::from_vfov(W, H, 50.0).unwrap());
         cfg.face_size = 64;
         Scene { phone, assistant: Assistant::new(cfg).unwrap(), t: 0.0 }

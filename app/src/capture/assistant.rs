@@ -540,8 +540,7 @@ mod tests {
         assert_eq!(a.phase(), Phase::Capturing);
         let mut t = 1.2;
         // Right is at 88.5°, back at 178.5°, left at 268.5° (across 0/360 from the reference).
-        for (h, p, name) in [(0.0, -89.0, "down"), (87.0, 1.0, "right"), (268.5, -1.5, "left"), (180.0, 0.5, "back"), (40.0, 88.2, "up")]
-        {
+        for (h, p, name) in [(0.0, -89.0, "down"), (87.0, 1.0, "right"), (268.5, -1.5, "left"), (180.0, 0.5, "back"), (40.0, 88.2, "up")] {
             let taken = hold(&mut a, &f, aim(h, p), t, 0.5);
             assert_eq!(taken.len(), 1, "{name}: {taken:?}");
             assert_eq!(a.targets()[taken[0]].name, name);

@@ -102,7 +102,13 @@ pub struct ShotMeta {
 
 impl ShotMeta {
     pub fn new(target: &Target, shot: &Shot, source: Option<HeadingSource>) -> Self {
-        ShotMeta { target: target.name.clone(), face: target.face, t: shot.t, pose_wxyz: wxyz(shot.pose), heading_source: heading_source_name(source) }
+        ShotMeta {
+            target: target.name.clone(),
+            face: target.face,
+            t: shot.t,
+            pose_wxyz: wxyz(shot.pose),
+            heading_source: heading_source_name(source),
+        }
     }
 }
 
@@ -189,7 +195,9 @@ impl CubeCapture {
     /// as the map's heading ([`crate::render::Compositor::set_environment`]).
     pub fn to_cube_map(&self) -> CubeMap {
         let lut: [f32; 256] = std::array::from_fn(|i| crate::colour::srgb_to_linear(i as f32 / 255.0));
-        let faces = std::array::from_fn(|layer| self.faces[layer].rgb.chunks_exact(3).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect());
+        let faces = std::array::from_fn(|layer| {
+            self.faces[layer].rgb.chunks_exact(3).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect()
+        });
         CubeMap { size: self.meta.face_size, faces }
     }
 }

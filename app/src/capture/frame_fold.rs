@@ -239,7 +239,12 @@ impl FrameFold {
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("frame fold"),
             layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState { module: &module, entry_point: Some("vs_main"), compilation_options: Default::default(), buffers: &[] },
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
             fragment: Some(wgpu::FragmentState {
                 module: &module,
                 entry_point: Some("fs_main"),
@@ -555,8 +560,20 @@ mod tests {
                     [255, 255, 255]
                 } else {
                     // Which quad: compare against the diagonals through the box corners.
-                    let dx = if u > inner.u1 { (u - inner.u1) / (outer.u1 - inner.u1) } else if u < inner.u0 { (inner.u0 - u) / (inner.u0 - outer.u0) } else { 0.0 };
-                    let dy = if v > inner.v1 { (v - inner.v1) / (outer.v1 - inner.v1) } else if v < inner.v0 { (inner.v0 - v) / (inner.v0 - outer.v0) } else { 0.0 };
+                    let dx = if u > inner.u1 {
+                        (u - inner.u1) / (outer.u1 - inner.u1)
+                    } else if u < inner.u0 {
+                        (inner.u0 - u) / (inner.u0 - outer.u0)
+                    } else {
+                        0.0
+                    };
+                    let dy = if v > inner.v1 {
+                        (v - inner.v1) / (outer.v1 - inner.v1)
+                    } else if v < inner.v0 {
+                        (inner.v0 - v) / (inner.v0 - outer.v0)
+                    } else {
+                        0.0
+                    };
                     if dx >= dy {
                         if u > inner.u1 { [0, 255, 0] } else { [0, 0, 255] }
                     } else if v < inner.v0 {
@@ -598,7 +615,14 @@ mod tests {
         // Face centres: North (+Z, away from camera) red; East (+X) green; West blue; up
         // yellow; down magenta; South (towards the camera) from the white border.
         let centre = |layer: usize| gpu_cube.faces[layer][(16 * 32 + 16) as usize];
-        let expect = [(4, [1.0, 0.0, 0.0]), (0, [0.0, 1.0, 0.0]), (1, [0.0, 0.0, 1.0]), (2, [1.0, 1.0, 0.0]), (3, [1.0, 0.0, 1.0]), (5, [1.0, 1.0, 1.0])];
+        let expect = [
+            (4, [1.0, 0.0, 0.0]),
+            (0, [0.0, 1.0, 0.0]),
+            (1, [0.0, 0.0, 1.0]),
+            (2, [1.0, 1.0, 0.0]),
+            (3, [1.0, 0.0, 1.0]),
+            (5, [1.0, 1.0, 1.0]),
+        ];
         for (layer, rgb) in expect {
             let c = centre(layer);
             assert!((0..3).all(|k| (c[k] - rgb[k]).abs() < 0.05), "layer {layer}: {c:?} expected {rgb:?}");

@@ -2,8 +2,8 @@
 //! pinhole, the capture's local frame (reference heading turned to North) and the directions
 //! of cube-face pixels in it.
 
-use crate::scene::cubemap::face_uv_to_cube_dir;
 use crate::scene::cube_to_enu;
+use crate::scene::cubemap::face_uv_to_cube_dir;
 use anyhow::{Result, bail};
 use glam::{DQuat, Quat, Vec2, Vec3};
 

@@ -13,19 +13,19 @@
 //! from the environment at the capture's reference heading with the same exposure and tone
 //! curve.
 
+use super::Mode;
 use super::assistant::{Assistant, AssistantConfig, Phase};
 use super::folder::{CubeCapture, Location};
 use super::projection::{Pinhole, face_pixel_dir_local, local_to_world};
 use super::targets::Face;
-use super::Mode;
-use crate::camera::exposure::{AutoExposure, ExposureMode, ToneLut};
-use crate::camera::sim::{SimSettings, VirtualPhone};
-use crate::pose::fusion::{FusionConfig, OrientationFilter};
-use crate::pose::trace::TruthTrace;
-use crate::pose::frames::angle_between;
-use crate::pose::user_path::UserPathParams;
 use super::targets::{AimError, Target};
 use super::user_path::{AimShift, CapturePath, simulate_guided_path};
+use crate::camera::exposure::{AutoExposure, ExposureMode, ToneLut};
+use crate::camera::sim::{SimSettings, VirtualPhone};
+use crate::pose::frames::angle_between;
+use crate::pose::fusion::{FusionConfig, OrientationFilter};
+use crate::pose::trace::TruthTrace;
+use crate::pose::user_path::UserPathParams;
 use crate::pose::{HeadingSource, OrientationEstimator};
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
@@ -449,7 +449,11 @@ mod tests {
     fn a_trace_without_a_tap_is_incomplete_not_a_crash() {
         let cfg = ReplayConfig { mode: Mode::Stretch, width: 80, height: 60, face_size: 16, render_threads: 1, ..Default::default() };
         let samples = (0..200)
-            .map(|i| crate::pose::trace::TruthSample { t: i as f64 * 0.01, q: crate::pose::frames::from_heading_pitch_roll(0.0, 0.0, 0.0), tap: false })
+            .map(|i| crate::pose::trace::TruthSample {
+                t: i as f64 * 0.01,
+                q: crate::pose::frames::from_heading_pitch_roll(0.0, 0.0, 0.0),
+                tap: false,
+            })
             .collect();
         let r = replay(&env(), &TruthTrace::new(samples).unwrap(), &cfg).unwrap();
         assert!(r.incomplete.unwrap().contains("no tap"));

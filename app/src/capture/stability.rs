@@ -177,8 +177,10 @@ pub fn run_job(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> Result<RunRow
         let tap = simulate_capture_path(job.seed, &targets, &params)?.samples.iter().find(|s| s.tap).map_or(0.0, |s| s.t);
         let dir = DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.0).normalize_or(DVec3::X);
         replay_cfg.disturbances = vec![Disturbance { start: tap + 1.0, duration: 8.0, field_enu_ut: dir * 40.0 }];
-        replay_cfg.fusion =
-            FusionConfig { disturbance: DisturbanceConfig { enabled: fallback, ..DisturbanceConfig::default() }, ..FusionConfig::default() };
+        replay_cfg.fusion = FusionConfig {
+            disturbance: DisturbanceConfig { enabled: fallback, ..DisturbanceConfig::default() },
+            ..FusionConfig::default()
+        };
     }
     let run = replay_guided(env, &replay_cfg, job.seed, &params, GUIDED_ATTEMPTS)?;
     let mut row = row(job, run.path.reference_heading_deg, &run.result);
@@ -231,10 +233,13 @@ pub fn run_study(env: &Arc<CubeMap>, cfg: &StudyConfig, jobs: &[Job], tick: impl
                     match run_job(env, cfg, *job) {
                         Ok(r) => rows.lock().unwrap_or_else(|e| e.into_inner()).push((i, r)),
                         Err(e) => {
-                            first_error
-                                .lock()
-                                .unwrap_or_else(|e| e.into_inner())
-                                .get_or_insert(e.context(format!("{} {} {} seed {}", job.case.name(), job.noise.name(), job.mode.name(), job.seed)));
+                            first_error.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert(e.context(format!(
+                                "{} {} {} seed {}",
+                                job.case.name(),
+                                job.noise.name(),
+                                job.mode.name(),
+                                job.seed
+                            )));
                             next.store(jobs.len(), Ordering::Relaxed);
                         }
                     }
@@ -451,9 +456,12 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                 .y_desc("% of runs complete")
                 .draw()
                 .context("chart")?;
-            c.draw_series(summaries.iter().enumerate().map(|(i, m)| {
-                Rectangle::new([(i as f64 - 0.35, 0.0), (i as f64 + 0.35, 100.0 * m.completion())], colour(m).filled())
-            }))
+            c.draw_series(
+                summaries
+                    .iter()
+                    .enumerate()
+                    .map(|(i, m)| Rectangle::new([(i as f64 - 0.35, 0.0), (i as f64 + 0.35, 100.0 * m.completion())], colour(m).filled())),
+            )
             .context("chart")?;
         }
         // (b) orientation error: mean (bar) and p95 of the per-run maximum (marker).

@@ -147,7 +147,11 @@ impl Target {
         let dh = heading_difference_deg(hpr.heading.to_degrees(), target_heading);
         let forward = pose * DVec3::NEG_Z;
         let angle = forward.normalize().dot(self.direction(reference_heading_deg)).clamp(-1.0, 1.0).acos().to_degrees();
-        AimError { heading_deg: dh * self.pitch_deg.to_radians().cos(), pitch_deg: hpr.pitch.to_degrees() - self.pitch_deg, angle_deg: angle }
+        AimError {
+            heading_deg: dh * self.pitch_deg.to_radians().cos(),
+            pitch_deg: hpr.pitch.to_degrees() - self.pitch_deg,
+            angle_deg: angle,
+        }
     }
 }
 
@@ -169,7 +173,9 @@ fn coverage_bits(t: &Target, samples: &[Vec3], half_tan: (f32, f32), disc: f32, 
     } else {
         [-PLAN_ROLL_DEG, 0.0, PLAN_ROLL_DEG]
             .iter()
-            .map(|roll| from_heading_pitch_roll(t.heading_offset_deg.to_radians(), t.pitch_deg.to_radians(), roll.to_radians()).as_quat().inverse())
+            .map(|roll| {
+                from_heading_pitch_roll(t.heading_offset_deg.to_radians(), t.pitch_deg.to_radians(), roll.to_radians()).as_quat().inverse()
+            })
             .collect()
     };
     for (i, d) in samples.iter().enumerate() {
@@ -215,9 +221,8 @@ fn plan_uncached(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target
     }
     let samples: Vec<Vec3> = (0..6)
         .flat_map(|layer| {
-            (0..PLAN_SAMPLES * PLAN_SAMPLES).map(move |i| {
-                super::projection::face_pixel_dir_local(layer, i % PLAN_SAMPLES, i / PLAN_SAMPLES, PLAN_SAMPLES, 1.0)
-            })
+            (0..PLAN_SAMPLES * PLAN_SAMPLES)
+                .map(move |i| super::projection::face_pixel_dir_local(layer, i % PLAN_SAMPLES, i / PLAN_SAMPLES, PLAN_SAMPLES, 1.0))
         })
         .collect();
     let margin = (tolerance_deg + 1.0).to_radians() as f32;

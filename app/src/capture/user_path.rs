@@ -107,7 +107,8 @@ pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathPara
         Hpr { h, p, r: uniform(rng, (-params.roll_deg, params.roll_deg)) }
     };
     let front = aim(&mut rng, first, href);
-    let start = Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
+    let start =
+        Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
     let mut segments = vec![Segment { t0: 0.0, t1: 0.4, from: start, to: start }];
     let mut t = 0.4;
     let mut at = start;

@@ -23,9 +23,12 @@ pub const FRAME_WIDTH: u32 = 640;
 pub const FRAME_HEIGHT: u32 = 480;
 
 #[derive(clap::Args, Debug)]
-#[command(args_conflicts_with_subcommands = true, after_help = "Trace format (CSV, header required): t,qw,qx,qy,qz,tap — time in seconds, the \
+#[command(
+    args_conflicts_with_subcommands = true,
+    after_help = "Trace format (CSV, header required): t,qw,qx,qy,qz,tap — time in seconds, the \
 camera's true orientation (unit quaternion, camera frame -> ENU, camera looking along -z, image up +y), tap = 1 on the row where the \
-user taps the shutter. See docs/capture.md.")]
+user taps the shutter. See docs/capture.md."
+)]
 pub struct Args {
     #[command(subcommand)]
     pub command: Option<Sub>,

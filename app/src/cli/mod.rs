@@ -4,8 +4,8 @@
 use clap::{Parser, Subcommand};
 
 pub mod bench;
-pub mod colour_transfer;
 pub mod capture;
+pub mod colour_transfer;
 pub mod composite;
 pub mod pose_stability;
 pub mod priors;

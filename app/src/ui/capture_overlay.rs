@@ -112,12 +112,22 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
             text += &format!("  ({}/{} shots)", g.shots_done, g.shots_total);
         }
         let galley = painter.layout_no_wrap(text, FontId::proportional(22.0), white);
-        let rect = Rect::from_min_size(Pos2::new(screen.right() - galley.size().x - 30.0, screen.top() + 14.0), galley.size() + Vec2::new(20.0, 8.0));
+        let rect = Rect::from_min_size(
+            Pos2::new(screen.right() - galley.size().x - 30.0, screen.top() + 14.0),
+            galley.size() + Vec2::new(20.0, 8.0),
+        );
         painter.rect_filled(rect, 6.0, shade);
         painter.galley(rect.min + Vec2::new(10.0, 4.0), galley, white);
     }
     if g.hold_still {
-        banner(&painter, Pos2::new(centre.x, centre.y + 70.0), "Hold still", 30.0, white, Color32::from_rgba_unmultiplied(200, 30, 30, 210));
+        banner(
+            &painter,
+            Pos2::new(centre.x, centre.y + 70.0),
+            "Hold still",
+            30.0,
+            white,
+            Color32::from_rgba_unmultiplied(200, 30, 30, 210),
+        );
     }
     if g.gyro_only {
         let galley = painter.layout_no_wrap(GYRO_ONLY_TEXT.to_string(), FontId::proportional(18.0), Color32::BLACK);

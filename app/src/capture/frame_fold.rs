@@ -91,7 +91,8 @@ pub fn screen_bbox(clip_from_model: Mat4, bounds: (Vec3, Vec3)) -> ScreenBox {
     for i in 0..8 {
         let p = Vec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
         let c = clip_from_model * Vec4::new(p.x, p.y, p.z, 1.0);
-        if !(c.w > 1e-6) {
+        // Behind the eye or NaN: the whole screen.
+        if c.w.is_nan() || c.w <= 1e-6 {
             return ScreenBox::FULL;
         }
         let (u, v) = (0.5 * (c.x / c.w + 1.0), 0.5 * (1.0 - c.y / c.w));

@@ -34,8 +34,8 @@ pub fn thumbnail(image: &Rgba8Image, side: usize) -> egui::ColorImage {
             for y in sy0..sy1.min(h) {
                 for x in sx0..sx1.min(w) {
                     let i = 4 * (y * w + x);
-                    for c in 0..3 {
-                        sum[c] += u32::from(image.pixels[i + c]);
+                    for (s, &p) in sum.iter_mut().zip(&image.pixels[i..i + 3]) {
+                        *s += u32::from(p);
                     }
                     n += 1;
                 }

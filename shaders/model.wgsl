@@ -18,6 +18,8 @@
 @group(0) @binding(5) var background_smp: sampler;
 @group(0) @binding(6) var shadow_map: texture_depth_2d;
 @group(0) @binding(7) var shadow_smp: sampler_comparison;
+// Colour correction of the model's albedo towards the environment (colour_correct.wgsl).
+@group(0) @binding(8) var<uniform> colour_cc: ColourCorrection;
 
 struct Material {
     // rgb: diffuse colour (linear); a: 1 when the diffuse texture is used
@@ -115,9 +117,15 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
 
     // Opaque, one-sided lighting (Eq. 3): factors are clamped at zero, so a surface facing away
     // from the sun gets only ambient light.
+    // Colour correction (seed §5.6) acts on what the model priors were measured on: the diffuse
+    // texture's linear colour when there is one, else the material's diffuse colour. A corrected
+    // reflectance is kept at or below 1.
     var albedo = material.albedo.rgb;
     if (material.albedo.a > 0.5) {
-        albedo = albedo * textureSample(diffuse_tex, diffuse_smp, in.uv).rgb;
+        let texel = textureSample(diffuse_tex, diffuse_smp, in.uv).rgb;
+        albedo = albedo * min(colour_correct(texel, colour_cc), vec3<f32>(1.0));
+    } else {
+        albedo = min(colour_correct(albedo, colour_cc), vec3<f32>(1.0));
     }
     let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
     let df = max(dot(n, l), 0.0) * visibility;

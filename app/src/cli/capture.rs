@@ -233,13 +233,16 @@ fn run_stability(a: StabilityArgs) -> Result<()> {
     stability::draw_chart(&png, &summaries)?;
     let report = format!(
         "## Capture stability (`previz capture stability`)\n\n\
-Machine: 2-core x86_64, no GPU (lavapipe), date 2026-11-21. {} simulated captures in {:.0} s on {} threads; \
+Machine: {} logical CPUs ({}), date {}. {} simulated captures in {:.0} s on {} threads; \
 environment `{}`; virtual phone {}x{} at {}° vertical FOV; faces {} px; tolerance ±{}°. Every run: simulated user \
 path (`capture::user_path`) → virtual phone + simulated sensors → fusion filter (default setting) → assistant → faces, \
 scored against the ideal faces (same exposure and tone curve). Random headings: {} runs per noise level and mode; hard \
 cases: {} runs per mode at `phone` noise. Raw rows: `docs/capture_stability.csv`; chart: `docs/capture_stability.png`.\n\n\
 {}\n\
 Per-face PSNR (dB, random headings):\n\n{}\n",
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        std::env::consts::ARCH,
+        chrono::Local::now().format("%Y-%m-%d"),
         rows.len(),
         elapsed,
         cfg.threads,

@@ -1,7 +1,7 @@
 //! `previz composite`: composite a lit model over a background; with no arguments, the bundled
 //! demo scene.
 
-use crate::render::{Camera, Compositor, FrameParams, Layer, Lighting, MaterialTerms, Method, Placement, gpu::Gpu, view};
+use crate::render::{Camera, ColourSettings, Compositor, FrameParams, Layer, Lighting, MaterialTerms, Method, Placement, gpu::Gpu, view};
 use crate::scene::file::{Scene, SceneBuilder};
 use crate::scene::{CubeMap, Model, Rgba8Image, demo};
 use anyhow::{Context, Result, bail};
@@ -239,6 +239,7 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
             live_depth: scene.effects.live_depth as f32,
         },
         placement,
+        colour: ColourSettings { method: scene.colour.correction, strength: scene.colour.strength as f32 },
     }
 }
 

@@ -47,7 +47,7 @@ pub const SIGMA_HI: f64 = 0.01;
 pub const MAX_GAIN: f64 = 10.0;
 
 /// A colour-correction method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// No correction.

@@ -115,7 +115,22 @@ fn mean_rgb(px: &[[f32; 3]], face: &str) -> Result<[f64; 3]> {
 
 /// Environment priors, CPU reference.
 pub fn environment_priors(cube: &CubeMap) -> Result<EnvironmentPriors> {
-    let r = cube_regions(cube)?;
+    environment_priors_scaled(cube, 1.0)
+}
+
+/// Environment priors of the cube map's radiance multiplied by `scale` (an exposure): what the
+/// compositor shows and corrects towards. Computed from the scaled pixels, because the log-lαβ
+/// statistics do not scale exactly (the log's offset).
+pub fn environment_priors_scaled(cube: &CubeMap, scale: f32) -> Result<EnvironmentPriors> {
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("environment scale must be a positive number, got {scale}");
+    }
+    let mut r = cube_regions(cube)?;
+    if scale != 1.0 {
+        for p in r.horizontal.iter_mut().chain(r.up.iter_mut()).chain(r.down.iter_mut()) {
+            *p = p.map(|c| c * scale);
+        }
+    }
     if r.horizontal.is_empty() {
         bail!("the horizontal faces of the cube map have no finite pixels");
     }

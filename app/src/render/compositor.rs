@@ -8,6 +8,10 @@ use super::Method;
 use super::pipelines::{COLOR_FORMAT, DEPTH_FORMAT, Pipelines, SAMPLES, SHADOW_MAP_SIZE, Vertex};
 use super::uniforms::{FrameUniforms, InstanceUniforms, MaterialUniforms};
 use super::view::{self, Placement};
+use crate::colour::correction::ColourCorrection;
+use crate::colour::stats::ColourStats;
+use crate::colour::transfer::Method as ColourMethod;
+use crate::priors::{self, EnvironmentPriors};
 use crate::render::gpu::Gpu;
 use crate::scene::{CubeMap, Model, Rgba8Image};
 use anyhow::{Context, Result, anyhow, bail};
@@ -26,6 +30,33 @@ pub struct HemispherePriors {
     pub light: f32,
     /// Hemisphere-occlusion shadow level: the dark end of the horizontal faces' luminance.
     pub shadow: f32,
+}
+
+impl HemispherePriors {
+    /// From the environment priors (after exposure): sky/ground = mean colour of the +Y/−Y faces;
+    /// occlusion light/shadow = 99th/1st percentile of BT.709 luminance over the four horizontal
+    /// faces (robust against one bright pixel, unlike the seed's single-pixel max/min).
+    pub fn from_environment(p: &EnvironmentPriors) -> HemispherePriors {
+        let rgb = |v: [f64; 3]| v.map(|c| c as f32);
+        HemispherePriors {
+            sky: rgb(p.up_mean),
+            ground: rgb(p.down_mean),
+            light: p.horizontal.luminance.p_hi as f32,
+            shadow: p.horizontal.luminance.p_lo as f32,
+        }
+    }
+}
+
+/// Colour correction of the model towards the environment (seed §5.6): which method, how much.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColourSettings {
+    pub method: ColourMethod,
+    /// 0..1 (the seed's CC slider).
+    pub strength: f32,
+}
+
+impl ColourSettings {
+    pub const NONE: ColourSettings = ColourSettings { method: ColourMethod::None, strength: 0.0 };
 }
 
 /// The Blinn-Phong material terms of Eq. 3 (scalars; colour comes from the material/texture).
@@ -79,6 +110,16 @@ pub struct FrameParams {
     pub method: Method,
     pub lighting: Lighting,
     pub placement: Placement,
+    pub colour: ColourSettings,
+}
+
+/// The uniform values of one frame.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameData {
+    pub frame: FrameUniforms,
+    pub instance: InstanceUniforms,
+    pub ground: InstanceUniforms,
+    pub colour: ColourCorrection,
 }
 
 /// Which image a render produces.
@@ -123,10 +164,15 @@ struct ModelGpu {
     bounds: (Vec3, Vec3),
     /// Per-material gloss exponents, in mesh order, for `MaterialTerms::gloss == None`.
     materials: Vec<(wgpu::Buffer, MaterialUniforms)>,
+    /// Colour statistics of the model's texture (or diffuse colours), the correction's target;
+    /// the reason when there are none (every texel masked out).
+    colour: std::result::Result<ColourStats, String>,
 }
 
 struct EnvGpu {
     priors: HemispherePriors,
+    /// Colour statistics of the horizontal faces after exposure, the correction's source.
+    colour: ColourStats,
     exposure: f32,
     /// World heading (radians, clockwise from North) of the cube map's front (+Z) face.
     heading: f32,
@@ -147,6 +193,7 @@ pub struct Compositor {
     frame_buf: wgpu::Buffer,
     instance_buf: wgpu::Buffer,
     ground_buf: wgpu::Buffer,
+    colour_buf: wgpu::Buffer,
     shadow_view: wgpu::TextureView,
     msaa_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
@@ -261,6 +308,7 @@ impl Compositor {
         let frame_buf = uniform_buffer(device, "frame", std::mem::size_of::<FrameUniforms>());
         let instance_buf = uniform_buffer(device, "instance", std::mem::size_of::<InstanceUniforms>());
         let ground_buf = uniform_buffer(device, "ground plane", std::mem::size_of::<InstanceUniforms>());
+        let colour_buf = uniform_buffer(device, "colour correction", std::mem::size_of::<ColourCorrection>());
         let shadow_view = shadow.create_view(&Default::default());
         let background_view = background.create_view(&Default::default());
         let white = upload_rgba8(gpu, "white", &Rgba8Image { width: 1, height: 1, pixels: vec![255; 4] });
@@ -314,6 +362,7 @@ impl Compositor {
             frame_buf,
             instance_buf,
             ground_buf,
+            colour_buf,
             shadow_view,
             msaa_view: msaa.create_view(&Default::default()),
             depth_view: depth.create_view(&Default::default()),
@@ -382,7 +431,7 @@ impl Compositor {
         }
         let view =
             texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() });
-        let priors = hemisphere_priors(cube, exposure);
+        let env_priors = priors::environment_priors_scaled(cube, exposure).context("environment colour priors")?;
         self.env_view_bg = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("env view"),
             layout: &self.pipelines.env_view_layout,
@@ -404,9 +453,11 @@ impl Compositor {
                 wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::Sampler(&self.pipelines.linear_sampler) },
                 wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&self.shadow_view) },
                 wgpu::BindGroupEntry { binding: 7, resource: wgpu::BindingResource::Sampler(&self.pipelines.shadow_sampler) },
+                wgpu::BindGroupEntry { binding: 8, resource: self.colour_buf.as_entire_binding() },
             ],
         }));
-        self.env = Some(EnvGpu { priors, exposure, heading });
+        self.env =
+            Some(EnvGpu { priors: HemispherePriors::from_environment(&env_priors), colour: env_priors.horizontal, exposure, heading });
         Ok(())
     }
 
@@ -488,7 +539,8 @@ impl Compositor {
         if meshes.is_empty() {
             bail!("the model has no triangles");
         }
-        self.model = Some(ModelGpu { meshes, bounds, materials });
+        let colour = priors::model_priors(model).map(|p| p.stats).map_err(|e| format!("{e:#}"));
+        self.model = Some(ModelGpu { meshes, bounds, materials, colour });
         Ok(())
     }
 
@@ -518,11 +570,18 @@ impl Compositor {
         Ok(())
     }
 
-    /// The uniform values for a frame (pure: no GPU access).
-    pub fn frame_uniforms(&self, p: &FrameParams) -> Result<(FrameUniforms, InstanceUniforms, InstanceUniforms)> {
+    /// The uniform values for a frame (pure: no GPU access). A colour correction needs the
+    /// model's colour priors; a model without any (every texel masked out) is an error then.
+    pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        Ok(frame_uniforms(p, model.bounds, &env.priors, env.exposure, env.heading, self.width, self.height))
+        let (frame, instance, ground) = frame_uniforms(p, model.bounds, &env.priors, env.exposure, env.heading, self.width, self.height);
+        let colour = match (p.colour.method, &model.colour) {
+            (ColourMethod::None, _) => ColourCorrection::identity(),
+            (m, Ok(target)) => ColourCorrection::new(m, p.colour.strength, &env.colour, target),
+            (m, Err(why)) => bail!("colour correction {} needs the model's colour statistics: {why}", m.name()),
+        };
+        Ok(FrameData { frame, instance, ground, colour })
     }
 
     /// Render one image of `layer` and read it back.
@@ -537,10 +596,11 @@ impl Compositor {
 
     fn render_unchecked(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
         let t0 = Instant::now();
-        let (frame, instance, ground) = self.frame_uniforms(p)?;
-        gpu.queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&frame));
-        gpu.queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&instance));
-        gpu.queue.write_buffer(&self.ground_buf, 0, bytemuck::bytes_of(&ground));
+        let data = self.frame_uniforms(p)?;
+        gpu.queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
+        gpu.queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
+        gpu.queue.write_buffer(&self.ground_buf, 0, bytemuck::bytes_of(&data.ground));
+        gpu.queue.write_buffer(&self.colour_buf, 0, bytemuck::bytes_of(&data.colour));
         if let Some(model) = &self.model {
             for (buf, base) in &model.materials {
                 let mut m = *base;
@@ -763,24 +823,4 @@ pub fn frame_uniforms(
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
     (frame, instance, ground)
-}
-
-/// Hemisphere priors of a cube map after exposure: sky/ground = mean colour of the +Y/−Y faces;
-/// occlusion light/shadow = 99th/1st percentile of BT.709 luminance over the four horizontal
-/// faces (robust against one bright pixel, unlike the seed's single-pixel max/min).
-pub fn hemisphere_priors(cube: &CubeMap, exposure: f32) -> HemispherePriors {
-    let mean = |face: &[[f32; 3]]| {
-        let n = face.len().max(1) as f64;
-        let s = face.iter().fold([0f64; 3], |a, p| [a[0] + f64::from(p[0]), a[1] + f64::from(p[1]), a[2] + f64::from(p[2])]);
-        [(s[0] / n) as f32 * exposure, (s[1] / n) as f32 * exposure, (s[2] / n) as f32 * exposure]
-    };
-    let mut lum: Vec<f32> = [0usize, 1, 4, 5]
-        .iter()
-        .flat_map(|&f| cube.faces[f].iter())
-        .map(|p| crate::colour::luminance_bt709(*p) * exposure)
-        .filter(|l| l.is_finite())
-        .collect();
-    lum.sort_by(f32::total_cmp);
-    let pct = |q: f32| if lum.is_empty() { 0.0 } else { lum[((lum.len() - 1) as f32 * q).round() as usize] };
-    HemispherePriors { sky: mean(&cube.faces[2]), ground: mean(&cube.faces[3]), light: pct(0.99), shadow: pct(0.01) }
 }

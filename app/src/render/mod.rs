@@ -8,6 +8,8 @@ pub mod shaders;
 pub mod uniforms;
 pub mod view;
 
-pub use compositor::{Camera, Compositor, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms, Rendered, Timings};
+pub use compositor::{
+    Camera, ColourSettings, Compositor, FrameData, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms, Rendered, Timings,
+};
 pub use method::Method;
 pub use view::Placement;

@@ -154,6 +154,7 @@ impl Pipelines {
                 sampler(5, Filtering),
                 depth_texture(6),
                 sampler(7, Comparison),
+                uniform(8, ShaderStages::FRAGMENT),
             ],
         );
         let material_layout = layout(device, "material", &[uniform(0, ShaderStages::FRAGMENT), texture(1, D2), sampler(2, Filtering)]);

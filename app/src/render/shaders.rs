@@ -27,9 +27,13 @@ impl Technique {
 /// Shared structs and helpers, prepended to every technique.
 pub const FRAME_WGSL: &str = include_str!("../../../shaders/frame.wgsl");
 
-/// The complete WGSL module for a technique.
+/// The complete WGSL module for a technique. The model shader also gets the colour-correction
+/// functions (`colour_correct.wgsl`, shared with the priors compute shader).
 pub fn source(t: Technique) -> String {
-    format!("{FRAME_WGSL}\n{}", t.file())
+    match t {
+        Technique::Model => format!("{FRAME_WGSL}\n{}\n{}", crate::colour::correction::COLOUR_CORRECT_WGSL, t.file()),
+        _ => format!("{FRAME_WGSL}\n{}", t.file()),
+    }
 }
 
 #[cfg(test)]

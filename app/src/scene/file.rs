@@ -6,6 +6,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+use crate::colour::transfer::Method as ColourMethod;
 use crate::render::Method;
 
 /// A complete, validated scene description. Paths are resolved against the scene file's folder.
@@ -30,6 +31,7 @@ pub struct Scene {
     pub placement: PlacementSection,
     pub env: EnvSection,
     pub effects: EffectsSection,
+    pub colour: ColourSection,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -110,6 +112,22 @@ pub struct EffectsSection {
     pub live_depth: f64,
 }
 
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ColourSection {
+    /// Colour correction of the model towards the environment's horizontal faces (seed §5.6):
+    /// none, brightness-contrast, reinhard, cielab-approx or mkl.
+    pub correction: ColourMethod,
+    /// 0..1: how much of the correction is applied (the seed's CC slider).
+    pub strength: f64,
+}
+
+impl Default for ColourSection {
+    fn default() -> Self {
+        ColourSection { correction: ColourMethod::None, strength: 1.0 }
+    }
+}
+
 impl Default for Scene {
     fn default() -> Self {
         Scene {
@@ -126,6 +144,7 @@ impl Default for Scene {
             placement: PlacementSection::default(),
             env: EnvSection::default(),
             effects: EffectsSection::default(),
+            colour: ColourSection::default(),
         }
     }
 }
@@ -303,6 +322,7 @@ impl Scene {
         check("effects.ior", e.ior, 1.0, 3.0)?;
         check("effects.shadow_opacity", e.shadow_opacity, 0.0, 1.0)?;
         check("effects.live_depth", e.live_depth, 0.0, 1e4)?;
+        check("colour.strength", self.colour.strength, 0.0, 1.0)?;
         Ok(())
     }
 }
@@ -337,6 +357,8 @@ mod tests {
             ("width=0", "width"),
             ("camera.bogus=1", "bogus"),
             ("method=phong", "method"),
+            ("colour.correction=lut", "correction"),
+            ("colour.strength=1.5", "colour.strength"),
         ] {
             let mut b = SceneBuilder::new();
             let err = b.set_str(assignment).and_then(|()| b.build().map(|_| ())).unwrap_err();

@@ -419,6 +419,22 @@ pub fn face_psnr_markdown(summaries: &[Summary]) -> String {
     s
 }
 
+
+/// Bar labels read downwards from each bar's foot (plotters' rotated axis labels are anchored
+/// as if unrotated and run up into the plot).
+fn bar_labels(
+    area: &plotters::prelude::DrawingArea<plotters::prelude::BitMapBackend<'_>, plotters::coord::Shift>,
+    feet: impl Iterator<Item = (i32, i32)>,
+    labels: &[String],
+) -> Result<()> {
+    use plotters::prelude::*;
+    let style = ("sans-serif", 12).into_font().transform(FontTransform::Rotate90).color(&BLACK);
+    for ((x, y), label) in feet.zip(labels) {
+        area.draw(&Text::new(label.clone(), (x + 6, y + 6), style.clone())).context("chart")?;
+    }
+    Ok(())
+}
+
 /// Draw the study chart: completion, orientation error, per-face PSNR and cost vs quality.
 pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
     use plotters::prelude::*;
@@ -428,6 +444,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).context("chart")?;
+        let full = root.clone();
         let root = root.titled("Capture stability: where methods fail (simulated captures)", ("sans-serif", 28)).context("chart")?;
         let panels = root.split_evenly((2, 2));
         let n = summaries.len();
@@ -436,10 +453,6 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
             Mode::Stitch => RGBColor(40, 110, 200),
         };
         let labels: Vec<String> = summaries.iter().map(|m| format!("{} {}", m.case.name(), m.noise.name())).collect();
-        let label_of = |x: &f64| -> String {
-            let i = x.round();
-            if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < n { labels[i as usize].clone() } else { String::new() }
-        };
         // (a) completion rate.
         {
             let mut c = ChartBuilder::on(&panels[0])
@@ -450,9 +463,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                 .build_cartesian_2d(-0.6f64..(n as f64 - 0.4), 0f64..105.0)
                 .context("chart")?;
             c.configure_mesh()
-                .x_labels(n)
-                .x_label_formatter(&label_of)
-                .x_label_style(("sans-serif", 11).into_font().transform(FontTransform::Rotate90))
+                .x_labels(0)
                 .y_desc("% of runs complete")
                 .draw()
                 .context("chart")?;
@@ -463,6 +474,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                     .map(|(i, m)| Rectangle::new([(i as f64 - 0.35, 0.0), (i as f64 + 0.35, 100.0 * m.completion())], colour(m).filled())),
             )
             .context("chart")?;
+            bar_labels(&full, (0..n).map(|i| c.backend_coord(&(i as f64, 0.0))), &labels)?;
         }
         // (b) orientation error: mean (bar) and p95 of the per-run maximum (marker).
         {
@@ -475,9 +487,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                 .build_cartesian_2d(-0.6f64..(n as f64 - 0.4), 0f64..top)
                 .context("chart")?;
             c.configure_mesh()
-                .x_labels(n)
-                .x_label_formatter(&label_of)
-                .x_label_style(("sans-serif", 11).into_font().transform(FontTransform::Rotate90))
+                .x_labels(0)
                 .y_desc("degrees (estimated vs true)")
                 .draw()
                 .context("chart")?;
@@ -489,6 +499,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                 summaries.iter().enumerate().filter_map(|(i, m)| Some(Circle::new((i as f64, m.p95_error_deg?), 5, BLACK.filled()))),
             )
             .context("chart")?;
+            bar_labels(&full, (0..n).map(|i| c.backend_coord(&(i as f64, 0.0))), &labels)?;
         }
         // (c) per-face PSNR, random headings.
         {

@@ -1,9 +1,11 @@
-//! `previz bench frame`: per-frame CPU and GPU time of every lighting method, side by side with
-//! the floor (a frame that only draws the background), in one run.
+//! `previz bench frame`: per-frame CPU and GPU time of every lighting method, and of the
+//! hemisphere method with each colour correction, side by side with the floor (a frame that
+//! only draws the background), in one run.
 
 use super::median;
 use crate::cli::composite::{Inputs, prepare};
-use crate::render::{FrameParams, Layer, Method, gpu::Gpu};
+use crate::colour::transfer::Method as ColourMethod;
+use crate::render::{ColourSettings, FrameParams, Layer, Method, gpu::Gpu};
 use crate::scene::file::Scene;
 use anyhow::Result;
 use serde::Serialize;
@@ -11,7 +13,8 @@ use serde::Serialize;
 /// One row of the benchmark: medians over the measured frames.
 #[derive(Clone, Debug, Serialize)]
 pub struct FrameRow {
-    /// A method name, or "background-only" for the floor.
+    /// A method name, "hemisphere+CORRECTION" for a colour correction at full strength, or
+    /// "background-only" for the floor.
     pub path: String,
     pub frames: usize,
     /// CPU time to write uniforms and record the passes, ms.
@@ -37,21 +40,26 @@ pub fn run(
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<FrameRow>> {
     let (mut compositor, base) = prepare(gpu, scene, inputs)?;
-    let mut paths: Vec<(String, Layer, Method)> = vec![("background-only".into(), Layer::Background, scene.method)];
-    paths.extend(Method::ALL.iter().map(|m| (m.name().to_string(), Layer::Composite, *m)));
+    let none = ColourSettings::NONE;
+    let mut paths: Vec<(String, Layer, Method, ColourSettings)> = vec![("background-only".into(), Layer::Background, scene.method, none)];
+    paths.extend(Method::ALL.iter().map(|m| (m.name().to_string(), Layer::Composite, *m, none)));
+    paths.extend(ColourMethod::ALL.iter().map(|c| {
+        let name = format!("{}+{}", Method::Hemisphere.name(), c.name());
+        (name, Layer::Composite, Method::Hemisphere, ColourSettings { method: *c, strength: 1.0 })
+    }));
     progress.set_length(((frames + warmup) * paths.len()) as u64);
-    let mut rows = Vec::new();
-    for (name, layer, method) in paths {
-        progress.set_message(name.clone());
-        let mut cpu = Vec::new();
-        let mut gpu_t = Vec::new();
-        let mut wall = Vec::new();
-        for i in 0..frames + warmup {
+    // Paths are interleaved frame by frame, so a slow spell of a shared machine (or a clock
+    // change) lands on every path alike instead of on whichever path was running.
+    let mut samples = vec![(Vec::new(), Vec::new(), Vec::new()); paths.len()];
+    for i in 0..frames + warmup {
+        progress.set_message(if i < warmup { "warm-up" } else { "measuring" });
+        for ((_, layer, method, colour), (cpu, gpu_t, wall)) in paths.iter().zip(samples.iter_mut()) {
             let mut p: FrameParams = base;
-            p.method = method;
+            p.method = *method;
+            p.colour = *colour;
             p.camera.pose *= glam::Quat::from_rotation_y(1e-4 * i as f32);
             let t = std::time::Instant::now();
-            let r = compositor.render(gpu, &p, layer)?;
+            let r = compositor.render(gpu, &p, *layer)?;
             let total = t.elapsed().as_secs_f64() * 1e3;
             if i >= warmup {
                 cpu.push(r.timings.encode_ms);
@@ -60,7 +68,11 @@ pub fn run(
             }
             progress.inc(1);
         }
-        rows.push(FrameRow {
+    }
+    let mut rows: Vec<FrameRow> = paths
+        .into_iter()
+        .zip(samples)
+        .map(|((name, ..), (cpu, gpu_t, wall))| FrameRow {
             path: name,
             frames,
             cpu_encode_ms: median(&cpu),
@@ -68,8 +80,8 @@ pub fn run(
             wall_ms: median(&wall),
             gpu_ratio: 0.0,
             wall_ratio: 0.0,
-        });
-    }
+        })
+        .collect();
     let (floor_gpu, floor_wall) = (rows[0].gpu_ms, rows[0].wall_ms);
     for r in &mut rows {
         r.gpu_ratio = r.gpu_ms / floor_gpu;

@@ -419,7 +419,6 @@ pub fn face_psnr_markdown(summaries: &[Summary]) -> String {
     s
 }
 
-
 /// Bar labels read downwards from each bar's foot (plotters' rotated axis labels are anchored
 /// as if unrotated and run up into the plot).
 fn bar_labels(
@@ -462,11 +461,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                 .y_label_area_size(50)
                 .build_cartesian_2d(-0.6f64..(n as f64 - 0.4), 0f64..105.0)
                 .context("chart")?;
-            c.configure_mesh()
-                .x_labels(0)
-                .y_desc("% of runs complete")
-                .draw()
-                .context("chart")?;
+            c.configure_mesh().x_labels(0).y_desc("% of runs complete").draw().context("chart")?;
             c.draw_series(
                 summaries
                     .iter()
@@ -486,11 +481,7 @@ pub fn draw_chart(path: &std::path::Path, summaries: &[Summary]) -> Result<()> {
                 .y_label_area_size(50)
                 .build_cartesian_2d(-0.6f64..(n as f64 - 0.4), 0f64..top)
                 .context("chart")?;
-            c.configure_mesh()
-                .x_labels(0)
-                .y_desc("degrees (estimated vs true)")
-                .draw()
-                .context("chart")?;
+            c.configure_mesh().x_labels(0).y_desc("degrees (estimated vs true)").draw().context("chart")?;
             c.draw_series(summaries.iter().enumerate().filter_map(|(i, m)| {
                 Some(Rectangle::new([(i as f64 - 0.35, 0.0), (i as f64 + 0.35, m.mean_error_deg?)], colour(m).filled()))
             }))

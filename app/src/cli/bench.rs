@@ -14,7 +14,8 @@ pub struct Args {
 
 #[derive(clap::Subcommand, Debug)]
 pub enum What {
-    /// Per-frame CPU and GPU time of every lighting method and of the background-only floor,
+    /// Per-frame CPU and GPU time of every lighting method, of the hemisphere method with each
+    /// colour correction, and of the background-only floor,
     /// medians after warm-up, ratios to the floor (all in one run).
     Frame(FrameArgs),
 }
@@ -52,7 +53,7 @@ fn run_frame(a: FrameArgs) -> Result<()> {
     let inputs = load_inputs(&scene, demo)?;
     let gpu = Gpu::headless()?;
     let bar = indicatif::ProgressBar::new(0).with_style(
-        indicatif::ProgressStyle::with_template("{msg:>22} {bar:40} {pos}/{len} frames")
+        indicatif::ProgressStyle::with_template("{msg:>10} {bar:40} {pos}/{len} frames")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let rows = frame::run(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;

@@ -94,7 +94,8 @@ pub struct StabilityArgs {
     /// Runs per hard case (wrap, poles, disturbance) and mode
     #[arg(long = "case-runs", default_value_t = 25)]
     pub case_runs: usize,
-    /// Output folder for capture_stability.csv, capture_stability.png and PERFORMANCE-capture.md
+    /// Output folder for capture_stability.csv and capture_stability.png (the markdown report,
+    /// a section of docs/PERFORMANCE.md, is printed)
     #[arg(short = 'o', long = "out", default_value = "docs")]
     pub out: PathBuf,
     /// Worker threads (default: one per core)
@@ -228,7 +229,6 @@ fn run_stability(a: StabilityArgs) -> Result<()> {
     let summaries = stability::summarise(&rows);
     let csv = a.out.join("capture_stability.csv");
     let png = a.out.join("capture_stability.png");
-    let md = a.out.join("PERFORMANCE-capture.md");
     write_atomic(&csv, stability::rows_csv(&rows).as_bytes())?;
     stability::draw_chart(&png, &summaries)?;
     let report = format!(
@@ -257,8 +257,7 @@ Per-face PSNR (dB, random headings):\n\n{}\n",
         stability::summary_markdown(&summaries),
         stability::face_psnr_markdown(&summaries),
     );
-    write_atomic(&md, report.as_bytes())?;
     print!("{report}");
-    println!("wrote {}, {} and {}", csv.display(), png.display(), md.display());
+    println!("wrote {} and {}", csv.display(), png.display());
     Ok(())
 }

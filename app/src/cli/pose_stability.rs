@@ -112,7 +112,7 @@ pub fn report_csv(r: &StabilityReport) -> String {
     s
 }
 
-/// A markdown summary (printed; the numbers for docs/PERFORMANCE-pose.md).
+/// A markdown summary (printed; the numbers for the pose section of docs/PERFORMANCE.md).
 pub fn report_markdown(r: &StabilityReport, seeds: u64) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "### Jitter and lag ({seeds} seeds per row; hand-held hold and a 90° turn at 90°/s)\n");

@@ -95,7 +95,7 @@ pub struct FusionConfig {
 }
 
 impl Default for FusionConfig {
-    /// The setting chosen with `previz pose-stability` (docs/PERFORMANCE-pose.md).
+    /// The setting chosen with `previz pose-stability` (docs/PERFORMANCE.md, pose section).
     fn default() -> Self {
         FusionConfig {
             k_acc: 0.5,

@@ -1,5 +1,6 @@
-//! Per-frame work allocates no GPU resources, and further frames reuse the pipelines. Alone in
-//! its own test binary: wgpu's counters are per device, and other tests would allocate.
+//! Per-frame work allocates no GPU resources, further frames reuse the pipelines, and a second
+//! composite in the same process compiles no shaders. Alone in its own test binary: wgpu's
+//! counters are per device, and other tests would allocate.
 
 mod common;
 
@@ -46,5 +47,29 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
         ("samplers", &before.samplers, &after.samplers),
     ] {
         assert_eq!(a.read(), b.read(), "{name} changed across frames");
+    }
+    a_second_composite_reuses_the_pipelines();
+}
+
+/// Called from the one test: the counters are per device and tests run in parallel.
+fn a_second_composite_reuses_the_pipelines() {
+    let s = scene("width = 96\nheight = 64\n");
+    let inputs =
+        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let (mut first, params) = prepare(gpu(), &s, &inputs).unwrap();
+    first.render(gpu(), &params, Layer::Composite).unwrap();
+    let before = gpu().device.get_internal_counters().hal;
+    let (mut second, params) = prepare(gpu(), &s, &inputs).unwrap();
+    second.render(gpu(), &params, Layer::Composite).unwrap();
+    let after = gpu().device.get_internal_counters().hal;
+    // The second compositor has its own targets and buffers, but no new pipeline or shader.
+    assert!(after.buffers.read() > before.buffers.read(), "the second compositor allocated no buffers");
+    for (name, a, b) in [
+        ("render pipelines", &before.render_pipelines, &after.render_pipelines),
+        ("shader modules", &before.shader_modules, &after.shader_modules),
+        ("pipeline layouts", &before.pipeline_layouts, &after.pipeline_layouts),
+        ("bind group layouts", &before.bind_group_layouts, &after.bind_group_layouts),
+    ] {
+        assert_eq!(a.read(), b.read(), "{name}: the second composite built new ones");
     }
 }

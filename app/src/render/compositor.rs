@@ -187,7 +187,7 @@ struct Timestamps {
 
 /// GPU state for compositing at one output size.
 pub struct Compositor {
-    pipelines: Pipelines,
+    pipelines: std::sync::Arc<Pipelines>,
     width: u32,
     height: u32,
     frame_buf: wgpu::Buffer,
@@ -282,7 +282,7 @@ impl Compositor {
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
         check_size(width, height, gpu)?;
         let device = &gpu.device;
-        let pipelines = Pipelines::new(device);
+        let pipelines = gpu.pipelines();
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
         let shadow =
             target(device, "shadow map", SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);

@@ -1,6 +1,8 @@
 //! The wgpu device: headless (lavapipe in CI) or for a window surface.
 
+use super::pipelines::Pipelines;
 use anyhow::{Context, Result, anyhow};
+use std::sync::{Arc, OnceLock};
 
 /// How to get a Vulkan driver on a machine without a GPU.
 pub const NO_ADAPTER_HELP: &str = "no GPU adapter found. On a machine without a GPU install the \
@@ -15,6 +17,8 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     /// Whether GPU timestamp queries are available (timings in `--json` and `previz bench`).
     pub timestamps: bool,
+    /// The render pipelines, built on first use and shared by every compositor on this device.
+    pipelines: OnceLock<Arc<Pipelines>>,
 }
 
 impl Gpu {
@@ -49,7 +53,13 @@ impl Gpu {
         // Errors are caught with error scopes where work is submitted; anything that escapes
         // them is reported rather than aborting the process (wgpu's default handler panics).
         device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| eprintln!("GPU error: {e}")));
-        Ok(Gpu { instance, adapter, device, queue, timestamps })
+        Ok(Gpu { instance, adapter, device, queue, timestamps, pipelines: OnceLock::new() })
+    }
+
+    /// The pipelines, bind-group layouts and samplers of the compositor: built once per device,
+    /// so a second composite in the same process compiles no shaders.
+    pub fn pipelines(&self) -> Arc<Pipelines> {
+        self.pipelines.get_or_init(|| Arc::new(Pipelines::new(&self.device))).clone()
     }
 
     /// The adapter's name and backend, for reports.

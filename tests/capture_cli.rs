@@ -3,37 +3,8 @@
 
 mod common;
 
+use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::data;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn previz(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_previz")).current_dir(dir).args(args).output().unwrap()
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("previz-capture-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn entries(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
-    v.sort();
-    v
-}
-
-/// Non-zero exit, every needle in stderr, no panic, and the folder unchanged.
-fn assert_clean_failure(out: &Output, dir: &Path, before: &[PathBuf], needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, stderr: {stderr}");
-    assert!(!stderr.contains("panicked"), "panic: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "stderr should mention {n:?}: {stderr}");
-    }
-    assert_eq!(entries(dir), before, "files left behind");
-}
 
 /// A small environment: the Pisa cube faces (256 px PNG).
 fn env_dir() -> String {
@@ -42,7 +13,7 @@ fn env_dir() -> String {
 
 #[test]
 fn simulated_capture_writes_a_loadable_folder_and_json() {
-    let dir = tempdir("sim");
+    let dir = tempdir("capture-cli", "sim");
     let out = previz(
         &dir,
         &[
@@ -86,7 +57,7 @@ fn simulated_capture_writes_a_loadable_folder_and_json() {
     std::fs::remove_file(dir.join("cap/negy.png")).unwrap();
     let e = format!("{:#}", previz::capture::load_capture(&dir.join("cap")).unwrap_err());
     assert!(e.contains("negy.png (down)"), "{e}");
-    let before = entries(&dir);
+    let before = files(&dir);
     let out = previz(&dir, &["capture", "--env", "cap", "--simulate", "-o", "cap2"]);
     assert_clean_failure(&out, &dir, &before, &["cap", "negy"]);
     std::fs::remove_dir_all(&dir).unwrap();
@@ -94,7 +65,7 @@ fn simulated_capture_writes_a_loadable_folder_and_json() {
 
 #[test]
 fn bad_traces_and_inputs_fail_cleanly() {
-    let dir = tempdir("bad");
+    let dir = tempdir("capture-cli", "bad");
     let good_rows = "0,1,0,0,0,0\n0.1,1,0,0,0,1\n";
     let traces = [
         ("nan.csv", format!("t,qw,qx,qy,qz,tap\n{good_rows}0.2,NaN,0,0,0,0\n"), vec!["nan.csv"]),
@@ -106,7 +77,7 @@ fn bad_traces_and_inputs_fail_cleanly() {
     for (name, text, _) in &traces {
         std::fs::write(dir.join(name), text).unwrap();
     }
-    let before = entries(&dir);
+    let before = files(&dir);
     let env = env_dir();
     for (name, _, needles) in &traces {
         let out = previz(&dir, &["capture", "--env", &env, "--trace", name, "-o", "out"]);
@@ -117,7 +88,7 @@ fn bad_traces_and_inputs_fail_cleanly() {
         .chain((0..300).map(|i| format!("{},0.7071068,0.7071068,0,0,{}\n", i as f64 * 0.01, u8::from(i == 150))))
         .collect();
     std::fs::write(dir.join("still.csv"), still).unwrap();
-    let before = entries(&dir);
+    let before = files(&dir);
     let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--noise", "none", "--mode", "stretch", "-o", "out"]);
     assert_clean_failure(
         &out,

@@ -1,35 +1,12 @@
 //! `previz colour-transfer` and `previz priors` end to end: results, JSON, reports, and bad input
 //! — a clear error, a non-zero exit, no panic and no output file left behind.
 
+mod common;
+
+use common::cli::{assert_clean_failure, files, previz, tempdir};
+use common::data;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn previz(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_previz")).current_dir(dir).env("XDG_RUNTIME_DIR", "/tmp/xdg").args(args).output().unwrap()
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("previz-colour-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn files(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
-    v.sort();
-    v
-}
-
-fn assert_clean_failure(out: &Output, dir: &Path, before: &[PathBuf], needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, stderr: {stderr}");
-    assert!(!stderr.contains("panicked"), "panic: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "stderr should mention {n:?}: {stderr}");
-    }
-    assert_eq!(files(dir), before, "files left behind");
-}
+use std::process::Output;
 
 /// Write a w×h RGBA PNG from a pixel function.
 fn png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) {
@@ -69,7 +46,7 @@ fn make_pair(dir: &Path) -> (PathBuf, PathBuf) {
 
 #[test]
 fn transfer_matches_source_statistics_for_every_method() {
-    let dir = tempdir("ok");
+    let dir = tempdir("colour-cli", "ok");
     let (s, t) = make_pair(&dir);
     for method in ["reinhard", "mkl", "cielab-approx"] {
         let out = previz(
@@ -116,7 +93,7 @@ fn transfer_matches_source_statistics_for_every_method() {
 
 #[test]
 fn report_and_green_screen() {
-    let dir = tempdir("report");
+    let dir = tempdir("colour-cli", "report");
     let (s, _) = make_pair(&dir);
     // Target: left half blue, right half green screen.
     let t = dir.join("green.png");
@@ -151,7 +128,7 @@ fn report_and_green_screen() {
 
 #[test]
 fn bad_input_fails_cleanly() {
-    let dir = tempdir("bad");
+    let dir = tempdir("colour-cli", "bad");
     let (s, t) = make_pair(&dir);
     let (s, t) = (s.to_str().unwrap().to_string(), t.to_str().unwrap().to_string());
     let broken = dir.join("broken.png");
@@ -220,13 +197,9 @@ fn bad_input_fails_cleanly() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
-}
-
 #[test]
 fn priors_of_an_environment_and_a_model() {
-    let dir = tempdir("priors");
+    let dir = tempdir("colour-cli", "priors");
     let env = data("cubemaps/pisa_ldr_png");
     let obj = data("textured_models/spot/spot_triangulated.obj");
     let tex = data("textured_models/spot/spot_texture.png");

@@ -3,44 +3,13 @@
 
 mod common;
 
+use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::data;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn previz(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_previz")).current_dir(dir).args(args).output().unwrap()
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("previz-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-/// Assert a failed run: non-zero exit, the message mentions every needle, no panic, and the
-/// directory holds nothing but what the test put there.
-fn assert_clean_failure(out: &Output, dir: &Path, before: &[PathBuf], needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, stderr: {stderr}");
-    assert!(!stderr.contains("panicked"), "panic: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "stderr should mention {n:?}: {stderr}");
-    }
-    let mut now: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
-    now.sort();
-    let mut before = before.to_vec();
-    before.sort();
-    assert_eq!(now, before, "files left behind");
-}
-
-fn files(dir: &Path) -> Vec<PathBuf> {
-    std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect()
-}
+use std::process::Command;
 
 #[test]
 fn demo_with_no_arguments_writes_composite_png() {
-    let dir = tempdir("demo");
+    let dir = tempdir("cli", "demo");
     let out = previz(&dir, &["composite"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let img = image::open(dir.join("composite.png")).unwrap().to_rgb8();
@@ -60,7 +29,7 @@ fn demo_with_no_arguments_writes_composite_png() {
 
 #[test]
 fn layers_and_json() {
-    let dir = tempdir("layers");
+    let dir = tempdir("cli", "layers");
     let layers = dir.join("layers");
     std::fs::create_dir(&layers).unwrap();
     let bunny = data("meshes/stanford-bunny.obj");
@@ -126,7 +95,7 @@ fn layers_and_json() {
 
 #[test]
 fn bad_flags_are_named() {
-    let dir = tempdir("flags");
+    let dir = tempdir("cli", "flags");
     for (args, needles) in [
         (vec!["composite", "--pitch", "NaN"], vec!["--pitch", "finite"]),
         (vec!["composite", "--vfov", "500"], vec!["--vfov", "out of range"]),
@@ -147,7 +116,7 @@ fn bad_flags_are_named() {
 
 #[test]
 fn bad_files_are_named() {
-    let dir = tempdir("files");
+    let dir = tempdir("cli", "files");
     // Malformed OBJ.
     std::fs::write(dir.join("bad.obj"), "v 1 2\nf 1 2 x\n").unwrap();
     // OBJ whose MTL names a texture that does not exist.
@@ -189,7 +158,7 @@ fn bad_files_are_named() {
 
 #[test]
 fn no_gpu_adapter_says_how_to_install_lavapipe() {
-    let dir = tempdir("nogpu");
+    let dir = tempdir("cli", "nogpu");
     // Point the Vulkan loader at no driver and allow only Vulkan: no adapter can be found.
     let out = Command::new(env!("CARGO_BIN_EXE_previz"))
         .current_dir(&dir)

@@ -2,6 +2,8 @@
 //! comparison with NVIDIA FLIP.
 #![allow(dead_code)]
 
+pub mod cli;
+
 use previz::cli::composite::{Inputs, load_inputs, prepare};
 use previz::render::{Layer, Rendered, gpu::Gpu};
 use previz::scene::file::{Scene, SceneBuilder};

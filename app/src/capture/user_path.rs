@@ -8,9 +8,9 @@
 //! fixed faces to arbitrary targets.
 
 use super::targets::Target;
-use crate::pose::frames::{angle_between, from_heading_pitch_roll, heading_difference_deg, wrap_degrees_360};
+use crate::pose::frames::{heading_difference_deg, wrap_degrees_360};
 use crate::pose::trace::TruthSample;
-use crate::pose::user_path::{HandShake, UserPathParams, minimum_jerk};
+use crate::pose::user_path::{HandShake, Hpr, Timeline, UserPathParams, uniform};
 use anyhow::{Result, bail};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -30,34 +30,6 @@ pub struct CapturePath {
     pub samples: Vec<TruthSample>,
     pub visits: Vec<Visit>,
     pub reference_heading_deg: f64,
-}
-
-#[derive(Clone, Copy, Debug)]
-struct Hpr {
-    h: f64,
-    p: f64,
-    r: f64,
-}
-
-impl Hpr {
-    fn quat(self) -> glam::DQuat {
-        from_heading_pitch_roll(self.h.to_radians(), self.p.to_radians(), self.r.to_radians())
-    }
-
-    fn lerp(a: Hpr, b: Hpr, u: f64) -> Hpr {
-        Hpr { h: a.h + (b.h - a.h) * u, p: a.p + (b.p - a.p) * u, r: a.r + (b.r - a.r) * u }
-    }
-}
-
-struct Segment {
-    t0: f64,
-    t1: f64,
-    from: Hpr,
-    to: Hpr,
-}
-
-fn uniform(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
-    if hi > lo { rng.random_range(lo..hi) } else { lo }
 }
 
 /// How far the user shifts their aim for a target from where it truly is (degrees): what the
@@ -109,8 +81,7 @@ pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathPara
     let front = aim(&mut rng, first, href);
     let start =
         Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
-    let mut segments = vec![Segment { t0: 0.0, t1: 0.4, from: start, to: start }];
-    let mut t = 0.4;
+    let mut timeline = Timeline::start(start, 0.4);
     let mut at = start;
     let mut visits = Vec::with_capacity(targets.len());
     let mut todo: Vec<usize> = (1..targets.len()).collect();
@@ -124,26 +95,13 @@ pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathPara
         let goal = Hpr { h: goal.h + shift.heading_deg, p: (goal.p + shift.pitch_deg).clamp(-90.0, 90.0), ..goal };
         let dh = heading_difference_deg(goal.h, at.h);
         let goal = Hpr { h: at.h + dh, ..goal };
-        let angle = angle_between(at.quat(), goal.quat()).to_degrees();
-        let os = uniform(&mut rng, params.overshoot);
-        let primary = Hpr::lerp(at, goal, 1.0 + os);
-        let speed = params.mean_speed_deg_s * uniform(&mut rng, (0.8, 1.25));
-        let t1 = 0.2 + angle * (1.0 + os).abs() / speed;
-        segments.push(Segment { t0: t, t1: t + t1, from: at, to: primary });
-        t += t1;
-        let corr = angle * os.abs();
-        if corr > 0.2 {
-            let t2 = 0.15 + corr / 30.0;
-            segments.push(Segment { t0: t, t1: t + t2, from: primary, to: goal });
-            t += t2;
-        }
+        timeline.turn(&mut rng, params, at, goal);
         let hold = uniform(&mut rng, params.hold_s);
         if index == 0 {
-            tap_t = t + uniform(&mut rng, (0.3, 0.6)).min(hold * 0.8);
+            tap_t = timeline.t + uniform(&mut rng, (0.3, 0.6)).min(hold * 0.8);
         }
-        segments.push(Segment { t0: t, t1: t + hold, from: goal, to: goal });
-        visits.push(Visit { target: index, start: t, end: t + hold });
-        t += hold;
+        let (start, end) = timeline.hold(goal, hold);
+        visits.push(Visit { target: index, start, end });
         at = goal;
         // The nearest target not yet visited (as the guidance shows it); near-ties at random.
         let here = at.quat() * glam::DVec3::NEG_Z;
@@ -154,19 +112,7 @@ pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathPara
         todo.retain(|i| Some(*i) != next);
     }
     let shake = HandShake::seeded(rng.random(), params);
-    let n = (t * params.rate_hz).floor() as usize;
-    let tap_index = (tap_t * params.rate_hz).round() as usize;
-    let mut samples = Vec::with_capacity(n + 1);
-    let mut seg = 0;
-    for i in 0..=n {
-        let ti = i as f64 / params.rate_hz;
-        while seg + 1 < segments.len() && ti >= segments[seg].t1 {
-            seg += 1;
-        }
-        let s = &segments[seg];
-        let base = Hpr::lerp(s.from, s.to, minimum_jerk((ti - s.t0) / (s.t1 - s.t0)));
-        samples.push(TruthSample { t: ti, q: shake.apply(base.quat(), ti), tap: i == tap_index });
-    }
+    let samples = timeline.sample(params, &shake, tap_t);
     Ok(CapturePath { samples, visits, reference_heading_deg: wrap_degrees_360(href) })
 }
 

@@ -132,15 +132,19 @@ pub struct SimulatedPath {
 
 /// Heading, pitch, roll in degrees (truth-path parameterisation only).
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Hpr {
-    h: f64,
-    p: f64,
-    r: f64,
+pub(crate) struct Hpr {
+    pub h: f64,
+    pub p: f64,
+    pub r: f64,
 }
 
 impl Hpr {
-    fn quat(self) -> DQuat {
+    pub fn quat(self) -> DQuat {
         from_heading_pitch_roll(self.h.to_radians(), self.p.to_radians(), self.r.to_radians())
+    }
+
+    pub fn lerp(a: Hpr, b: Hpr, u: f64) -> Hpr {
+        Hpr { h: a.h + (b.h - a.h) * u, p: a.p + (b.p - a.p) * u, r: a.r + (b.r - a.r) * u }
     }
 }
 
@@ -151,6 +155,65 @@ struct Segment {
     t1: f64,
     from: Hpr,
     to: Hpr,
+}
+
+/// The user's movements in time: holds and minimum-jerk turns, then sampled with the hand's
+/// shake. Shared by the six-face path here and the capture assistant's guided user.
+pub(crate) struct Timeline {
+    segments: Vec<Segment>,
+    /// End of the last segment, seconds.
+    pub t: f64,
+}
+
+impl Timeline {
+    /// Start held at `at` for `hold` seconds.
+    pub fn start(at: Hpr, hold: f64) -> Timeline {
+        Timeline { segments: vec![Segment { t0: 0.0, t1: hold, from: at, to: at }], t: hold }
+    }
+
+    /// Turn from `at` to `goal` (heading already unwrapped): a primary movement that over- or
+    /// undershoots, then a corrective one when the miss is noticeable.
+    pub fn turn(&mut self, rng: &mut ChaCha8Rng, params: &UserPathParams, at: Hpr, goal: Hpr) {
+        let angle = super::frames::angle_between(at.quat(), goal.quat()).to_degrees();
+        let os = uniform(rng, params.overshoot);
+        let primary = Hpr::lerp(at, goal, 1.0 + os);
+        let speed = params.mean_speed_deg_s * uniform(rng, (0.8, 1.25));
+        let t1 = 0.2 + angle * (1.0 + os).abs() / speed;
+        self.segments.push(Segment { t0: self.t, t1: self.t + t1, from: at, to: primary });
+        self.t += t1;
+        let corr = angle * os.abs();
+        if corr > 0.2 {
+            let t2 = 0.15 + corr / 30.0;
+            self.segments.push(Segment { t0: self.t, t1: self.t + t2, from: primary, to: goal });
+            self.t += t2;
+        }
+    }
+
+    /// Hold `at` for `hold` seconds; returns the hold's (start, end).
+    pub fn hold(&mut self, at: Hpr, hold: f64) -> (f64, f64) {
+        let start = self.t;
+        self.segments.push(Segment { t0: start, t1: start + hold, from: at, to: at });
+        self.t += hold;
+        (start, self.t)
+    }
+
+    /// Samples at `params.rate_hz` with the hand's shake; the tap on the sample nearest `tap_t`.
+    pub fn sample(&self, params: &UserPathParams, shake: &HandShake, tap_t: f64) -> Vec<TruthSample> {
+        let n = (self.t * params.rate_hz).floor() as usize;
+        let tap_index = (tap_t * params.rate_hz).round() as usize;
+        let mut samples = Vec::with_capacity(n + 1);
+        let mut seg = 0;
+        for i in 0..=n {
+            let ti = i as f64 / params.rate_hz;
+            while seg + 1 < self.segments.len() && ti >= self.segments[seg].t1 {
+                seg += 1;
+            }
+            let s = &self.segments[seg];
+            let base = Hpr::lerp(s.from, s.to, minimum_jerk((ti - s.t0) / (s.t1 - s.t0)));
+            samples.push(TruthSample { t: ti, q: shake.apply(base.quat(), ti), tap: i == tap_index });
+        }
+        samples
+    }
 }
 
 /// The minimum-jerk position profile on [0, 1].
@@ -250,7 +313,7 @@ fn check_params(p: &UserPathParams) -> Result<()> {
     Ok(())
 }
 
-fn uniform(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
+pub(crate) fn uniform(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
     if hi > lo { rng.random_range(lo..hi) } else { lo }
 }
 
@@ -272,16 +335,12 @@ pub fn simulate_user_path(seed: u64, params: &UserPathParams) -> Result<Simulate
         Hpr { h: href + dh + uniform(rng, (-e, e)), p, r: uniform(rng, (-params.roll_deg, params.roll_deg)) }
     };
 
-    let mut segments = Vec::new();
     let mut holds = Vec::new();
     let front = aim(&mut rng, Target::Front);
     let start =
         Hpr { h: front.h + uniform(&mut rng, (-20.0, 20.0)), p: uniform(&mut rng, (-10.0, 10.0)), r: uniform(&mut rng, (-5.0, 5.0)) };
-    let mut t = 0.0;
+    let mut timeline = Timeline::start(start, 0.4);
     let mut at = start;
-    let first_hold = 0.4;
-    segments.push(Segment { t0: 0.0, t1: first_hold, from: at, to: at });
-    t += first_hold;
     let mut tap_t = 0.0;
     for target in std::iter::once(Target::Front).chain(order) {
         let goal = if target == Target::Front { front } else { aim(&mut rng, target) };
@@ -291,46 +350,17 @@ pub fn simulate_user_path(seed: u64, params: &UserPathParams) -> Result<Simulate
             dh = -dh;
         }
         let goal = Hpr { h: at.h + dh, ..goal };
-        let angle = super::frames::angle_between(at.quat(), goal.quat()).to_degrees();
-        let os = uniform(&mut rng, params.overshoot);
-        let primary = Hpr { h: at.h + dh * (1.0 + os), p: at.p + (goal.p - at.p) * (1.0 + os), r: at.r + (goal.r - at.r) * (1.0 + os) };
-        let speed = params.mean_speed_deg_s * uniform(&mut rng, (0.8, 1.25));
-        let t1 = 0.2 + angle * (1.0 + os).abs() / speed;
-        segments.push(Segment { t0: t, t1: t + t1, from: at, to: primary });
-        t += t1;
-        let corr = angle * os.abs();
-        if corr > 0.2 {
-            let t2 = 0.15 + corr / 30.0;
-            segments.push(Segment { t0: t, t1: t + t2, from: primary, to: goal });
-            t += t2;
-        }
+        timeline.turn(&mut rng, params, at, goal);
         let hold = uniform(&mut rng, params.hold_s);
         if target == Target::Front {
-            tap_t = t + uniform(&mut rng, (0.3, 0.6)).min(hold * 0.8);
+            tap_t = timeline.t + uniform(&mut rng, (0.3, 0.6)).min(hold * 0.8);
         }
-        segments.push(Segment { t0: t, t1: t + hold, from: goal, to: goal });
-        holds.push(Hold { target, start: t, end: t + hold, aim: goal.quat() });
-        t += hold;
+        let (start, end) = timeline.hold(goal, hold);
+        holds.push(Hold { target, start, end, aim: goal.quat() });
         at = goal;
     }
-
     let shake = HandShake::new(&mut rng, params);
-    let n = (t * params.rate_hz).floor() as usize;
-    let tap_index = (tap_t * params.rate_hz).round() as usize;
-    let mut samples = Vec::with_capacity(n + 1);
-    let mut seg = 0;
-    for i in 0..=n {
-        let ti = i as f64 / params.rate_hz;
-        while seg + 1 < segments.len() && ti >= segments[seg].t1 {
-            seg += 1;
-        }
-        let s = &segments[seg];
-        let u = minimum_jerk((ti - s.t0) / (s.t1 - s.t0));
-        let base =
-            Hpr { h: s.from.h + (s.to.h - s.from.h) * u, p: s.from.p + (s.to.p - s.from.p) * u, r: s.from.r + (s.to.r - s.from.r) * u };
-        let q = shake.apply(base.quat(), ti);
-        samples.push(TruthSample { t: ti, q, tap: i == tap_index });
-    }
+    let samples = timeline.sample(params, &shake, tap_t);
     Ok(SimulatedPath { samples, holds, reference_heading_deg: super::frames::wrap_degrees_360(href) })
 }
 

@@ -49,6 +49,8 @@ fn layers_and_json() {
             "--layers",
             "layers",
             "--json",
+            "--set",
+            "colour.correction=reinhard",
             "-o",
             "out.png",
         ],
@@ -58,6 +60,8 @@ fn layers_and_json() {
     assert_eq!(json["width"], 320);
     assert_eq!(json["height"], 200);
     assert_eq!(json["method"], "hemisphere");
+    assert_eq!(json["colour_correction"]["method"], "reinhard");
+    assert_eq!(json["colour_correction"]["strength"], 1.0);
     let pixels = json["model_pixels"].as_u64().unwrap();
     for key in ["load", "upload", "readback", "total"] {
         assert!(json["timings_ms"][key].as_f64().unwrap() >= 0.0, "{key}");

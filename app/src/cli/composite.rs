@@ -310,6 +310,7 @@ pub fn run(args: Args) -> Result<()> {
             "height": scene.height,
             "model_pixels": model_pixels,
             "method": scene.method.name(),
+            "colour_correction": { "method": scene.colour.correction.name(), "strength": scene.colour.strength },
             "adapter": gpu.describe(),
             "timings_ms": {
                 "load": load_ms,

@@ -7,6 +7,7 @@ pub mod bench;
 pub mod capture;
 pub mod colour_transfer;
 pub mod composite;
+pub mod live;
 pub mod pose_stability;
 pub mod priors;
 pub mod sun;
@@ -37,6 +38,9 @@ pub enum Command {
     /// Replay a trace (or a simulated user) through the virtual phone into the cube-map capture
     /// assistant and write the capture folder; `capture stability` runs the stability study.
     Capture(capture::Args),
+    /// The live view: virtual phone + simulated sensors + pose fusion + sun + compositor, in a
+    /// window (or headless with --frames N -o DIR).
+    Live(live::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -48,5 +52,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sun(a) => sun::run(a),
         Command::PoseStability(a) => pose_stability::run(a),
         Command::Capture(a) => capture::run(a),
+        Command::Live(a) => live::run(a),
     }
 }

@@ -199,6 +199,7 @@ pub struct Compositor {
     depth_view: wgpu::TextureView,
     resolve: wgpu::Texture,
     resolve_view: wgpu::TextureView,
+    encoded_view: wgpu::TextureView,
     readback: wgpu::Buffer,
     padded_row: u32,
     background: wgpu::Texture,
@@ -288,7 +289,18 @@ impl Compositor {
             target(device, "shadow map", SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);
         let msaa = target(device, "msaa colour", width, height, COLOR_FORMAT, SAMPLES, attach);
         let depth = target(device, "depth", width, height, DEPTH_FORMAT, SAMPLES, attach);
-        let resolve = target(device, "resolve", width, height, COLOR_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
+        // The resolved frame: read back (headless) or sampled by the window's UI pass (live),
+        // which blends in gamma space and so samples the sRGB-encoded bytes as they are.
+        let resolve = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("resolve"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: attach | wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[COLOR_FORMAT.remove_srgb_suffix()],
+        });
         let background = target(
             device,
             "background",
@@ -367,6 +379,8 @@ impl Compositor {
             msaa_view: msaa.create_view(&Default::default()),
             depth_view: depth.create_view(&Default::default()),
             resolve_view: resolve.create_view(&Default::default()),
+            encoded_view: resolve
+                .create_view(&wgpu::TextureViewDescriptor { format: Some(COLOR_FORMAT.remove_srgb_suffix()), ..Default::default() }),
             resolve,
             readback,
             padded_row,
@@ -594,26 +608,32 @@ impl Compositor {
         result
     }
 
+    /// Render one image of `layer` into [`Compositor::target_view`] without reading it back:
+    /// the live view samples it in its UI pass. Returns the CPU encode time in ms.
+    pub fn draw(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<f64> {
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let result = (|| {
+            let t0 = Instant::now();
+            let encoder = self.prepare_frame(gpu, p, layer)?;
+            let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
+            gpu.queue.submit([encoder.finish()]);
+            Ok(encode_ms)
+        })();
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            bail!("the GPU rejected the frame: {e}");
+        }
+        result
+    }
+
+    /// The rendered frame (the output size) as an `Rgba8Unorm` view of its sRGB-encoded bytes:
+    /// sampling returns the encoded values, which is what egui-wgpu's gamma-space pass wants.
+    pub fn target_view(&self) -> &wgpu::TextureView {
+        &self.encoded_view
+    }
+
     fn render_unchecked(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
         let t0 = Instant::now();
-        let data = self.frame_uniforms(p)?;
-        gpu.queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
-        gpu.queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
-        gpu.queue.write_buffer(&self.ground_buf, 0, bytemuck::bytes_of(&data.ground));
-        gpu.queue.write_buffer(&self.colour_buf, 0, bytemuck::bytes_of(&data.colour));
-        if let Some(model) = &self.model {
-            for (buf, base) in &model.materials {
-                let mut m = *base;
-                let t = p.lighting.material;
-                m.terms = [t.ambient, t.diffuse, t.specular, 0.0];
-                if let Some(g) = t.gloss {
-                    m.specular[3] = g;
-                }
-                gpu.queue.write_buffer(buf, 0, bytemuck::bytes_of(&m));
-            }
-        }
-        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        self.encode_frame(&mut encoder, layer)?;
+        let mut encoder = self.prepare_frame(gpu, p, layer)?;
         encoder.copy_texture_to_buffer(
             self.resolve.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
@@ -633,6 +653,29 @@ impl Compositor {
         let gpu_ms = self.read_timestamps(gpu)?;
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
         Ok(Rendered { width: self.width, height: self.height, rgba, timings: Timings { encode_ms, gpu_ms, readback_ms } })
+    }
+
+    /// Write the frame's uniforms and encode its passes.
+    fn prepare_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<wgpu::CommandEncoder> {
+        let data = self.frame_uniforms(p)?;
+        gpu.queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
+        gpu.queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
+        gpu.queue.write_buffer(&self.ground_buf, 0, bytemuck::bytes_of(&data.ground));
+        gpu.queue.write_buffer(&self.colour_buf, 0, bytemuck::bytes_of(&data.colour));
+        if let Some(model) = &self.model {
+            for (buf, base) in &model.materials {
+                let mut m = *base;
+                let t = p.lighting.material;
+                m.terms = [t.ambient, t.diffuse, t.specular, 0.0];
+                if let Some(g) = t.gloss {
+                    m.specular[3] = g;
+                }
+                gpu.queue.write_buffer(buf, 0, bytemuck::bytes_of(&m));
+            }
+        }
+        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        self.encode_frame(&mut encoder, layer)?;
+        Ok(encoder)
     }
 
     /// The passes of one frame, top-down (DESIGN.md "One frame"). The camera image was uploaded

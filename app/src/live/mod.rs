@@ -1,0 +1,252 @@
+//! The live frame loop: what the phone runs for every camera frame, driven here by the virtual
+//! phone and the simulated sensors so it runs (and is tested) on any machine.
+//!
+//! Per frame (DESIGN.md "One frame"), in this order:
+//! 1. the sensors deliver their readings up to the frame's time and the fusion filter updates;
+//! 2. the camera delivers its frame (the virtual phone renders at the *true* pose; the
+//!    renderer only ever sees the *estimated* one, so sensor error shows as a model that
+//!    swims against the background, exactly as on a phone);
+//! 3. the sun is computed for the place and the frame's instant (NREL SPA) and faded through
+//!    twilight;
+//! 4. the compositor draws camera image, ground shadow and model at the estimated pose.
+//!
+//! The simulated user stands still and looks at the model, panning slowly left and right and
+//! up and down with a hand-held shake ([`look_around_path`]).
+
+#[cfg(not(any(target_os = "android", target_os = "ios")))]
+pub mod window;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn magnetic_model_date_is_clamped_into_the_wmm_range() {
+        let d = |y, m, day| NaiveDate::from_ymd_opt(y, m, day).unwrap();
+        assert_eq!(magnetic_model_date(d(2003, 10, 17)), d(2020, 1, 1));
+        assert_eq!(magnetic_model_date(d(2026, 11, 22)), d(2026, 11, 22));
+        assert_eq!(magnetic_model_date(d(2041, 2, 3)), d(2029, 12, 31));
+    }
+}
+
+use crate::camera::exposure::ExposureMode;
+use crate::camera::sim::{SimSettings, VirtualPhone};
+use crate::cli::composite::{exposure, frame_params};
+use crate::pose::frames::{angle_between, from_heading_pitch_roll};
+use crate::pose::trace::{TruthSample, TruthTrace};
+use crate::pose::user_path::{HandShake, UserPathParams};
+use crate::pose::{DisplayRotation, FusionConfig, OrientationEstimator, OrientationFilter, Pose};
+use crate::render::{Compositor, FrameParams, Layer, Rendered, gpu::Gpu};
+use crate::scene::file::Scene;
+use crate::scene::{CubeMap, Model};
+use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
+use crate::sensors::{Reading, SensorSource};
+use crate::sun::{Algorithm, SunInput, SunPosition, position};
+use anyhow::{Context, Result, bail};
+use chrono::{DateTime, NaiveDate, Utc};
+use std::sync::Arc;
+
+/// Where, when and how the live session runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveConfig {
+    /// Latitude and longitude of the user, degrees (the sun's position and the magnetic model).
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    /// The instant of the first frame.
+    pub start: DateTime<Utc>,
+    /// Camera frames per second.
+    pub frame_hz: f64,
+    /// Length of the simulated session, seconds.
+    pub duration_s: f64,
+    pub noise: NoiseLevel,
+    pub seed: u64,
+}
+
+impl LiveConfig {
+    fn validate(&self) -> Result<()> {
+        if !(self.lat_deg.is_finite() && (-90.0..=90.0).contains(&self.lat_deg)) {
+            bail!("--lat must be a latitude in -90..=90 degrees, got {}", self.lat_deg);
+        }
+        if !(self.lon_deg.is_finite() && (-180.0..=180.0).contains(&self.lon_deg)) {
+            bail!("--lon must be a longitude in -180..=180 degrees, got {}", self.lon_deg);
+        }
+        if !(self.frame_hz.is_finite() && (1.0..=240.0).contains(&self.frame_hz)) {
+            bail!("--fps must be in 1..=240, got {}", self.frame_hz);
+        }
+        if !(self.duration_s.is_finite() && (1.0..=3600.0).contains(&self.duration_s)) {
+            bail!("--duration must be in 1..=3600 seconds, got {}", self.duration_s);
+        }
+        Ok(())
+    }
+}
+
+/// A hand-held look around a point of interest: heading `heading_deg ± 20°` and pitch
+/// `pitch_deg ± 4°` as slow sinusoids (16 s and 11 s), plus the hand's tremor and sway, sampled
+/// at 100 Hz for `duration_s` seconds.
+pub fn look_around_path(heading_deg: f64, pitch_deg: f64, duration_s: f64, seed: u64) -> Result<TruthTrace> {
+    let params = UserPathParams::default();
+    let shake = HandShake::seeded(seed, &params);
+    let n = (duration_s * 100.0).ceil() as usize;
+    let samples = (0..=n)
+        .map(|i| {
+            let t = i as f64 / 100.0;
+            let h = heading_deg + 20.0 * (std::f64::consts::TAU * t / 16.0).sin();
+            let p = pitch_deg + 4.0 * (std::f64::consts::TAU * t / 11.0).sin();
+            let q = from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0);
+            TruthSample { t, q: shake.apply(q, t), tap: false }
+        })
+        .collect();
+    TruthTrace::new(samples)
+}
+
+/// The date the simulated magnetometer (and the filter's magnetic reference) uses: the
+/// session's date, clamped into the World Magnetic Model's validity (2020-01-01..=2029-12-31).
+/// The sun always uses the requested instant.
+pub fn magnetic_model_date(date: NaiveDate) -> NaiveDate {
+    match (NaiveDate::from_ymd_opt(2020, 1, 1), NaiveDate::from_ymd_opt(2029, 12, 31)) {
+        (Some(first), Some(last)) => date.clamp(first, last),
+        _ => date,
+    }
+}
+
+/// What one live frame used, for the overlay and the tests.
+#[derive(Clone, Copy, Debug)]
+pub struct LiveFrame {
+    /// Seconds since the session started.
+    pub t: f64,
+    /// The estimated camera pose the model was drawn with (None until the filter has settled
+    /// on a first attitude: the frame shows the camera image only).
+    pub pose: Option<Pose>,
+    /// Angle between the estimated and the true camera orientation, degrees.
+    pub pose_error_deg: Option<f64>,
+    pub sun: SunPosition,
+    /// Sunlight intensity after the twilight fade.
+    pub sunlight: f32,
+}
+
+/// The live loop's state: compositor, camera, sensors, filter and the frame parameters.
+pub struct LiveSession {
+    compositor: Compositor,
+    phone: VirtualPhone,
+    phone_exposure: f32,
+    sensors: SimSensors,
+    filter: OrientationFilter,
+    rotation: DisplayRotation,
+    truth: TruthTrace,
+    params: FrameParams,
+    layer: Layer,
+    full_sunlight: f32,
+    cfg: LiveConfig,
+    frame: usize,
+    readings: Vec<Reading>,
+}
+
+impl LiveSession {
+    /// A session looking at `model` placed as the scene says (auto-placed in front of the
+    /// scene's camera heading and pitch, which the simulated user starts from) in `env`, at the
+    /// scene's output size and field of view.
+    pub fn new(gpu: &Gpu, env: Arc<CubeMap>, model: &Model, scene: &Scene, cfg: LiveConfig) -> Result<LiveSession> {
+        cfg.validate()?;
+        let env_exposure = exposure(scene, &env);
+        let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
+        compositor.set_environment(gpu, &env, env_exposure, (scene.env.heading as f32).to_radians())?;
+        compositor.set_model(gpu, model)?;
+        let bounds = compositor.model_bounds().context("model bounds")?;
+        let params = frame_params(scene, bounds);
+        let settings = SimSettings {
+            width: scene.width,
+            height: scene.height,
+            vfov_deg: scene.camera.vfov as f32,
+            exposure: ExposureMode::Fixed(env_exposure),
+        };
+        // The camera sees the environment at the exposure the model is lit with, so model and
+        // background agree (a phone would lock its exposure the same way).
+        let phone = VirtualPhone::new(env, &settings)?;
+        let truth = look_around_path(scene.camera.heading, scene.camera.pitch, cfg.duration_s, cfg.seed)?;
+        let mut sim = SimConfig::new(cfg.noise, cfg.seed);
+        sim.site = SimSite { lat_deg: cfg.lat_deg, lon_deg: cfg.lon_deg, alt_m: 0.0, date: magnetic_model_date(cfg.start.date_naive()) };
+        let rotation = sim.rotation;
+        let sensors = SimSensors::with_config(truth.clone(), sim)?;
+        let mut filter = OrientationFilter::new(FusionConfig::default());
+        filter.set_reference(sensors.magnetic_reference());
+        Ok(LiveSession {
+            compositor,
+            phone,
+            phone_exposure: env_exposure,
+            sensors,
+            filter,
+            rotation,
+            truth,
+            params,
+            layer: Layer::Composite,
+            full_sunlight: scene.sun.sunlight as f32,
+            cfg,
+            frame: 0,
+            readings: Vec::new(),
+        })
+    }
+
+    /// Advance to the next camera frame: sensors, pose, camera image (uploaded), sun. `None`
+    /// when the session is over.
+    pub fn advance(&mut self, gpu: &Gpu) -> Result<Option<LiveFrame>> {
+        let t = self.frame as f64 / self.cfg.frame_hz;
+        if t > self.truth.end() {
+            return Ok(None);
+        }
+        self.frame += 1;
+        self.readings.clear();
+        self.sensors.poll(t, &mut self.readings)?;
+        for r in &self.readings {
+            self.filter.update(r)?;
+        }
+        let truth = self.truth.orientation_at(t);
+        let image = self.phone.render_with_exposure(truth.as_quat(), self.phone_exposure)?;
+        self.compositor.set_background(gpu, Some(&image))?;
+        let instant = self.cfg.start + chrono::Duration::microseconds((t * 1e6).round() as i64);
+        let sun = position(&SunInput::new(instant, self.cfg.lat_deg, self.cfg.lon_deg), Algorithm::Spa)?;
+        let sunlight = self.full_sunlight * sun.sunlight_factor();
+        let pose = self.filter.pose(self.rotation);
+        if let Some(p) = pose {
+            self.params.camera.pose = p.q;
+        }
+        self.params.lighting.sun_dir = sun.direction_enu();
+        self.params.lighting.sunlight = sunlight;
+        self.layer = if pose.is_some() { Layer::Composite } else { Layer::Background };
+        let pose_error_deg = pose.map(|p| angle_between(p.q.as_dquat(), truth).to_degrees());
+        Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight }))
+    }
+
+    /// Draw the current frame into [`Compositor::target_view`] (no readback). Returns the CPU
+    /// encode time, ms.
+    pub fn draw(&mut self, gpu: &Gpu) -> Result<f64> {
+        self.compositor.draw(gpu, &self.params, self.layer)
+    }
+
+    /// Render the current frame and read it back.
+    pub fn render(&mut self, gpu: &Gpu) -> Result<Rendered> {
+        self.compositor.render(gpu, &self.params, self.layer)
+    }
+
+    /// Render one layer of the current frame (the model alone, say) and read it back.
+    pub fn render_layer(&mut self, gpu: &Gpu, layer: Layer) -> Result<Rendered> {
+        self.compositor.render(gpu, &self.params, layer)
+    }
+
+    pub fn compositor(&self) -> &Compositor {
+        &self.compositor
+    }
+
+    /// The parameters the current frame is drawn with.
+    pub fn params(&self) -> &FrameParams {
+        &self.params
+    }
+
+    pub fn config(&self) -> &LiveConfig {
+        &self.cfg
+    }
+
+    /// A description of the sensor source, for the overlay.
+    pub fn sensors(&self) -> String {
+        self.sensors.describe()
+    }
+}

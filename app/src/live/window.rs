@@ -1,0 +1,249 @@
+//! `previz live` on the desktop: the live loop in a winit window. Each redraw advances the
+//! session one camera frame, the compositor draws it into its target, and the UI pass
+//! (egui-wgpu) draws that target over the whole window with the status overlay on top, into the
+//! window surface (DESIGN.md "One frame", step 6).
+
+use super::{LiveFrame, LiveSession};
+use crate::render::gpu::Gpu;
+use anyhow::{Context, Result, anyhow};
+use std::sync::Arc;
+use std::time::Instant;
+use winit::application::ApplicationHandler;
+use winit::event::WindowEvent;
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::window::{Window, WindowId};
+
+/// Builds the session once the window's GPU device exists.
+pub type MakeSession = Box<dyn FnOnce(&Gpu) -> Result<LiveSession>>;
+
+/// Open a window and run the session until it ends or the window is closed.
+pub fn run(title: &str, size: (u32, u32), make: MakeSession) -> Result<()> {
+    let event_loop = EventLoop::new()
+        .map_err(|e| anyhow!("cannot open a window ({e}); on a machine without a display run under Xvfb, or use --frames N -o DIR"))?;
+    let mut app = App { title: title.to_string(), size, make: Some(make), state: None, error: None };
+    event_loop.run_app(&mut app).context("the window's event loop failed")?;
+    app.error.map_or(Ok(()), Err)
+}
+
+struct App {
+    title: String,
+    size: (u32, u32),
+    make: Option<MakeSession>,
+    state: Option<State>,
+    error: Option<anyhow::Error>,
+}
+
+struct State {
+    window: Arc<Window>,
+    gpu: Gpu,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    session: LiveSession,
+    egui: egui_winit::State,
+    renderer: egui_wgpu::Renderer,
+    frame_texture: egui::TextureId,
+    last: Option<LiveFrame>,
+    encode_ms: f64,
+    frame_times: std::collections::VecDeque<Instant>,
+}
+
+impl App {
+    fn init(&mut self, el: &ActiveEventLoop) -> Result<State> {
+        let make = self.make.take().context("the session was already started")?;
+        let attrs = Window::default_attributes()
+            .with_title(self.title.clone())
+            .with_inner_size(winit::dpi::PhysicalSize::new(self.size.0, self.size.1));
+        let window = Arc::new(el.create_window(attrs).context("cannot create the window")?);
+        let mut desc = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(el.owned_display_handle()));
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL | wgpu::Backends::METAL;
+        }
+        let instance = wgpu::Instance::new(desc);
+        let surface = instance.create_surface(window.clone()).context("cannot create a GPU surface for the window")?;
+        let gpu = Gpu::with_instance(instance, Some(&surface))?;
+        let session = make(&gpu)?;
+        let inner = window.inner_size();
+        let mut config = surface
+            .get_default_config(&gpu.adapter, inner.width.max(1), inner.height.max(1))
+            .context("the GPU cannot present to this window")?;
+        // egui-wgpu blends in gamma space: it wants a non-sRGB surface where there is one.
+        let caps = surface.get_capabilities(&gpu.adapter);
+        config.format = caps.formats.iter().copied().find(|f| !f.is_srgb()).unwrap_or(config.format);
+        surface.configure(&gpu.device, &config);
+        let mut renderer = egui_wgpu::Renderer::new(&gpu.device, config.format, egui_wgpu::RendererOptions::default());
+        let frame_texture = renderer.register_native_texture(&gpu.device, session.compositor().target_view(), wgpu::FilterMode::Linear);
+        let ctx = egui::Context::default();
+        let egui = egui_winit::State::new(
+            ctx,
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(gpu.device.limits().max_texture_dimension_2d as usize),
+        );
+        window.request_redraw();
+        Ok(State {
+            window,
+            gpu,
+            surface,
+            config,
+            session,
+            egui,
+            renderer,
+            frame_texture,
+            last: None,
+            encode_ms: 0.0,
+            frame_times: Default::default(),
+        })
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, el: &ActiveEventLoop) {
+        if self.state.is_some() || self.make.is_none() {
+            return;
+        }
+        match self.init(el) {
+            Ok(s) => self.state = Some(s),
+            Err(e) => {
+                self.error = Some(e);
+                el.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, el: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(state) = &mut self.state else { return };
+        let _ = state.egui.on_window_event(&state.window, &event);
+        match event {
+            WindowEvent::CloseRequested => el.exit(),
+            WindowEvent::Resized(size) => {
+                state.config.width = size.width.max(1);
+                state.config.height = size.height.max(1);
+                state.surface.configure(&state.gpu.device, &state.config);
+                state.window.request_redraw();
+            }
+            WindowEvent::RedrawRequested => match state.frame() {
+                Ok(true) => state.window.request_redraw(),
+                Ok(false) => el.exit(),
+                Err(e) => {
+                    self.error = Some(e);
+                    el.exit();
+                }
+            },
+            _ => {}
+        }
+    }
+}
+
+impl State {
+    /// One frame; false when the session is over.
+    fn frame(&mut self) -> Result<bool> {
+        let Some(frame) = self.session.advance(&self.gpu)? else { return Ok(false) };
+        self.encode_ms = self.session.draw(&self.gpu)?;
+        self.last = Some(frame);
+        let now = Instant::now();
+        self.frame_times.push_back(now);
+        while self.frame_times.len() > 30 {
+            self.frame_times.pop_front();
+        }
+        let fps = match (self.frame_times.front(), self.frame_times.len()) {
+            (Some(first), n) if n > 1 => (n - 1) as f64 / now.duration_since(*first).as_secs_f64().max(1e-9),
+            _ => 0.0,
+        };
+
+        let surface_texture = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => return Ok(true),
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                self.surface.configure(&self.gpu.device, &self.config);
+                return Ok(true);
+            }
+            other => return Err(anyhow!("the window surface failed: {other:?}")),
+        };
+        let view = surface_texture.texture.create_view(&Default::default());
+
+        let input = self.egui.take_egui_input(&self.window);
+        let ctx = self.egui.egui_ctx().clone();
+        let (texture, last, encode_ms, sensors) = (self.frame_texture, self.last, self.encode_ms, self.session.sensors());
+        let mut output = ctx.run_pass(input, |ctx| overlay(ctx, texture, last.as_ref(), encode_ms, fps, &sensors));
+        self.egui.handle_platform_output(&self.window, std::mem::take(&mut output.platform_output));
+        for (id, deltas) in output.textures_delta.set.drain() {
+            for delta in &deltas {
+                self.renderer.update_texture(&self.gpu.device, &self.gpu.queue, id, delta);
+            }
+        }
+        let frees: Vec<egui::TextureId> = output.textures_delta.free.drain().collect();
+        let jobs = ctx.tessellate(output.shapes, output.pixels_per_point);
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: [self.config.width, self.config.height],
+            pixels_per_point: output.pixels_per_point,
+        };
+        let mut encoder = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ui") });
+        let extra = self.renderer.update_buffers(&self.gpu.device, &self.gpu.queue, &mut encoder, &jobs, &screen);
+        {
+            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("ui"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            let mut pass = pass.forget_lifetime();
+            self.renderer.render(&mut pass, &jobs, &screen);
+        }
+        self.gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
+        self.window.pre_present_notify();
+        self.gpu.queue.present(surface_texture);
+        for id in &frees {
+            self.renderer.free_texture(id);
+        }
+        Ok(true)
+    }
+}
+
+/// The camera view filling the window and the status panel over it.
+fn overlay(ctx: &egui::Context, frame: egui::TextureId, last: Option<&LiveFrame>, encode_ms: f64, fps: f64, sensors: &str) {
+    let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+    ctx.layer_painter(egui::LayerId::background()).image(frame, ctx.viewport_rect(), uv, egui::Color32::WHITE);
+    egui::Window::new("previz live").anchor(egui::Align2::LEFT_TOP, egui::vec2(8.0, 8.0)).resizable(false).show(ctx, |ui| {
+        for line in status_lines(last, encode_ms, fps, sensors) {
+            ui.label(line);
+        }
+    });
+}
+
+/// The overlay's text (pure, so it is tested without a window).
+pub fn status_lines(last: Option<&LiveFrame>, encode_ms: f64, fps: f64, sensors: &str) -> Vec<String> {
+    let mut lines = vec![format!("{fps:.1} fps, encode {encode_ms:.2} ms"), format!("sensors: {sensors}")];
+    let Some(f) = last else {
+        lines.push("waiting for the first camera frame".into());
+        return lines;
+    };
+    match f.pose {
+        Some(p) => {
+            let hpr = crate::pose::frames::heading_pitch_roll(p.q.as_dquat());
+            lines.push(format!(
+                "heading {:.1}°, pitch {:.1}° (±{:.1}°, {})",
+                hpr.heading.to_degrees(),
+                hpr.pitch.to_degrees(),
+                p.accuracy_deg,
+                p.heading_source.label()
+            ));
+        }
+        None => lines.push("pose: settling (camera image only)".into()),
+    }
+    lines.push(format!(
+        "sun: azimuth {:.1}°, elevation {:.1}°, sunlight l_s {:.2}",
+        f.sun.azimuth_deg,
+        f.sun.apparent_elevation_deg(),
+        f.sunlight
+    ));
+    lines
+}

@@ -168,42 +168,11 @@ impl State {
         let (texture, last, encode_ms, sensors) = (self.frame_texture, self.last, self.encode_ms, self.session.sensors());
         let mut output = ctx.run_pass(input, |ctx| overlay(ctx, texture, last.as_ref(), encode_ms, fps, &sensors));
         self.egui.handle_platform_output(&self.window, std::mem::take(&mut output.platform_output));
-        for (id, deltas) in output.textures_delta.set.drain() {
-            for delta in &deltas {
-                self.renderer.update_texture(&self.gpu.device, &self.gpu.queue, id, delta);
-            }
-        }
-        let frees: Vec<egui::TextureId> = output.textures_delta.free.drain().collect();
-        let jobs = ctx.tessellate(output.shapes, output.pixels_per_point);
-        let screen = egui_wgpu::ScreenDescriptor {
-            size_in_pixels: [self.config.width, self.config.height],
-            pixels_per_point: output.pixels_per_point,
-        };
-        let mut encoder = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ui") });
-        let extra = self.renderer.update_buffers(&self.gpu.device, &self.gpu.queue, &mut encoder, &jobs, &screen);
-        {
-            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("ui"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            let mut pass = pass.forget_lifetime();
-            self.renderer.render(&mut pass, &jobs, &screen);
-        }
-        self.gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
+        let size = [self.config.width, self.config.height];
+        let clear = wgpu::LoadOp::Clear(wgpu::Color::BLACK);
+        crate::ui::paint::paint(&mut self.renderer, &self.gpu, &ctx, output, &view, size, clear).submit(&self.gpu, &mut self.renderer);
         self.window.pre_present_notify();
         self.gpu.queue.present(surface_texture);
-        for id in &frees {
-            self.renderer.free_texture(id);
-        }
         Ok(true)
     }
 }

@@ -88,37 +88,10 @@ impl HeadlessUi {
         if let Some(v) = input.viewports.get_mut(&egui::ViewportId::ROOT) {
             v.native_pixels_per_point = Some(ppp);
         }
-        let mut output = self.ctx.run_pass(input, |ctx| ui(ctx));
-        // Drain the texture delta now: uploads before painting, frees after (egui panics on an
-        // undrained delta).
-        for (id, deltas) in output.textures_delta.set.drain() {
-            for delta in &deltas {
-                self.renderer.update_texture(&gpu.device, &gpu.queue, id, delta);
-            }
-        }
-        let frees: Vec<egui::TextureId> = output.textures_delta.free.drain().collect();
-        let paint_jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
-        let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: [self.width, self.height], pixels_per_point: output.pixels_per_point };
-        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("headless ui") });
-        let extra = self.renderer.update_buffers(&gpu.device, &gpu.queue, &mut encoder, &paint_jobs, &screen);
-        {
-            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("headless ui"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            let mut pass = pass.forget_lifetime();
-            self.renderer.render(&mut pass, &paint_jobs, &screen);
-        }
-        encoder.copy_texture_to_buffer(
+        let output = self.ctx.run_pass(input, |ctx| ui(ctx));
+        let size = [self.width, self.height];
+        let mut p = super::paint::paint(&mut self.renderer, gpu, &self.ctx, output, &self.view, size, wgpu::LoadOp::Load);
+        p.encoder.copy_texture_to_buffer(
             self.target.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
                 buffer: &self.readback,
@@ -126,10 +99,7 @@ impl HeadlessUi {
             },
             wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
         );
-        gpu.queue.submit(extra.into_iter().chain([encoder.finish()]));
-        for id in &frees {
-            self.renderer.free_texture(id);
-        }
+        p.submit(gpu, &mut self.renderer);
         let slice = self.readback.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {

@@ -2,6 +2,8 @@
 //!
 //! - [`capture_overlay`]: the capture assistant's guidance over the camera view.
 //! - [`headless`]: draw any egui UI over an image offscreen (egui-wgpu), read the pixels back.
+//! - [`paint`]: one egui pass painted into a texture view (headless and the live window).
 
 pub mod capture_overlay;
 pub mod headless;
+pub mod paint;

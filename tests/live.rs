@@ -36,7 +36,7 @@ fn camera_image_is_the_background_model_at_the_pose_sun_from_spa() {
     let inputs = load_inputs(&s, false).unwrap();
     let env = Arc::new(inputs.env);
     let cfg = config("2003-10-17T12:30:30-07:00", NoiseLevel::None);
-    let mut session = LiveSession::new(gpu(), env.clone(), &inputs.model, &s, cfg.clone()).unwrap();
+    let mut session = LiveSession::simulated(gpu(), env.clone(), &inputs.model, &s, cfg.clone()).unwrap();
     // The same camera, independently: the virtual phone at the true pose of the same user path.
     let truth = look_around_path(s.camera.heading, s.camera.pitch, cfg.duration_s, cfg.seed).unwrap();
     let settings = SimSettings { width: s.width, height: s.height, vfov_deg: s.camera.vfov as f32, exposure: ExposureMode::Fixed(1.0) };
@@ -93,7 +93,7 @@ fn no_sunlight_at_night_and_noisy_sensors_stay_within_a_few_degrees() {
     let inputs = load_inputs(&s, false).unwrap();
     // Local midnight in Golden: the sun is far below the horizon.
     let cfg = config("2003-10-17T00:30:00-07:00", NoiseLevel::Phone);
-    let mut session = LiveSession::new(gpu(), Arc::new(inputs.env), &inputs.model, &s, cfg).unwrap();
+    let mut session = LiveSession::simulated(gpu(), Arc::new(inputs.env), &inputs.model, &s, cfg).unwrap();
     let mut worst_late = 0.0f64;
     while let Some(f) = session.advance(gpu()).unwrap() {
         assert!(f.sun.apparent_elevation_deg() < -30.0);

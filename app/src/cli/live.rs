@@ -96,7 +96,7 @@ fn headless(
     json: bool,
 ) -> Result<()> {
     let gpu = Gpu::headless()?;
-    let mut session = LiveSession::new(&gpu, env, model, scene, cfg)?;
+    let mut session = LiveSession::simulated(&gpu, env, model, scene, cfg)?;
     let bar = indicatif::ProgressBar::new(n as u64).with_style(
         indicatif::ProgressStyle::with_template("live {bar:40} {pos}/{len} frames")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -127,7 +127,7 @@ fn run_window(
     cfg: LiveConfig,
 ) -> Result<()> {
     let size = (scene.width, scene.height);
-    crate::live::window::run("previz live", size, Box::new(move |gpu: &Gpu| LiveSession::new(gpu, env, &model, &scene, cfg)))
+    crate::live::window::run("previz live", size, Box::new(move |gpu: &Gpu| LiveSession::simulated(gpu, env, &model, &scene, cfg)))
 }
 
 #[cfg(any(target_os = "android", target_os = "ios"))]

@@ -1,11 +1,13 @@
-//! The live frame loop: what the phone runs for every camera frame, driven here by the virtual
-//! phone and the simulated sensors so it runs (and is tested) on any machine.
+//! The live frame loop: what the phone runs for every camera frame. It reads any camera
+//! ([`FrameSource`]) and any sensors ([`SensorSource`]); [`Sources::simulated`] plugs in the
+//! virtual phone and the simulated sensors so it runs (and is tested) on any machine.
 //!
-//! Per frame (DESIGN.md "One frame"), in this order:
-//! 1. the sensors deliver their readings up to the frame's time and the fusion filter updates;
-//! 2. the camera delivers its frame (the virtual phone renders at the *true* pose; the
+//! Per camera frame (DESIGN.md "One frame"), in this order:
+//! 1. the camera delivers its frame (the virtual phone renders at the *true* pose; the
 //!    renderer only ever sees the *estimated* one, so sensor error shows as a model that
 //!    swims against the background, exactly as on a phone);
+//! 2. the sensors deliver their readings up to the frame's time, the fusion filter updates,
+//!    and a GPS fix moves the place the sun is computed for;
 //! 3. the sun is computed for the place and the frame's instant (NREL SPA) and faded through
 //!    twilight;
 //! 4. the compositor draws camera image, ground shadow and model at the estimated pose.
@@ -29,8 +31,9 @@ mod tests {
     }
 }
 
+use crate::camera::FrameSource;
 use crate::camera::exposure::ExposureMode;
-use crate::camera::sim::{SimSettings, VirtualPhone};
+use crate::camera::sim::{SimSequence, SimSettings, VirtualPhone};
 use crate::cli::composite::{exposure, frame_params};
 use crate::pose::frames::{angle_between, from_heading_pitch_roll};
 use crate::pose::trace::{TruthSample, TruthTrace};
@@ -46,7 +49,8 @@ use anyhow::{Context, Result, bail};
 use chrono::{DateTime, NaiveDate, Utc};
 use std::sync::Arc;
 
-/// Where, when and how the live session runs.
+/// Where, when and how the live session runs (the place is where the session starts; GPS
+/// fixes move it).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LiveConfig {
     /// Latitude and longitude of the user, degrees (the sun's position and the magnetic model).
@@ -54,9 +58,9 @@ pub struct LiveConfig {
     pub lon_deg: f64,
     /// The instant of the first frame.
     pub start: DateTime<Utc>,
-    /// Camera frames per second.
+    /// Simulation only: camera frames per second, length of the session (seconds), sensor
+    /// noise and the seed of the user and the sensors.
     pub frame_hz: f64,
-    /// Length of the simulated session, seconds.
     pub duration_s: f64,
     pub noise: NoiseLevel,
     pub seed: u64,
@@ -99,6 +103,45 @@ pub fn look_around_path(heading_deg: f64, pitch_deg: f64, duration_s: f64, seed:
     TruthTrace::new(samples)
 }
 
+/// Where the frames and readings come from.
+pub struct Sources {
+    pub camera: Box<dyn FrameSource>,
+    pub sensors: Box<dyn SensorSource>,
+    /// How the app's display is rotated from the device's natural orientation.
+    pub rotation: DisplayRotation,
+    /// The camera's true orientation where it is known (the simulator), for the pose error.
+    pub truth: Option<TruthTrace>,
+}
+
+impl Sources {
+    /// The virtual phone looking into `env` (landscape, the scene's size and field of view,
+    /// exposure fixed at `exposure`), held by the simulated user ([`look_around_path`] around
+    /// the scene's camera heading and pitch), with simulated sensors at `cfg`'s place and noise.
+    pub fn simulated(env: Arc<CubeMap>, scene: &Scene, exposure: f32, cfg: &LiveConfig) -> Result<Sources> {
+        cfg.validate()?;
+        let settings = SimSettings {
+            width: scene.width,
+            height: scene.height,
+            vfov_deg: scene.camera.vfov as f32,
+            exposure: ExposureMode::Fixed(exposure),
+        };
+        let phone = VirtualPhone::new(env, &settings)?;
+        let truth = look_around_path(scene.camera.heading, scene.camera.pitch, cfg.duration_s, cfg.seed)?;
+        let frames = (truth.end() * cfg.frame_hz).floor() as usize;
+        let poses = (0..=frames)
+            .map(|k| {
+                let t = k as f64 / cfg.frame_hz;
+                (t, truth.orientation_at(t).as_quat())
+            })
+            .collect();
+        let mut sim = SimConfig::new(cfg.noise, cfg.seed);
+        sim.site = SimSite { lat_deg: cfg.lat_deg, lon_deg: cfg.lon_deg, alt_m: 0.0, date: magnetic_model_date(cfg.start.date_naive()) };
+        let rotation = sim.rotation;
+        let sensors = SimSensors::with_config(truth.clone(), sim)?;
+        Ok(Sources { camera: Box::new(SimSequence::new(phone, poses)?), sensors: Box::new(sensors), rotation, truth: Some(truth) })
+    }
+}
+
 /// The date the simulated magnetometer (and the filter's magnetic reference) uses: the
 /// session's date, clamped into the World Magnetic Model's validity (2020-01-01..=2029-12-31).
 /// The sun always uses the requested instant.
@@ -127,92 +170,81 @@ pub struct LiveFrame {
 /// The live loop's state: compositor, camera, sensors, filter and the frame parameters.
 pub struct LiveSession {
     compositor: Compositor,
-    phone: VirtualPhone,
-    phone_exposure: f32,
-    sensors: SimSensors,
+    sources: Sources,
     filter: OrientationFilter,
-    rotation: DisplayRotation,
-    truth: TruthTrace,
     params: FrameParams,
     layer: Layer,
     full_sunlight: f32,
     cfg: LiveConfig,
-    frame: usize,
+    /// Latitude and longitude the sun is computed for: the start, then the latest GPS fix.
+    location: (f64, f64),
     readings: Vec<Reading>,
 }
 
 impl LiveSession {
     /// A session looking at `model` placed as the scene says (auto-placed in front of the
-    /// scene's camera heading and pitch, which the simulated user starts from) in `env`, at the
-    /// scene's output size and field of view.
-    pub fn new(gpu: &Gpu, env: Arc<CubeMap>, model: &Model, scene: &Scene, cfg: LiveConfig) -> Result<LiveSession> {
+    /// scene's camera heading and pitch) in `env` (lighting, reflections, colour priors), at
+    /// the scene's output size. `sources` deliver the camera frames (of the output size) and
+    /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
+    pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let env_exposure = exposure(scene, &env);
         let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
-        compositor.set_environment(gpu, &env, env_exposure, (scene.env.heading as f32).to_radians())?;
+        compositor.set_environment(gpu, env, exposure(scene, env), (scene.env.heading as f32).to_radians())?;
         compositor.set_model(gpu, model)?;
         let bounds = compositor.model_bounds().context("model bounds")?;
         let params = frame_params(scene, bounds);
-        let settings = SimSettings {
-            width: scene.width,
-            height: scene.height,
-            vfov_deg: scene.camera.vfov as f32,
-            exposure: ExposureMode::Fixed(env_exposure),
-        };
-        // The camera sees the environment at the exposure the model is lit with, so model and
-        // background agree (a phone would lock its exposure the same way).
-        let phone = VirtualPhone::new(env, &settings)?;
-        let truth = look_around_path(scene.camera.heading, scene.camera.pitch, cfg.duration_s, cfg.seed)?;
-        let mut sim = SimConfig::new(cfg.noise, cfg.seed);
-        sim.site = SimSite { lat_deg: cfg.lat_deg, lon_deg: cfg.lon_deg, alt_m: 0.0, date: magnetic_model_date(cfg.start.date_naive()) };
-        let rotation = sim.rotation;
-        let sensors = SimSensors::with_config(truth.clone(), sim)?;
+        // True north from the first GPS fix and the World Magnetic Model for the date.
         let mut filter = OrientationFilter::new(FusionConfig::default());
-        filter.set_reference(sensors.magnetic_reference());
+        filter.set_date(magnetic_model_date(cfg.start.date_naive()));
         Ok(LiveSession {
             compositor,
-            phone,
-            phone_exposure: env_exposure,
-            sensors,
+            sources,
             filter,
-            rotation,
-            truth,
             params,
             layer: Layer::Composite,
             full_sunlight: scene.sun.sunlight as f32,
+            location: (cfg.lat_deg, cfg.lon_deg),
             cfg,
-            frame: 0,
             readings: Vec::new(),
         })
     }
 
-    /// Advance to the next camera frame: sensors, pose, camera image (uploaded), sun. `None`
-    /// when the session is over.
+    /// A session on the virtual phone and the simulated sensors ([`Sources::simulated`]); the
+    /// camera sees the environment at the exposure the model is lit with, as a phone that
+    /// locked its exposure would.
+    pub fn simulated(gpu: &Gpu, env: Arc<CubeMap>, model: &Model, scene: &Scene, cfg: LiveConfig) -> Result<LiveSession> {
+        let sources = Sources::simulated(env.clone(), scene, exposure(scene, &env), &cfg)?;
+        LiveSession::new(gpu, &env, model, scene, cfg, sources)
+    }
+
+    /// Advance to the next camera frame: camera image (uploaded), sensors, pose, sun. `None`
+    /// when the camera stream ends.
     pub fn advance(&mut self, gpu: &Gpu) -> Result<Option<LiveFrame>> {
-        let t = self.frame as f64 / self.cfg.frame_hz;
-        if t > self.truth.end() {
-            return Ok(None);
-        }
-        self.frame += 1;
+        let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
+        let t = frame.t;
+        self.compositor.set_background(gpu, Some(&frame.image))?;
         self.readings.clear();
-        self.sensors.poll(t, &mut self.readings)?;
+        self.sources.sensors.poll(t, &mut self.readings)?;
         for r in &self.readings {
             self.filter.update(r)?;
+            if let Reading::Gps(fix) = r {
+                self.location = (fix.lat_deg, fix.lon_deg);
+            }
         }
-        let truth = self.truth.orientation_at(t);
-        let image = self.phone.render_with_exposure(truth.as_quat(), self.phone_exposure)?;
-        self.compositor.set_background(gpu, Some(&image))?;
         let instant = self.cfg.start + chrono::Duration::microseconds((t * 1e6).round() as i64);
-        let sun = position(&SunInput::new(instant, self.cfg.lat_deg, self.cfg.lon_deg), Algorithm::Spa)?;
+        let sun = position(&SunInput::new(instant, self.location.0, self.location.1), Algorithm::Spa)?;
         let sunlight = self.full_sunlight * sun.sunlight_factor();
-        let pose = self.filter.pose(self.rotation);
+        let pose = self.filter.pose(self.sources.rotation);
         if let Some(p) = pose {
             self.params.camera.pose = p.q;
         }
         self.params.lighting.sun_dir = sun.direction_enu();
         self.params.lighting.sunlight = sunlight;
         self.layer = if pose.is_some() { Layer::Composite } else { Layer::Background };
-        let pose_error_deg = pose.map(|p| angle_between(p.q.as_dquat(), truth).to_degrees());
+        let pose_error_deg = match (pose, &self.sources.truth) {
+            (Some(p), Some(truth)) => Some(angle_between(p.q.as_dquat(), truth.orientation_at(t)).to_degrees()),
+            _ => None,
+        };
         Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight }))
     }
 
@@ -247,6 +279,6 @@ impl LiveSession {
 
     /// A description of the sensor source, for the overlay.
     pub fn sensors(&self) -> String {
-        self.sensors.describe()
+        self.sources.sensors.describe()
     }
 }

@@ -124,6 +124,17 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     assert_eq!(lines.len(), 3);
     assert!(lines[2]["sun_elevation_deg"].as_f64().unwrap() > 0.0);
 
+    // The stage-by-stage benchmark runs and reports every stage.
+    let out = previz(
+        &dir,
+        &["bench", "live", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "2", "--warmup", "1"],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8_lossy(&out.stdout);
+    for stage in ["camera frame", "sensors + fusion", "sun (SPA)", "compositor (GPU)", "whole frame"] {
+        assert!(table.contains(stage), "{stage} missing from:\n{table}");
+    }
+
     let bad = tempdir("live", "bad");
     let before = files(&bad);
     for (extra, needle) in [

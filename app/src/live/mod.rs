@@ -165,6 +165,11 @@ pub struct LiveFrame {
     pub sun: SunPosition,
     /// Sunlight intensity after the twilight fade.
     pub sunlight: f32,
+    /// CPU milliseconds of this frame's stages: the camera frame (delivered and uploaded),
+    /// sensors and fusion, the sun.
+    pub camera_ms: f64,
+    pub pose_ms: f64,
+    pub sun_ms: f64,
 }
 
 /// The live loop's state: compositor, camera, sensors, filter and the frame parameters.
@@ -220,9 +225,11 @@ impl LiveSession {
     /// Advance to the next camera frame: camera image (uploaded), sensors, pose, sun. `None`
     /// when the camera stream ends.
     pub fn advance(&mut self, gpu: &Gpu) -> Result<Option<LiveFrame>> {
+        let t0 = std::time::Instant::now();
         let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
         let t = frame.t;
         self.compositor.set_background(gpu, Some(&frame.image))?;
+        let t1 = std::time::Instant::now();
         self.readings.clear();
         self.sources.sensors.poll(t, &mut self.readings)?;
         for r in &self.readings {
@@ -231,10 +238,12 @@ impl LiveSession {
                 self.location = (fix.lat_deg, fix.lon_deg);
             }
         }
+        let pose = self.filter.pose(self.sources.rotation);
+        let t2 = std::time::Instant::now();
         let instant = self.cfg.start + chrono::Duration::microseconds((t * 1e6).round() as i64);
         let sun = position(&SunInput::new(instant, self.location.0, self.location.1), Algorithm::Spa)?;
+        let t3 = std::time::Instant::now();
         let sunlight = self.full_sunlight * sun.sunlight_factor();
-        let pose = self.filter.pose(self.sources.rotation);
         if let Some(p) = pose {
             self.params.camera.pose = p.q;
         }
@@ -245,7 +254,8 @@ impl LiveSession {
             (Some(p), Some(truth)) => Some(angle_between(p.q.as_dquat(), truth.orientation_at(t)).to_degrees()),
             _ => None,
         };
-        Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight }))
+        let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
+        Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight, camera_ms: ms(t0, t1), pose_ms: ms(t1, t2), sun_ms: ms(t2, t3) }))
     }
 
     /// Draw the current frame into [`Compositor::target_view`] (no readback). Returns the CPU

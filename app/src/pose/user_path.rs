@@ -21,40 +21,15 @@ use glam::{DQuat, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// The six cube faces as seen from the user's first (front) aim.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Target {
-    Front,
-    Right,
-    Back,
-    Left,
-    Up,
-    Down,
-}
+/// The six cube faces as seen from the user's first (front) aim: the capture's faces.
+pub use crate::capture::targets::Face as Target;
 
-impl Target {
-    /// Heading offset from the front and pitch of the face centre (degrees).
-    pub fn heading_pitch_deg(self, vertical_pitch_deg: f64) -> (f64, f64) {
-        match self {
-            Target::Front => (0.0, 0.0),
-            Target::Right => (90.0, 0.0),
-            Target::Back => (180.0, 0.0),
-            Target::Left => (270.0, 0.0),
-            Target::Up => (0.0, vertical_pitch_deg),
-            Target::Down => (0.0, -vertical_pitch_deg),
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Target::Front => "front",
-            Target::Right => "right",
-            Target::Back => "back",
-            Target::Left => "left",
-            Target::Up => "up",
-            Target::Down => "down",
-        }
-    }
+/// Heading offset from the front and pitch (degrees) a user aims at for a face: the face
+/// centre, except that up and down are aimed at `vertical_pitch_deg` (people rarely tilt a
+/// phone all the way to the vertical).
+pub fn aim_heading_pitch_deg(face: Target, vertical_pitch_deg: f64) -> (f64, f64) {
+    let (dh, p) = face.aim_deg();
+    (dh, if p == 0.0 { 0.0 } else { vertical_pitch_deg.copysign(p) })
 }
 
 /// Orders in which people naturally go round after the front face.
@@ -328,7 +303,7 @@ pub fn simulate_user_path(seed: u64, params: &UserPathParams) -> Result<Simulate
     };
     let e = params.aim_error_deg;
     let aim = |rng: &mut ChaCha8Rng, target: Target| {
-        let (dh, p) = target.heading_pitch_deg(params.vertical_pitch_deg);
+        let (dh, p) = aim_heading_pitch_deg(target, params.vertical_pitch_deg);
         let ep = uniform(rng, (-e, e));
         // The user cannot tilt past the vertical: err towards the horizon.
         let p = if p.abs() + ep > 90.0 { p - ep.abs() * p.signum() } else { p + ep };
@@ -370,6 +345,14 @@ mod tests {
     use crate::pose::frames::{angle_between, heading_pitch_roll};
 
     #[test]
+    fn faces_are_aimed_at_their_centres_and_up_down_at_the_vertical_pitch() {
+        assert_eq!(aim_heading_pitch_deg(Target::Right, 80.0), (90.0, 0.0));
+        assert_eq!(aim_heading_pitch_deg(Target::Left, 80.0), (270.0, 0.0));
+        assert_eq!(aim_heading_pitch_deg(Target::Up, 80.0), (0.0, 80.0));
+        assert_eq!(aim_heading_pitch_deg(Target::Down, 80.0), (0.0, -80.0));
+    }
+
+    #[test]
     fn minimum_jerk_profile_values() {
         // Flash & Hogan: x(τ) = 10τ³ − 15τ⁴ + 6τ⁵; x(0.5) = 0.5, zero speed at both ends.
         assert_eq!(minimum_jerk(0.0), 0.0);
@@ -402,7 +385,7 @@ mod tests {
             // within the aim error of the face centre.
             let mid = 0.5 * (h.start + h.end);
             assert!(angle_between(trace.orientation_at(mid), h.aim).to_degrees() < 1.0, "{h:?}");
-            let (dh, pitch) = h.target.heading_pitch_deg(p.vertical_pitch_deg);
+            let (dh, pitch) = aim_heading_pitch_deg(h.target, p.vertical_pitch_deg);
             let hpr = heading_pitch_roll(h.aim);
             assert!((hpr.pitch.to_degrees() - pitch).abs() <= p.aim_error_deg + 1e-9, "{h:?} {hpr:?}");
             if pitch.abs() < 89.0 {

@@ -34,7 +34,7 @@ pub struct Args {
     /// reinhard: Reinhard 2001 in log lαβ; cielab-approx: lαβ without the log (seed Eq. 11a);
     /// mkl: linear Monge–Kantorovich (full covariance); brightness-contrast: luminance only.
     #[arg(long, value_enum, default_value = "reinhard")]
-    pub method: CliMethod,
+    pub method: Method,
     /// 0 = TARGET unchanged, 1 = full correction.
     #[arg(long, default_value_t = 1.0, value_parser = parse_strength)]
     pub strength: f32,
@@ -47,26 +47,6 @@ pub struct Args {
     /// Print the statistics of source, target and result as JSON.
     #[arg(long)]
     pub json: bool,
-}
-
-/// The methods the tool offers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum CliMethod {
-    Reinhard,
-    CielabApprox,
-    Mkl,
-    BrightnessContrast,
-}
-
-impl From<CliMethod> for Method {
-    fn from(m: CliMethod) -> Method {
-        match m {
-            CliMethod::Reinhard => Method::Reinhard,
-            CliMethod::CielabApprox => Method::CielabApprox,
-            CliMethod::Mkl => Method::Mkl,
-            CliMethod::BrightnessContrast => Method::BrightnessContrast,
-        }
-    }
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -118,7 +98,7 @@ pub fn run(args: Args) -> Result<()> {
     let (Some(source_path), Some(target_path), Some(out)) = (&args.source, &args.target, &args.output) else {
         bail!("--source, --target and -o are required");
     };
-    let method: Method = args.method.into();
+    let method = args.method;
     let source = load_rgba8(source_path).context("SOURCE")?;
     let target = load_rgba8(target_path).context("TARGET")?;
     let source_stats = image_stats(&source, false, "SOURCE")?;

@@ -50,7 +50,8 @@ pub const MAX_GAIN: f64 = 10.0;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
-    /// No correction.
+    /// No correction (a scene's default; not offered by `colour-transfer`).
+    #[value(skip)]
     None,
     /// Brightness and contrast from the luminance priors (seed Eqs. 9–10b, corrected).
     BrightnessContrast,

@@ -1,6 +1,7 @@
 //! Measurements: speed side by side with accuracy, recorded in docs/PERFORMANCE.md.
 
 pub mod frame;
+pub mod live;
 
 /// Median of a sample (NaN-free input; empty gives NaN).
 pub fn median(values: &[f64]) -> f64 {

@@ -1,6 +1,6 @@
 //! `previz bench …`: measurements recorded in docs/PERFORMANCE.md.
 
-use crate::bench::frame;
+use crate::bench::{frame, live};
 use crate::cli::composite::{SceneArgs, load_inputs, scene_from_args};
 use crate::render::gpu::Gpu;
 use anyhow::{Result, bail};
@@ -107,51 +107,18 @@ fn run_live(a: LiveArgs) -> Result<()> {
     let (scene, demo) = scene_from_args(&a.scene, None)?;
     let inputs = load_inputs(&scene, demo)?;
     let gpu = Gpu::headless()?;
-    let cfg = crate::live::LiveConfig {
-        lat_deg: 51.4545,
-        lon_deg: -2.5879,
-        start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00")?.with_timezone(&chrono::Utc),
-        frame_hz: 30.0,
-        duration_s: ((a.frames + a.warmup) as f64 / 30.0).ceil() + 1.0,
-        noise: crate::sensors::sim::NoiseLevel::Phone,
-        seed: 1,
-    };
-    let model_triangles = inputs.model.triangle_count();
-    let mut session = crate::live::LiveSession::simulated(&gpu, std::sync::Arc::new(inputs.env), &inputs.model, &scene, cfg)?;
-    let bar = indicatif::ProgressBar::new((a.frames + a.warmup) as u64);
-    let mut rows: [Vec<f64>; 5] = Default::default();
-    for i in 0..a.frames + a.warmup {
-        let t = std::time::Instant::now();
-        let f = session.advance(&gpu)?.ok_or_else(|| anyhow::anyhow!("the simulated session ended early"))?;
-        let r = session.render(&gpu)?;
-        let wall = t.elapsed().as_secs_f64() * 1e3;
-        if i >= a.warmup {
-            for (v, x) in rows.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, r.timings.gpu_ms.unwrap_or(f64::NAN), wall]) {
-                v.push(x);
-            }
-        }
-        bar.inc(1);
-    }
+    let triangles = inputs.model.triangle_count();
+    let bar = indicatif::ProgressBar::new(0);
+    let rows = live::run(&gpu, &scene, inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     println!(
-        "{}x{}, {} model triangles, phone-grade simulated sensors, on {}; {} frames after {} warm-up\n",
+        "{}x{}, {triangles} model triangles, phone-grade simulated sensors, on {}; {} frames after {} warm-up\n",
         scene.width,
         scene.height,
-        model_triangles,
         gpu.describe(),
         a.frames,
         a.warmup
     );
-    println!("| stage | median ms | p95 ms |\n|---|---:|---:|");
-    let names = [
-        "camera frame (virtual phone, CPU) + upload",
-        "sensors + fusion",
-        "sun (SPA)",
-        "compositor (GPU)",
-        "whole frame incl. readback (wall)",
-    ];
-    for (name, v) in names.iter().zip(&rows) {
-        println!("| {name} | {:.3} | {:.3} |", crate::bench::median(v), crate::bench::percentile(v, 0.95));
-    }
+    print!("{}", live::markdown(&rows));
     Ok(())
 }

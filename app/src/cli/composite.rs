@@ -246,10 +246,18 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
 /// GPU resources for a scene and the parameters of its frame: what `run`, the tests and the
 /// benchmark share.
 pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
-    let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
-    compositor.set_environment(gpu, &inputs.env, exposure(scene, &inputs.env), (scene.env.heading as f32).to_radians())?;
-    compositor.set_model(gpu, &inputs.model)?;
+    let (mut compositor, params) = compositor_for(gpu, scene, &inputs.env, &inputs.model)?;
     compositor.set_background(gpu, inputs.background.as_ref())?;
+    Ok((compositor, params))
+}
+
+/// A compositor with the scene's environment (at its exposure and heading) and model, and the
+/// parameters of the scene's frame; the background is the caller's (a photo, or the live
+/// camera frame by frame).
+pub fn compositor_for(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams)> {
+    let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
+    compositor.set_environment(gpu, env, exposure(scene, env), (scene.env.heading as f32).to_radians())?;
+    compositor.set_model(gpu, model)?;
     let bounds = compositor.model_bounds().context("model bounds")?;
     let params = frame_params(scene, bounds);
     Ok((compositor, params))

@@ -34,7 +34,7 @@ mod tests {
 use crate::camera::FrameSource;
 use crate::camera::exposure::ExposureMode;
 use crate::camera::sim::{SimSequence, SimSettings, VirtualPhone};
-use crate::cli::composite::{exposure, frame_params};
+use crate::cli::composite::{compositor_for, exposure};
 use crate::pose::frames::{angle_between, from_heading_pitch_roll};
 use crate::pose::trace::{TruthSample, TruthTrace};
 use crate::pose::user_path::{HandShake, UserPathParams};
@@ -45,7 +45,7 @@ use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use chrono::{DateTime, NaiveDate, Utc};
 use std::sync::Arc;
 
@@ -193,11 +193,7 @@ impl LiveSession {
     /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
     pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
-        compositor.set_environment(gpu, env, exposure(scene, env), (scene.env.heading as f32).to_radians())?;
-        compositor.set_model(gpu, model)?;
-        let bounds = compositor.model_bounds().context("model bounds")?;
-        let params = frame_params(scene, bounds);
+        let (compositor, params) = compositor_for(gpu, scene, env, model)?;
         // True north from the first GPS fix and the World Magnetic Model for the date.
         let mut filter = OrientationFilter::new(FusionConfig::default());
         filter.set_date(magnetic_model_date(cfg.start.date_naive()));

@@ -600,29 +600,19 @@ impl Compositor {
 
     /// Render one image of `layer` and read it back.
     pub fn render(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
-        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let result = self.render_unchecked(gpu, p, layer);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            bail!("the GPU rejected the frame: {e}");
-        }
-        result
+        checked(gpu, || self.render_unchecked(gpu, p, layer))
     }
 
     /// Render one image of `layer` into [`Compositor::target_view`] without reading it back:
     /// the live view samples it in its UI pass. Returns the CPU encode time in ms.
     pub fn draw(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<f64> {
-        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let result = (|| {
+        checked(gpu, || {
             let t0 = Instant::now();
             let encoder = self.prepare_frame(gpu, p, layer)?;
             let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
             gpu.queue.submit([encoder.finish()]);
             Ok(encode_ms)
-        })();
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            bail!("the GPU rejected the frame: {e}");
-        }
-        result
+        })
     }
 
     /// The rendered frame (the output size) as an `Rgba8Unorm` view of its sRGB-encoded bytes:
@@ -808,6 +798,17 @@ impl Compositor {
         ts.read.unmap();
         Ok(Some(ms))
     }
+}
+
+/// Run `f` inside a validation error scope: a frame the GPU rejects is an error, not a panic
+/// or a log line.
+fn checked<T>(gpu: &Gpu, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let result = f();
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        bail!("the GPU rejected the frame: {e}");
+    }
+    result
 }
 
 fn map_blocking(gpu: &Gpu, slice: wgpu::BufferSlice<'_>) -> Result<()> {

@@ -1,0 +1,74 @@
+//! `previz bench live`: the live loop stage by stage — camera frame, sensors + fusion, sun,
+//! compositor — on the virtual phone and phone-grade simulated sensors.
+
+use super::{median, percentile};
+use crate::cli::composite::Inputs;
+use crate::live::{LiveConfig, LiveSession};
+use crate::render::gpu::Gpu;
+use crate::scene::file::Scene;
+use crate::sensors::sim::NoiseLevel;
+use anyhow::{Result, anyhow};
+use std::sync::Arc;
+
+/// The stages, in the order of a frame.
+pub const STAGES: [&str; 5] = [
+    "camera frame (virtual phone, CPU) + upload",
+    "sensors + fusion",
+    "sun (SPA)",
+    "compositor (GPU)",
+    "whole frame incl. readback (wall)",
+];
+
+/// One stage's median and 95th percentile, ms.
+#[derive(Clone, Debug)]
+pub struct StageRow {
+    pub stage: &'static str,
+    pub median_ms: f64,
+    pub p95_ms: f64,
+}
+
+/// Run `warmup` + `frames` frames of a simulated session (Bristol, 2026-06-21 15:00 +01:00,
+/// 30 frames per second) and time each stage of the measured ones.
+pub fn run(
+    gpu: &Gpu,
+    scene: &Scene,
+    inputs: Inputs,
+    frames: usize,
+    warmup: usize,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<StageRow>> {
+    let cfg = LiveConfig {
+        lat_deg: 51.4545,
+        lon_deg: -2.5879,
+        start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00")?.with_timezone(&chrono::Utc),
+        frame_hz: 30.0,
+        duration_s: ((frames + warmup) as f64 / 30.0).ceil() + 1.0,
+        noise: NoiseLevel::Phone,
+        seed: 1,
+    };
+    let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
+    progress.set_length((frames + warmup) as u64);
+    let mut samples: [Vec<f64>; 5] = Default::default();
+    for i in 0..frames + warmup {
+        let t = std::time::Instant::now();
+        let f = session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
+        let r = session.render(gpu)?;
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        if i >= warmup {
+            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, r.timings.gpu_ms.unwrap_or(f64::NAN), wall]) {
+                v.push(x);
+            }
+        }
+        progress.inc(1);
+    }
+    Ok(STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect())
+}
+
+/// The rows as a markdown table.
+pub fn markdown(rows: &[StageRow]) -> String {
+    let mut s = String::from("| stage | median ms | p95 ms |\n|---|---:|---:|\n");
+    for r in rows {
+        s += &format!("| {} | {:.3} | {:.3} |\n", r.stage, r.median_ms, r.p95_ms);
+    }
+    s
+}

@@ -216,3 +216,35 @@ pub fn status_lines(last: Option<&LiveFrame>, encode_ms: f64, fps: f64, sensors:
     ));
     lines
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pose::{HeadingSource, Pose};
+    use crate::sun::{Algorithm, SunInput, position};
+
+    #[test]
+    fn status_lines_name_the_pose_and_the_sun() {
+        let waiting = status_lines(None, 0.1, 0.0, "sim");
+        assert!(waiting.iter().any(|l| l.contains("waiting")));
+        let time = chrono::DateTime::parse_from_rfc3339("2003-10-17T12:30:30-07:00").unwrap().with_timezone(&chrono::Utc);
+        let sun = position(&SunInput::new(time, 39.742476, -105.1786), Algorithm::Spa).unwrap();
+        // Camera looking East (heading 90°), level: camera −z → +x (East), +y → Up.
+        let q = crate::pose::frames::from_heading_pitch_roll(90f64.to_radians(), 0.0, 0.0).as_quat();
+        let pose = Pose {
+            t: 1.0,
+            q,
+            accuracy_deg: 2.0,
+            heading_accuracy_deg: 2.0,
+            tilt_accuracy_deg: 0.5,
+            heading_source: HeadingSource::GyroOnly,
+            magnetic_disturbance: true,
+        };
+        let frame =
+            LiveFrame { t: 1.0, pose: Some(pose), pose_error_deg: None, sun, sunlight: 0.8, camera_ms: 0.0, pose_ms: 0.0, sun_ms: 0.0 };
+        let lines = status_lines(Some(&frame), 0.1, 30.0, "sim").join("\n");
+        assert!(lines.contains("heading 90.0°, pitch 0.0° (±2.0°, gyro only"), "{lines}");
+        assert!(lines.contains("sun: azimuth 194.3°"), "{lines}");
+        assert!(lines.contains("30.0 fps"), "{lines}");
+    }
+}

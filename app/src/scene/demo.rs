@@ -24,14 +24,14 @@ pub fn model() -> Result<Model> {
     super::model::load_glb_bytes(TRUCK_GLB).context("built-in demo model")
 }
 
-/// The demo environment (Humus Bridge2 cube map).
+/// The demo environment (Humus Park2 cube map).
 pub fn environment() -> Result<CubeMap> {
     let decode = |bytes: &[u8]| image::load_from_memory(bytes).context("built-in demo cube face");
     let faces = [decode(FACES[0])?, decode(FACES[1])?, decode(FACES[2])?, decode(FACES[3])?, decode(FACES[4])?, decode(FACES[5])?];
     super::environment::cube_from_faces(faces).context("built-in demo environment")
 }
 
-/// The demo background photograph.
+/// The demo background photograph (the cube map's East face at 1024²).
 pub fn background() -> Result<Rgba8Image> {
     let img = image::load_from_memory(BACKGROUND_JPG).context("built-in demo background")?.to_rgba8();
     Ok(Rgba8Image { width: img.width(), height: img.height(), pixels: img.into_raw() })

@@ -8,10 +8,10 @@ use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::{data, gpu, scene};
 use previz::camera::exposure::ExposureMode;
 use previz::camera::sim::{SimSettings, VirtualPhone};
-use previz::cli::composite::{exposure, load_inputs};
 use previz::live::{LiveConfig, LiveSession, look_around_path};
 use previz::render::Layer;
 use previz::sensors::sim::NoiseLevel;
+use previz::setup::{exposure, load_inputs};
 use std::sync::Arc;
 
 const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2\"\nmodel = \"meshes/stanford-bunny.obj\"\n\

@@ -4,7 +4,7 @@
 //! window surface (DESIGN.md "One frame", step 6).
 
 use super::{LiveFrame, LiveSession};
-use crate::render::gpu::Gpu;
+use crate::gpu::Gpu;
 use anyhow::{Context, Result, anyhow};
 use std::sync::Arc;
 use std::time::Instant;

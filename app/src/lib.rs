@@ -13,6 +13,7 @@ pub mod cli;
 pub mod colour;
 #[doc(hidden)]
 pub mod fuzzing;
+pub mod light;
 pub mod live;
 pub mod output;
 pub mod pose;

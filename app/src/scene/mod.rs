@@ -110,5 +110,6 @@ pub mod cubemap;
 pub mod demo;
 pub mod environment;
 pub mod file;
+pub mod lod;
 pub mod model;
 pub mod normals;

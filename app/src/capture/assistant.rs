@@ -30,7 +30,7 @@ use super::folder::{AlignmentMeta, CaptureMeta, CubeCapture, FaceMeta, ShotMeta}
 use super::projection::Pinhole;
 use super::projection::face_pixel_dir_local;
 use super::reproject::{FaceImage, Shot, assemble_face};
-use super::targets::{Face, Target, plan_targets, world_to_local};
+use super::targets::{Face, PLAN_MARGIN, Target, plan_targets, world_to_local};
 use crate::pose::frames::{angle_between_f32, heading_pitch_roll, wrap_degrees_360};
 use crate::pose::{HeadingSource, Pose};
 use crate::scene::Rgba8Image;
@@ -41,13 +41,22 @@ use std::sync::Arc;
 
 /// Seconds of pose history the angular rate is measured over.
 pub const RATE_WINDOW_S: f64 = 0.1;
-/// The aim tolerance is widened by this many times the pose's 1σ accuracy estimate.
-pub const AIM_SIGMAS: f64 = 1.0;
+/// The aim tolerance is widened by this many times the pose's 1σ accuracy estimate: the aim is
+/// judged against the reference heading, itself an estimate, so the error of the difference can
+/// reach twice one estimate's.
+pub const AIM_SIGMAS: f64 = 2.0;
 /// Largest accuracy estimate (degrees) credited to the tolerance: with no heading at all the
 /// estimate is 180°, and a box that wide would take anything.
 pub const MAX_SIGMA_DEG: f64 = 6.0;
 /// Sphere samples per face side that judge stitch-mode coverage.
 const COVER_SAMPLES: u32 = 16;
+/// Stitch mode: a steady view on no target is taken when at least this fraction of the
+/// coverage samples it sees (inside the frame shrunk by the plan margin), and at least
+/// [`MIN_NEW_SAMPLES`] of them, are not seen yet.
+pub const MIN_NEW_FRACTION: f64 = 0.25;
+pub const MIN_NEW_SAMPLES: usize = 8;
+/// `on_target` marker for a steady view on no target.
+const FREE_VIEW: usize = usize::MAX;
 /// Stitch mode: once every target is taken or seen by others, a face counts as complete with
 /// up to this fraction of its coverage samples unseen (a sliver at a seam, filled from the
 /// nearest shot's edge and reported as the face's coverage); a bigger hole gets a repair
@@ -69,13 +78,14 @@ pub struct AssistantConfig {
     /// Face size in pixels (a power of two; seed 000: 256).
     pub face_size: u32,
     /// Stitch mode: correct the shots' headings from their overlaps before assembly
-    /// ([`super::align`]).
+    /// ([`super::align`]). Off by default: measured on the quarry HDR at phone noise it does
+    /// not raise the faces' PSNR yet (docs/capture.md).
     pub align: bool,
 }
 
 impl AssistantConfig {
     pub fn new(mode: Mode, camera: Pinhole) -> Self {
-        AssistantConfig { mode, camera, tolerance_deg: 2.0, max_rate_deg_s: 10.0, dwell_s: 0.2, face_size: 256, align: true }
+        AssistantConfig { mode, camera, tolerance_deg: 2.0, max_rate_deg_s: 10.0, dwell_s: 0.2, face_size: 256, align: false }
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -204,6 +214,8 @@ pub struct Assistant {
     samples: Vec<Vec3>,
     covered: Vec<bool>,
     repairs: usize,
+    /// Shots taken on no target because they saw enough that was missing.
+    views: usize,
 }
 
 /// Largest deviation from unit length accepted for a pose quaternion.
@@ -245,6 +257,7 @@ impl Assistant {
             covered: vec![false; samples.len()],
             samples,
             repairs: 0,
+            views: 0,
             cfg,
             states,
             reference_heading_deg: None,
@@ -423,11 +436,43 @@ impl Assistant {
                 s.longest_dwell = s.longest_dwell.max(t - since);
                 Ok((t - since >= self.cfg.dwell_s).then_some(i))
             }
+            (None, true) if self.cfg.mode == Mode::Stitch && self.adds_coverage(href, q) => {
+                // Steady on no target, but the view sees enough of what is still missing.
+                let since = match self.on_target {
+                    Some((FREE_VIEW, since)) => since,
+                    _ => t,
+                };
+                self.on_target = Some((FREE_VIEW, since));
+                if t - since < self.cfg.dwell_s {
+                    return Ok(None);
+                }
+                self.views += 1;
+                let local = world_to_local(href).as_quat() * (dq.as_quat() * Vec3::NEG_Z);
+                let face = Face::of_local_dir(local);
+                let target = Target {
+                    name: format!("{}+view{}", face.name(), self.views),
+                    face,
+                    primary: false,
+                    heading_offset_deg: wrap_degrees_360(f64::from(local.x.atan2(local.y).to_degrees())),
+                    pitch_deg: f64::from(local.z.clamp(-1.0, 1.0).asin().to_degrees()),
+                };
+                self.states.push(TargetState::new(target, Vec::new()));
+                Ok(Some(self.states.len() - 1))
+            }
             _ => {
                 self.on_target = None;
                 Ok(None)
             }
         }
+    }
+
+    /// Stitch mode: whether a view at pose `q` (camera → world) would see at least
+    /// [`MIN_NEW_FRACTION`] of its coverage samples (and [`MIN_NEW_SAMPLES`]) not yet seen.
+    fn adds_coverage(&self, href: f64, q: Quat) -> bool {
+        let local = world_to_local(href).as_quat() * q;
+        let seen = seen_samples(&self.cfg.camera, &self.samples, local, self.cfg.tolerance_deg * PLAN_MARGIN);
+        let new = seen.iter().filter(|&&i| !self.covered[i as usize]).count();
+        new >= MIN_NEW_SAMPLES && new as f64 >= MIN_NEW_FRACTION * seen.len() as f64
     }
 
     /// Take the shot for target `index` (as returned by [`Assistant::observe`]) from `frame`
@@ -746,10 +791,10 @@ mod tests {
     fn off_target_or_moving_takes_nothing_and_says_why() {
         let (mut a, f) = assistant(Mode::Stretch);
         a.tap(0.0, &aim(10.0, 0.0), f.clone()).unwrap();
-        // The pose claims 1° accuracy: the tolerance is 2° + 1σ = 3°. 3.5° off the right face:
+        // The pose claims 1° accuracy: the tolerance is 2° + 2σ = 4°. 4.5° off the right face:
         // never taken.
-        assert_eq!(a.tolerance_now(), 3.0);
-        assert!(hold(&mut a, &f, aim(103.5, 0.0), 0.1, 1.0).is_empty());
+        assert_eq!(a.tolerance_now(), 4.0);
+        assert!(hold(&mut a, &f, aim(104.5, 0.0), 0.1, 1.0).is_empty());
         // Sweeping through the back target at 30°/s: within tolerance but too fast.
         let mut t = 1.2;
         for k in 0..60 {
@@ -760,8 +805,8 @@ mod tests {
         assert!(a.guidance().hold_still);
         let err = format!("{:#}", a.finish().unwrap_err());
         assert!(err.contains("5 face(s) missing"), "{err}");
-        assert!(err.contains("right: never within ±3.0° (closest 3.5° off"), "{err}");
-        assert!(err.contains("back: within ±3.0° but never held steady"), "{err}");
+        assert!(err.contains("right: never within ±4.0° (closest 4.5° off"), "{err}");
+        assert!(err.contains("back: within ±4.0° but never held steady"), "{err}");
         assert!(err.contains("up: never within"), "{err}");
         // Steady but for less than the dwell time: not taken, and the reason says so.
         assert!(hold(&mut a, &f, aim(100.0, 0.0), 5.0, 0.15).is_empty());

@@ -76,7 +76,7 @@ impl Default for ReplayConfig {
             disturbances: Vec::new(),
             score: true,
             render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            align: true,
+            align: false,
         }
     }
 }

@@ -12,7 +12,7 @@ use super::Mode;
 use super::assistant::Assistant;
 use super::replay::{ReplayConfig, ReplayResult, replay, replay_guided};
 use super::targets::Face;
-use super::user_path::{capture_user_params, simulate_capture_path};
+use super::user_path::simulate_capture_path;
 use crate::pose::fusion::{DisturbanceConfig, FusionConfig};
 use crate::pose::trace::TruthTrace;
 use crate::pose::user_path::UserPathParams;
@@ -190,7 +190,7 @@ pub fn run_job(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> Result<RunRow
     }
     let targets: Vec<_> = Assistant::new(replay_cfg.assistant()?)?.targets().into_iter().cloned().collect();
     let mut rng = ChaCha8Rng::seed_from_u64(job.seed ^ 0x5eed);
-    let mut params = capture_user_params();
+    let mut params = UserPathParams::default();
     match job.case {
         Case::Wrap => params.reference_heading_deg = Some((358.0 + rng.random_range(0.0..4.0)) % 360.0),
         Case::Pole => {

@@ -15,14 +15,6 @@ use anyhow::{Result, bail};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// The capture's simulated user: [`UserPathParams::default`] (the pose study's user) except that
-/// each aim is held 0.6–1.0 s instead of 1.2–2.0 s. The assistant takes a shot after
-/// `dwell_s` (0.2 s) steady and shows it; a user who moves on when the shot is taken, with a
-/// reaction time of about a quarter second, holds for about this long.
-pub fn capture_user_params() -> UserPathParams {
-    UserPathParams { hold_s: (0.6, 1.0), ..UserPathParams::default() }
-}
-
 /// A held aim of the simulated user.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Visit {

@@ -8,9 +8,10 @@ use crate::capture::assistant::Assistant;
 use crate::capture::folder::save_capture;
 use crate::capture::replay::{ReplayConfig, replay};
 use crate::capture::stability::{self, StudyConfig};
-use crate::capture::user_path::{capture_user_params, simulate_capture_path};
+use crate::capture::user_path::simulate_capture_path;
 use crate::output::write_atomic;
 use crate::pose::trace::{TruthTrace, load_truth_trace, write_truth_trace};
+use crate::pose::user_path::UserPathParams;
 use crate::scene::environment::load_environment;
 use crate::sensors::sim::NoiseLevel;
 use anyhow::{Context, Result, bail};
@@ -77,10 +78,10 @@ pub struct RunArgs {
     /// stretch: one shot per face stretched over it (seed 000); stitch: extra shots, full coverage
     #[arg(long, value_enum, default_value = "stitch")]
     pub mode: Mode,
-    /// Stitch mode: skip the alignment of the shots from their overlaps (faces placed by the
-    /// sensor poses alone; for comparisons)
-    #[arg(long = "no-align")]
-    pub no_align: bool,
+    /// Stitch mode: correct the shots' headings from their overlaps before assembly
+    /// (experimental: it does not raise the faces' PSNR yet, see docs/capture.md)
+    #[arg(long)]
+    pub align: bool,
     /// Print per-face capture time, orientation error, coverage, PSNR and mean FLIP as JSON
     #[arg(long)]
     pub json: bool,
@@ -129,7 +130,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
         tolerance_deg: a.tolerance,
         face_size: a.face_size,
         score: true,
-        align: !a.no_align,
+        align: a.align,
         ..ReplayConfig::default()
     };
     let assistant_cfg = cfg.assistant().context("bad --vfov, --tolerance or --face-size")?;
@@ -137,7 +138,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
         Some(p) => TruthTrace::new(load_truth_trace(p)?).with_context(|| format!("trace {}", p.display()))?,
         None => {
             let targets: Vec<_> = Assistant::new(assistant_cfg)?.targets().into_iter().cloned().collect();
-            let path = simulate_capture_path(a.seed, &targets, &capture_user_params())?;
+            let path = simulate_capture_path(a.seed, &targets, &UserPathParams::default())?;
             if let Some(p) = &a.write_trace {
                 write_truth_trace(p, &path.samples)?;
             }

@@ -45,6 +45,7 @@ use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
+use crate::ui::controls::Controls;
 use anyhow::{Result, bail};
 use chrono::{DateTime, NaiveDate, Utc};
 use std::sync::Arc;
@@ -184,6 +185,10 @@ pub struct LiveSession {
     /// Latitude and longitude the sun is computed for: the start, then the latest GPS fix.
     location: (f64, f64),
     readings: Vec<Reading>,
+    /// The control panel's values, applied to every frame once set.
+    controls: Option<Controls>,
+    /// The sun's intensity of the current frame before SL (place, time, twilight).
+    sun_intensity: f32,
 }
 
 impl LiveSession {
@@ -207,6 +212,8 @@ impl LiveSession {
             location: (cfg.lat_deg, cfg.lon_deg),
             cfg,
             readings: Vec::new(),
+            controls: None,
+            sun_intensity: scene.sun.sunlight as f32,
         })
     }
 
@@ -245,6 +252,10 @@ impl LiveSession {
         }
         self.params.lighting.sun_dir = sun.direction_enu();
         self.params.lighting.sunlight = sunlight;
+        self.sun_intensity = sunlight;
+        if let Some(c) = &self.controls {
+            c.apply(&mut self.params, sunlight);
+        }
         self.layer = if pose.is_some() { Layer::Composite } else { Layer::Background };
         let pose_error_deg = match (pose, &self.sources.truth) {
             (Some(p), Some(truth)) => Some(angle_between(p.q.as_dquat(), truth.orientation_at(t)).to_degrees()),
@@ -277,6 +288,23 @@ impl LiveSession {
     /// The parameters the current frame is drawn with.
     pub fn params(&self) -> &FrameParams {
         &self.params
+    }
+
+    /// The parameters, for gestures that move the model (the control panel goes through
+    /// [`LiveSession::set_controls`]).
+    pub fn params_mut(&mut self) -> &mut FrameParams {
+        &mut self.params
+    }
+
+    /// Apply the control panel's values from now on (SL scales the sun's intensity for the place
+    /// and time); applied at once to the current frame too.
+    pub fn set_controls(&mut self, c: Controls) {
+        c.apply(&mut self.params, self.sun_intensity);
+        self.controls = Some(c);
+    }
+
+    pub fn controls(&self) -> Option<&Controls> {
+        self.controls.as_ref()
     }
 
     pub fn config(&self) -> &LiveConfig {

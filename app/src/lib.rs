@@ -11,6 +11,7 @@ pub mod capture;
 pub mod chart;
 pub mod cli;
 pub mod colour;
+pub mod light;
 pub mod live;
 pub mod output;
 pub mod pose;

@@ -15,6 +15,7 @@
 //! The simulated user stands still and looks at the model, panning slowly left and right and
 //! up and down with a hand-held shake ([`look_around_path`]).
 
+pub mod export;
 #[cfg(not(any(target_os = "android", target_os = "ios")))]
 pub mod window;
 
@@ -189,6 +190,8 @@ pub struct LiveSession {
     controls: Option<Controls>,
     /// The sun's intensity of the current frame before SL (place, time, twilight).
     sun_intensity: f32,
+    /// The current camera image (the background of the frame).
+    camera_image: Option<crate::scene::Rgba8Image>,
 }
 
 impl LiveSession {
@@ -214,6 +217,7 @@ impl LiveSession {
             readings: Vec::new(),
             controls: None,
             sun_intensity: scene.sun.sunlight as f32,
+            camera_image: None,
         })
     }
 
@@ -232,6 +236,7 @@ impl LiveSession {
         let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
         let t = frame.t;
         self.compositor.set_background(gpu, Some(&frame.image))?;
+        self.camera_image = Some(frame.image);
         let t1 = std::time::Instant::now();
         self.readings.clear();
         self.sources.sensors.poll(t, &mut self.readings)?;
@@ -301,6 +306,11 @@ impl LiveSession {
     pub fn set_controls(&mut self, c: Controls) {
         c.apply(&mut self.params, self.sun_intensity);
         self.controls = Some(c);
+    }
+
+    /// The camera image of the current frame (None before the first).
+    pub fn camera_image(&self) -> Option<&crate::scene::Rgba8Image> {
+        self.camera_image.as_ref()
     }
 
     pub fn controls(&self) -> Option<&Controls> {

@@ -11,7 +11,10 @@ pub mod capture;
 pub mod chart;
 pub mod cli;
 pub mod colour;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod gpu;
+pub mod light;
 pub mod live;
 pub mod output;
 pub mod pose;

@@ -282,7 +282,7 @@ pub fn load_capture(dir: &Path) -> Result<CubeCapture> {
     let mut faces = Vec::with_capacity(6);
     for face in Face::ALL {
         let path = dir.join(face.file_name());
-        let img = image::open(&path).with_context(|| format!("cannot read face {}", path.display()))?.to_rgb8();
+        let img = crate::scene::decode::decode_file(&path, &[]).with_context(|| format!("capture face {}", face.name()))?.image.to_rgb8();
         if img.width() != meta.face_size || img.height() != meta.face_size {
             bail!("{} is {}x{}, the metadata says {} px faces", path.display(), img.width(), img.height(), meta.face_size);
         }

@@ -22,6 +22,10 @@ use std::sync::Arc;
 pub const FRAME_WIDTH: u32 = 640;
 pub const FRAME_HEIGHT: u32 = 480;
 
+/// The range of `--vfov` (degrees).
+const MIN_VFOV_DEG: f32 = 20.0;
+const MAX_VFOV_DEG: f32 = 120.0;
+
 #[derive(clap::Args, Debug)]
 #[command(
     args_conflicts_with_subcommands = true,
@@ -60,8 +64,8 @@ pub struct RunArgs {
     /// Output folder for the six faces and capture.json (replaced if it holds a capture)
     #[arg(short = 'o', long = "output", value_name = "OUT_DIR")]
     pub output: Option<PathBuf>,
-    /// Vertical field of view of the virtual phone (degrees; landscape 640x480 frame)
-    #[arg(long, default_value_t = 50.0)]
+    /// Vertical field of view of the virtual phone (degrees, 20..=120; landscape 640x480 frame)
+    #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
     pub vfov: f32,
     /// Sensor noise level
     #[arg(long, value_enum, default_value = "phone")]
@@ -119,6 +123,11 @@ fn run_capture(a: RunArgs) -> Result<()> {
     let out = a.output.as_deref().context("-o/--output OUT_DIR is required")?;
     if a.trace.is_none() && !a.simulate {
         bail!("give --trace TRACE.csv or --simulate");
+    }
+    // A phone camera's vertical field of view; far outside it the assistant would wait forever
+    // for coverage (1e-9 degrees "captured" 0 % of every face).
+    if !(a.vfov.is_finite() && (MIN_VFOV_DEG..=MAX_VFOV_DEG).contains(&a.vfov)) {
+        bail!("--vfov {}: must be {MIN_VFOV_DEG}..={MAX_VFOV_DEG} degrees", a.vfov);
     }
     let cfg = ReplayConfig {
         mode: a.mode,

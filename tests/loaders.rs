@@ -1,6 +1,9 @@
 //! Asset loaders against the real files in ../shared/data (see SOURCES.md there for the
 //! published counts these tests check) and against bad input written to temporary folders.
 
+mod common;
+
+use common::data;
 use glam::Vec3;
 use previz::colour::luminance_bt709;
 use previz::scene::background::load_image;
@@ -10,10 +13,6 @@ use previz::scene::environment::{
 use previz::scene::model::{ModelOptions, load_model, load_model_with};
 use previz::scene::{CubeMap, Mesh, Model, cube_to_enu, enu_to_cube};
 use std::path::{Path, PathBuf};
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel)
-}
 
 /// A fresh temporary folder for one test.
 fn temp_dir(tag: &str) -> PathBuf {

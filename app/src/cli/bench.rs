@@ -1,8 +1,9 @@
 //! `previz bench …`: measurements recorded in docs/PERFORMANCE.md.
 
 use crate::bench::{frame, live, lod};
-use crate::cli::composite::{SceneArgs, load_inputs, scene_from_args};
-use crate::render::gpu::Gpu;
+use crate::cli::composite::{SceneArgs, scene_from_args};
+use crate::gpu::Gpu;
+use crate::setup::load_inputs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 

@@ -98,6 +98,19 @@ pub struct ShotMeta {
     pub t: f64,
     pub pose_wxyz: [f64; 4],
     pub heading_source: String,
+    /// Turn about the vertical (degrees) the image alignment applied to the sensor pose
+    /// (`pose_wxyz` is after it); null when the shots were not aligned.
+    #[serde(default)]
+    pub alignment_turn_deg: Option<f64>,
+}
+
+/// What the alignment from the images did ([`super::align`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AlignmentMeta {
+    /// Overlapping shot pairs matched and used.
+    pub pairs: usize,
+    /// Pairs dropped as disagreeing with the joint solution.
+    pub dropped_pairs: usize,
 }
 
 impl ShotMeta {
@@ -108,6 +121,7 @@ impl ShotMeta {
             t: shot.t,
             pose_wxyz: wxyz(shot.pose),
             heading_source: heading_source_name(source),
+            alignment_turn_deg: None,
         }
     }
 }
@@ -131,6 +145,9 @@ pub struct CaptureMeta {
     /// In cube-layer order (+X, −X, +Y, −Y, +Z, −Z).
     pub faces: Vec<FaceMeta>,
     pub shots: Vec<ShotMeta>,
+    /// Stitch mode: the alignment of the shots from their overlaps; null when not aligned.
+    #[serde(default)]
+    pub alignment: Option<AlignmentMeta>,
 }
 
 impl CaptureMeta {
@@ -148,6 +165,7 @@ impl CaptureMeta {
             time_utc: None,
             faces,
             shots,
+            alignment: None,
         }
     }
 

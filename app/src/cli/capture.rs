@@ -82,6 +82,10 @@ pub struct RunArgs {
     /// stretch: one shot per face stretched over it (seed 000); stitch: extra shots, full coverage
     #[arg(long, value_enum, default_value = "stitch")]
     pub mode: Mode,
+    /// Stitch mode: correct the shots' headings from their overlaps before assembly
+    /// (experimental: it does not raise the faces' PSNR yet, see docs/capture.md)
+    #[arg(long)]
+    pub align: bool,
     /// Print per-face capture time, orientation error, coverage, PSNR and mean FLIP as JSON
     #[arg(long)]
     pub json: bool,
@@ -135,6 +139,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
         tolerance_deg: a.tolerance,
         face_size: a.face_size,
         score: true,
+        align: a.align,
         ..ReplayConfig::default()
     };
     let assistant_cfg = cfg.assistant().context("bad --vfov, --tolerance or --face-size")?;
@@ -169,6 +174,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
             "tap_t": result.tap_t,
             "time_to_complete_s": result.time_to_complete(),
             "shots": result.shots,
+            "aligned_pairs": capture.meta.alignment.map(|a| a.pairs),
             "faces": result.faces.iter().map(|f| serde_json::json!({
                 "face": f.face.name(),
                 "file": f.face.file_name(),

@@ -2,12 +2,14 @@
 //!
 //! - [`sim`]: the virtual phone, rendering what a phone camera sees from an environment.
 //! - [`file`]: a still image or a folder of numbered images.
+//! - [`yuv`]: camera YUV 4:2:0 planes converted to R'G'B' on the GPU (the phone cameras' format).
 //!
 //! Phone backends (Android, iOS) implement the same trait.
 
 pub mod exposure;
 pub mod file;
 pub mod sim;
+pub mod yuv;
 
 use crate::scene::Rgba8Image;
 use anyhow::Result;

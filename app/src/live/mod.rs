@@ -15,6 +15,7 @@
 //! The simulated user stands still and looks at the model, panning slowly left and right and
 //! up and down with a hand-held shake ([`look_around_path`]).
 
+pub mod export;
 #[cfg(not(any(target_os = "android", target_os = "ios")))]
 pub mod window;
 
@@ -45,6 +46,7 @@ use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
+use crate::ui::controls::Controls;
 use anyhow::{Result, bail};
 use chrono::{DateTime, NaiveDate, Utc};
 use std::sync::Arc;
@@ -184,6 +186,12 @@ pub struct LiveSession {
     /// Latitude and longitude the sun is computed for: the start, then the latest GPS fix.
     location: (f64, f64),
     readings: Vec<Reading>,
+    /// The control panel's values, applied to every frame once set.
+    controls: Option<Controls>,
+    /// The sun's intensity of the current frame before SL (place, time, twilight).
+    sun_intensity: f32,
+    /// The current camera image (the background of the frame).
+    camera_image: Option<crate::scene::Rgba8Image>,
 }
 
 impl LiveSession {
@@ -207,6 +215,9 @@ impl LiveSession {
             location: (cfg.lat_deg, cfg.lon_deg),
             cfg,
             readings: Vec::new(),
+            controls: None,
+            sun_intensity: scene.sun.sunlight as f32,
+            camera_image: None,
         })
     }
 
@@ -225,6 +236,7 @@ impl LiveSession {
         let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
         let t = frame.t;
         self.compositor.set_background(gpu, Some(&frame.image))?;
+        self.camera_image = Some(frame.image);
         let t1 = std::time::Instant::now();
         self.readings.clear();
         self.sources.sensors.poll(t, &mut self.readings)?;
@@ -245,6 +257,10 @@ impl LiveSession {
         }
         self.params.lighting.sun_dir = sun.direction_enu();
         self.params.lighting.sunlight = sunlight;
+        self.sun_intensity = sunlight;
+        if let Some(c) = &self.controls {
+            c.apply(&mut self.params, sunlight);
+        }
         self.layer = if pose.is_some() { Layer::Composite } else { Layer::Background };
         let pose_error_deg = match (pose, &self.sources.truth) {
             (Some(p), Some(truth)) => Some(angle_between(p.q.as_dquat(), truth.orientation_at(t)).to_degrees()),
@@ -277,6 +293,28 @@ impl LiveSession {
     /// The parameters the current frame is drawn with.
     pub fn params(&self) -> &FrameParams {
         &self.params
+    }
+
+    /// The parameters, for gestures that move the model (the control panel goes through
+    /// [`LiveSession::set_controls`]).
+    pub fn params_mut(&mut self) -> &mut FrameParams {
+        &mut self.params
+    }
+
+    /// Apply the control panel's values from now on (SL scales the sun's intensity for the place
+    /// and time); applied at once to the current frame too.
+    pub fn set_controls(&mut self, c: Controls) {
+        c.apply(&mut self.params, self.sun_intensity);
+        self.controls = Some(c);
+    }
+
+    /// The camera image of the current frame (None before the first).
+    pub fn camera_image(&self) -> Option<&crate::scene::Rgba8Image> {
+        self.camera_image.as_ref()
+    }
+
+    pub fn controls(&self) -> Option<&Controls> {
+        self.controls.as_ref()
     }
 
     pub fn config(&self) -> &LiveConfig {

@@ -1,10 +1,17 @@
-//! `previz live` on the desktop: the live loop in a winit window. Each redraw advances the
-//! session one camera frame, the compositor draws it into its target, and the UI pass
-//! (egui-wgpu) draws that target over the whole window with the status overlay on top, into the
-//! window surface (DESIGN.md "One frame", step 6).
+//! The live loop in a winit window: `previz live` on the desktop and the Android
+//! NativeActivity ([`super::android`]). Each redraw advances the session one camera frame, the
+//! compositor draws it into its target, and the UI pass (egui-wgpu) draws that target over the
+//! whole window with the status overlay on top, into the window surface (DESIGN.md "One frame",
+//! step 6).
+//!
+//! Lifecycle: `suspended` (the app went to the background, the phone's screen locked, Android
+//! destroyed the native window) drops the surface and stops drawing; `resumed` creates a new
+//! surface for the window and carries on with the same session (GPU device, scene, filter).
 
 use super::{LiveFrame, LiveSession};
+use crate::render::Placement;
 use crate::render::gpu::Gpu;
+use crate::ui::controls::{Controls, apply_gesture, drag_on_ground, pinch_twist};
 use anyhow::{Context, Result, anyhow};
 use std::sync::Arc;
 use std::time::Instant;
@@ -20,6 +27,12 @@ pub type MakeSession = Box<dyn FnOnce(&Gpu) -> Result<LiveSession>>;
 pub fn run(title: &str, size: (u32, u32), make: MakeSession) -> Result<()> {
     let event_loop = EventLoop::new()
         .map_err(|e| anyhow!("cannot open a window ({e}); on a machine without a display run under Xvfb, or use --frames N -o DIR"))?;
+    run_on(event_loop, title, size, make)
+}
+
+/// Run the session in a window of `event_loop` (the platform shells build their own loop: the
+/// Android one needs the `AndroidApp`).
+pub fn run_on(event_loop: EventLoop<()>, title: &str, size: (u32, u32), make: MakeSession) -> Result<()> {
     let mut app = App { title: title.to_string(), size, make: Some(make), state: None, error: None };
     event_loop.run_app(&mut app).context("the window's event loop failed")?;
     app.error.map_or(Ok(()), Err)
@@ -36,7 +49,8 @@ struct App {
 struct State {
     window: Arc<Window>,
     gpu: Gpu,
-    surface: wgpu::Surface<'static>,
+    /// None while suspended: no surface, no GPU work.
+    surface: Option<wgpu::Surface<'static>>,
     config: wgpu::SurfaceConfiguration,
     session: LiveSession,
     egui: egui_winit::State,
@@ -45,6 +59,13 @@ struct State {
     last: Option<LiveFrame>,
     encode_ms: f64,
     frame_times: std::collections::VecDeque<Instant>,
+    /// The control panel, and the scene's values and placement Reset goes back to.
+    controls: Controls,
+    initial: (Controls, Placement),
+    /// Touches down (id → position, pixels) and the mouse drag in progress.
+    touches: Vec<(u64, glam::Vec2)>,
+    mouse: Option<glam::Vec2>,
+    cursor: glam::Vec2,
 }
 
 impl App {
@@ -62,6 +83,8 @@ impl App {
         let surface = instance.create_surface(window.clone()).context("cannot create a GPU surface for the window")?;
         let gpu = Gpu::with_instance(instance, Some(&surface))?;
         let session = make(&gpu)?;
+        let controls = Controls::from_params(session.params());
+        let placement = session.params().placement;
         let inner = window.inner_size();
         let mut config = surface
             .get_default_config(&gpu.adapter, inner.width.max(1), inner.height.max(1))
@@ -85,7 +108,7 @@ impl App {
         Ok(State {
             window,
             gpu,
-            surface,
+            surface: Some(surface),
             config,
             session,
             egui,
@@ -94,13 +117,25 @@ impl App {
             last: None,
             encode_ms: 0.0,
             frame_times: Default::default(),
+            controls,
+            initial: (controls, placement),
+            touches: Vec::new(),
+            mouse: None,
+            cursor: glam::Vec2::ZERO,
         })
     }
 }
 
 impl ApplicationHandler for App {
     fn resumed(&mut self, el: &ActiveEventLoop) {
-        if self.state.is_some() || self.make.is_none() {
+        if let Some(state) = &mut self.state {
+            if let Err(e) = state.resume() {
+                self.error = Some(e);
+                el.exit();
+            }
+            return;
+        }
+        if self.make.is_none() {
             return;
         }
         match self.init(el) {
@@ -112,19 +147,31 @@ impl ApplicationHandler for App {
         }
     }
 
+    fn suspended(&mut self, _el: &ActiveEventLoop) {
+        if let Some(state) = &mut self.state {
+            state.surface = None;
+        }
+    }
+
     fn window_event(&mut self, el: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         let Some(state) = &mut self.state else { return };
-        let _ = state.egui.on_window_event(&state.window, &event);
+        let response = state.egui.on_window_event(&state.window, &event);
+        if !response.consumed {
+            state.gesture(&event);
+        }
         match event {
             WindowEvent::CloseRequested => el.exit(),
             WindowEvent::Resized(size) => {
                 state.config.width = size.width.max(1);
                 state.config.height = size.height.max(1);
-                state.surface.configure(&state.gpu.device, &state.config);
+                if let Some(surface) = &state.surface {
+                    surface.configure(&state.gpu.device, &state.config);
+                }
                 state.window.request_redraw();
             }
             WindowEvent::RedrawRequested => match state.frame() {
-                Ok(true) => state.window.request_redraw(),
+                Ok(true) if state.surface.is_some() => state.window.request_redraw(),
+                Ok(true) => {}
                 Ok(false) => el.exit(),
                 Err(e) => {
                     self.error = Some(e);
@@ -137,8 +184,69 @@ impl ApplicationHandler for App {
 }
 
 impl State {
-    /// One frame; false when the session is over.
+    /// Touch and mouse gestures on the model (events egui did not take): one finger or the
+    /// left mouse button drags it across the ground, two fingers pinch to scale and twist to turn.
+    fn gesture(&mut self, event: &WindowEvent) {
+        use winit::event::{ElementState, MouseButton, TouchPhase};
+        let size = glam::Vec2::new(self.config.width as f32, self.config.height as f32);
+        let mut moved = glam::Vec3::ZERO;
+        let (mut scale, mut twist) = (1.0, 0.0);
+        match event {
+            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+                self.mouse = (*state == ElementState::Pressed).then_some(self.cursor);
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                self.cursor = glam::Vec2::new(position.x as f32, position.y as f32);
+                if let Some(from) = self.mouse.replace(self.cursor) {
+                    moved = drag_on_ground(self.session.params(), size, from, self.cursor);
+                }
+            }
+            WindowEvent::Touch(t) => {
+                let at = glam::Vec2::new(t.location.x as f32, t.location.y as f32);
+                let i = self.touches.iter().position(|(id, _)| *id == t.id);
+                match (t.phase, i) {
+                    (TouchPhase::Started, None) => self.touches.push((t.id, at)),
+                    (TouchPhase::Moved, Some(i)) => {
+                        let before = self.touches.clone();
+                        self.touches[i].1 = at;
+                        match before.as_slice() {
+                            [(_, from)] => moved = drag_on_ground(self.session.params(), size, *from, at),
+                            [(_, a0), (_, b0), ..] => (scale, twist) = pinch_twist(*a0, *b0, self.touches[0].1, self.touches[1].1),
+                            _ => {}
+                        }
+                    }
+                    (TouchPhase::Ended | TouchPhase::Cancelled, Some(i)) => {
+                        self.touches.remove(i);
+                    }
+                    _ => {}
+                }
+            }
+            _ => return,
+        }
+        let before = self.controls;
+        apply_gesture(self.session.params_mut(), &mut self.controls, moved, scale, twist);
+        if self.controls != before {
+            self.session.set_controls(self.controls);
+        }
+    }
+
+    /// A new surface for the window after a suspension (the session is kept).
+    fn resume(&mut self) -> Result<()> {
+        if self.surface.is_none() {
+            let surface = self.gpu.instance.create_surface(self.window.clone()).context("cannot recreate the GPU surface")?;
+            let size = self.window.inner_size();
+            self.config.width = size.width.max(1);
+            self.config.height = size.height.max(1);
+            surface.configure(&self.gpu.device, &self.config);
+            self.surface = Some(surface);
+        }
+        self.window.request_redraw();
+        Ok(())
+    }
+
+    /// One frame; false when the session is over. Nothing is drawn while suspended.
     fn frame(&mut self) -> Result<bool> {
+        let Some(surface) = &self.surface else { return Ok(true) };
         let Some(frame) = self.session.advance(&self.gpu)? else { return Ok(false) };
         self.encode_ms = self.session.draw(&self.gpu)?;
         self.last = Some(frame);
@@ -152,11 +260,11 @@ impl State {
             _ => 0.0,
         };
 
-        let surface_texture = match self.surface.get_current_texture() {
+        let surface_texture = match surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => return Ok(true),
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
-                self.surface.configure(&self.gpu.device, &self.config);
+                surface.configure(&self.gpu.device, &self.config);
                 return Ok(true);
             }
             other => return Err(anyhow!("the window surface failed: {other:?}")),
@@ -166,7 +274,20 @@ impl State {
         let input = self.egui.take_egui_input(&self.window);
         let ctx = self.egui.egui_ctx().clone();
         let (texture, last, encode_ms, sensors) = (self.frame_texture, self.last, self.encode_ms, self.session.sensors());
-        let mut output = ctx.run_pass(input, |ctx| overlay(ctx, texture, last.as_ref(), encode_ms, fps, &sensors));
+        let mut controls = self.controls;
+        let mut reset = false;
+        let mut output = ctx.run_pass(input, |ctx| {
+            overlay(ctx, texture, last.as_ref(), encode_ms, fps, &sensors);
+            reset = controls.show(ctx);
+        });
+        if reset {
+            controls = Controls { open: controls.open, ..self.initial.0 };
+            self.session.params_mut().placement = self.initial.1;
+        }
+        if controls != self.controls || self.session.controls().is_none() {
+            self.controls = controls;
+            self.session.set_controls(controls);
+        }
         self.egui.handle_platform_output(&self.window, std::mem::take(&mut output.platform_output));
         let size = [self.config.width, self.config.height];
         let clear = wgpu::LoadOp::Clear(wgpu::Color::BLACK);

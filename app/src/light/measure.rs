@@ -1,0 +1,244 @@
+//! Light measured from an environment: the sun it holds (or, for a clipped map, the sun it
+//! should hold), the rest of the sky as SH9 irradiance, and what the renderer needs from them by
+//! default — sunlight, daylight and how dark the model's shadow makes the ground.
+//!
+//! Units are the environment's linear units (before exposure). Irradiance is per channel.
+
+use super::clear_sky;
+use super::samples::DirSample;
+use super::sh9::Sh9;
+use super::sun_finder::{self, Sun};
+use crate::colour::luminance_bt709;
+use glam::Vec3;
+
+/// Where the light's sun came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SunSource {
+    /// Measured in the map: a compact region far brighter than the sky.
+    Measured,
+    /// The map's sun is clipped: direction from the saturated disc (or the solar position), energy
+    /// from the clear-sky model's direct-to-diffuse ratio times the measured sky.
+    Restored,
+    /// No sun: overcast, night, indoors, or below the horizon.
+    None,
+}
+
+/// The light of an environment, split into a sun and the sky without it.
+#[derive(Clone, Debug)]
+pub struct MeasuredLight {
+    /// Unit direction to the sun (ENU); None without a sun.
+    pub sun_dir: Option<Vec3>,
+    /// Sun irradiance on a surface facing it, linear RGB (zero without a sun).
+    pub sun_irradiance: [f32; 3],
+    /// Angular radius of the sun as measured (rad; at least the real sun's 0.2666°).
+    pub sun_angular_radius: f32,
+    /// The sky and surroundings without the sun, as SH9 radiance coefficients.
+    pub sky: Sh9,
+    pub source: SunSource,
+    /// What the sun finder saw (None when nothing stood out).
+    pub found: Option<Sun>,
+}
+
+/// The real sun's mean angular radius (rad): 959.63″ at 1 AU (IAU nominal solar radius).
+pub const SUN_ANGULAR_RADIUS: f32 = 0.004_652_4;
+
+impl MeasuredLight {
+    /// Irradiance on an upward-facing ground: (from the sun, from the sky), linear RGB.
+    pub fn ground_irradiance(&self) -> ([f32; 3], [f32; 3]) {
+        let cos = self.sun_dir.map_or(0.0, |d| d.z.max(0.0));
+        (self.sun_irradiance.map(|e| e * cos), self.sky.irradiance(Vec3::Z))
+    }
+
+    /// The sun's share of the ground's irradiance (luminance), 0..1.
+    pub fn sun_share_on_ground(&self) -> f32 {
+        let (sun, sky) = self.ground_irradiance();
+        let (s, k) = (luminance_bt709(sun), luminance_bt709(sky));
+        if s + k > 0.0 { s / (s + k) } else { 0.0 }
+    }
+
+    /// How much the model's shadow darkens the ground (0 = not at all, 1 = black) where the
+    /// ground keeps `sky_kept` (0..1) of its sky: see [`shadow_strength`].
+    pub fn shadow_strength(&self, sky_kept: f32) -> f32 {
+        shadow_strength(self.sun_share_on_ground(), sky_kept)
+    }
+}
+
+/// Darkening of the ground in the model's shadow: in the shadow the ground keeps none of the
+/// sun and `sky_kept` of its sky, so its irradiance falls to sky_kept·(1 − sun_share) of the
+/// unshadowed value: strength = 1 − sky_kept·(1 − sun_share).
+pub fn shadow_strength(sun_share: f32, sky_kept: f32) -> f32 {
+    (1.0 - sky_kept.clamp(0.0, 1.0) * (1.0 - sun_share.clamp(0.0, 1.0))).clamp(0.0, 1.0)
+}
+
+/// How to measure.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MeasureOptions {
+    /// The sun finder's options (set `clip_level` for 8-bit maps and captures).
+    pub finder: sun_finder::Options,
+    /// Restore a clipped sun from the clear-sky model (8-bit maps, captures, or on request).
+    /// `solar_elevation` (rad, from SPA) is used for the model when given, else the elevation of
+    /// the saturated disc.
+    pub restore_clipped: bool,
+    pub solar_elevation: Option<f32>,
+}
+
+/// Measure the light in `samples` (an environment's every pixel).
+pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight {
+    let found = sun_finder::find_sun(samples, &options.finder);
+    let Some(sun) = found.clone() else {
+        return MeasuredLight {
+            sun_dir: None,
+            sun_irradiance: [0.0; 3],
+            sun_angular_radius: SUN_ANGULAR_RADIUS,
+            sky: Sh9::project(samples),
+            source: SunSource::None,
+            found,
+        };
+    };
+    let sky = Sh9::project(&sun_finder::without_sun(samples, &sun));
+    let radius = sun.angular_radius().max(SUN_ANGULAR_RADIUS);
+    if !sun.saturated {
+        return MeasuredLight {
+            sun_dir: Some(sun.dir),
+            sun_irradiance: sun.irradiance,
+            sun_angular_radius: radius,
+            sky,
+            source: SunSource::Measured,
+            found,
+        };
+    }
+    if !options.restore_clipped {
+        // A clipped sun taken as it is: what energy the map holds, white.
+        return MeasuredLight {
+            sun_dir: Some(sun.dir),
+            sun_irradiance: sun.irradiance,
+            sun_angular_radius: radius,
+            sky,
+            source: SunSource::Measured,
+            found,
+        };
+    }
+    let elevation = options.solar_elevation.unwrap_or_else(|| sun_finder::azimuth_elevation(sun.dir).1);
+    let sun_irradiance = restore_sun(&sky, elevation, sun.sky_radiance);
+    let source = if luminance_bt709(sun_irradiance) > 0.0 { SunSource::Restored } else { SunSource::None };
+    MeasuredLight {
+        sun_dir: (source == SunSource::Restored).then_some(sun.dir),
+        sun_irradiance,
+        sun_angular_radius: radius,
+        sky,
+        source,
+        found,
+    }
+}
+
+/// The sun a clipped map should hold: the clear-sky model's direct-normal to diffuse-horizontal
+/// ratio at `elevation` (rad) times the diffuse horizontal irradiance the map's unclipped sky
+/// gives, in the colour of white light (a clipped disc has lost its colour); zero below the
+/// horizon. `_sky_near_sun` is kept for a colour estimate.
+pub fn restore_sun(sky: &Sh9, elevation: f32, _sky_near_sun: [f32; 3]) -> [f32; 3] {
+    let zenith = 90.0 - f64::from(elevation.to_degrees());
+    let Some(c) = clear_sky::bird(zenith, &clear_sky::Atmosphere::default()) else { return [0.0; 3] };
+    if c.diffuse_horizontal <= 0.0 {
+        return [0.0; 3];
+    }
+    let ratio = (c.direct_normal / c.diffuse_horizontal) as f32;
+    let dhi = luminance_bt709(sky.irradiance(Vec3::Z));
+    [ratio * dhi; 3]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::light::samples::from_equirect;
+    use crate::light::sh9::brute_force_irradiance;
+    use crate::scene::environment::{Equirect, load_equirect};
+    use std::path::Path;
+
+    fn data(rel: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
+    }
+
+    #[test]
+    fn shadow_strength_by_hand() {
+        // All the ground's light from the sun, sky kept: black shadow. No sun: no shadow.
+        assert_eq!(shadow_strength(1.0, 1.0), 1.0);
+        assert_eq!(shadow_strength(0.0, 1.0), 0.0);
+        // Sun 75 % of the ground's light: the shadow keeps 25 %; with 80 % of the sky, 20 %.
+        assert!((shadow_strength(0.75, 1.0) - 0.75).abs() < 1e-6);
+        assert!((shadow_strength(0.75, 0.8) - 0.8).abs() < 1e-6);
+        // Overcast: only the sky's occlusion darkens (contact shadow).
+        assert!((shadow_strength(0.0, 0.6) - 0.4).abs() < 1e-6);
+    }
+
+    #[test]
+    fn quarry_sun_share_matches_brute_force() {
+        // The sun's share of the ground's irradiance from the measurement (sun irradiance ×
+        // cos + SH9 sky) against brute force over every pixel (with and without the sun).
+        let quarry = load_equirect(&data("hdri/polyhaven_1k/quarry_01_1k.hdr")).unwrap();
+        let samples = from_equirect(&quarry, 0.0);
+        let light = measure(&samples, &MeasureOptions::default());
+        assert_eq!(light.source, SunSource::Measured);
+        let sun = light.found.as_ref().unwrap();
+        let total = luminance_bt709(brute_force_irradiance(&samples, Vec3::Z));
+        let sky = luminance_bt709(brute_force_irradiance(&sun_finder::without_sun(&samples, sun), Vec3::Z));
+        let brute_share = 1.0 - sky / total;
+        let share = light.sun_share_on_ground();
+        assert!((share - brute_share).abs() < 0.02, "share {share} vs brute force {brute_share}");
+        // A low (10 deg) clear sun still gives the ground most of its light.
+        assert!(share > 0.3, "{share}");
+    }
+
+    #[test]
+    fn overcast_sky_has_no_sun_and_a_weak_sun_has_a_small_share() {
+        // CIE standard overcast sky, L ∝ 1 + 2 sin(elevation), over a grey ground: no sun, so
+        // the shadow is the sky's occlusion only.
+        let (w, h) = (256u32, 128u32);
+        let pixels: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                let v = ((i / w) as f32 + 0.5) / h as f32;
+                let el = (0.5 - v) * std::f32::consts::PI;
+                if el > 0.0 { [1.0 + 2.0 * el.sin(); 3] } else { [0.3; 3] }
+            })
+            .collect();
+        let overcast = Equirect::new(w, h, pixels).unwrap();
+        let light = measure(&from_equirect(&overcast, 0.0), &MeasureOptions::default());
+        assert_eq!(light.source, SunSource::None);
+        assert!((light.shadow_strength(0.7) - 0.3).abs() < 1e-6);
+        // courtyard.exr: soft light with a small bright spot (peak 53, the top 0.1 % of pixels
+        // hold 3.7 % of the energy, hdri_peak_stats_DERIVED.csv): found as a sun, but its share of
+        // the ground's light is small and agrees with brute force.
+        let courtyard = load_equirect(&data("hdri/blender_studiolights_world_zip/courtyard.exr")).unwrap();
+        let samples = from_equirect(&courtyard, 0.0);
+        let light = measure(&samples, &MeasureOptions::default());
+        let share = light.sun_share_on_ground();
+        if let Some(sun) = &light.found {
+            let total = luminance_bt709(brute_force_irradiance(&samples, Vec3::Z));
+            let sky = luminance_bt709(brute_force_irradiance(&sun_finder::without_sun(&samples, sun), Vec3::Z));
+            assert!((share - (1.0 - sky / total)).abs() < 0.02, "share {share} vs brute force {}", 1.0 - sky / total);
+        }
+        assert!(share < 0.2, "courtyard sun share {share}");
+    }
+
+    #[test]
+    fn clipped_quarry_restores_a_sun_near_the_real_one() {
+        // quarry_01 exposed so the sky is in range and clipped at 1.0, as an 8-bit capture.
+        let quarry = load_equirect(&data("hdri/polyhaven_1k/quarry_01_1k.hdr")).unwrap();
+        let scale = 0.25;
+        let full = measure(&from_equirect(&quarry, 0.0), &MeasureOptions::default());
+        let clipped: Vec<[f32; 3]> = quarry.pixels().iter().map(|p| p.map(|c| (c * scale).min(1.0))).collect();
+        let clipped = Equirect::new(quarry.width(), quarry.height(), clipped).unwrap();
+        let samples = from_equirect(&clipped, 0.0);
+        let finder = sun_finder::Options { clip_level: Some(1.0), ..Default::default() };
+        let kept = measure(&samples, &MeasureOptions { finder, restore_clipped: false, solar_elevation: None });
+        let restored = measure(&samples, &MeasureOptions { finder, restore_clipped: true, solar_elevation: None });
+        assert_eq!(restored.source, SunSource::Restored);
+        let truth = luminance_bt709(full.sun_irradiance) * scale;
+        let (k, r) = (luminance_bt709(kept.sun_irradiance), luminance_bt709(restored.sun_irradiance));
+        // The clipped map keeps a small part of the sun. Restored with the default (clear, AOD
+        // 0.1) atmosphere it is 2.1x too bright for this hazier day (measured 2026-11-30): the
+        // bound guards that level; calibrating the turbidity from the sky is not done yet.
+        assert!(k < 0.2 * truth, "clipped keeps {k} of {truth}");
+        assert!(r > 0.5 * truth && r < 2.5 * truth, "restored {r} vs true {truth}");
+        eprintln!("quarry clipped at 1.0: true sun {truth:.3}, kept {k:.4}, restored {r:.3} ({:.2}x)", r / truth);
+    }
+}

@@ -1,0 +1,132 @@
+//! The shutter: the current live frame as files a desktop reproduces. Into a folder it writes
+//! the composite and its layers (the names `previz composite --layers` uses: `composite.png`,
+//! `model_rgba.png`, `background.png`), the camera image (`camera.png`) and `scene.toml`, the
+//! scene of that moment — camera pose and field of view, sun direction and intensity, the panel's
+//! values, the model's placement, the camera image as background — so that
+//! `previz composite scene.toml` (run in the folder) renders the same frame into
+//! `recomposite.png`. The place (latitude, longitude) is written, as a comment, only when asked.
+
+use super::LiveSession;
+use crate::pose::frames::heading_pitch_roll;
+use crate::render::Layer;
+use crate::render::gpu::Gpu;
+use crate::scene::file::Scene;
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+use toml::Value;
+
+/// The files of one export, in the order written.
+pub const FILES: [&str; 5] = ["composite.png", "model_rgba.png", "background.png", "camera.png", "scene.toml"];
+
+/// The scene of the session's current frame (`base` is the scene the session was made from:
+/// model, environment, size and what the frame does not change). Paths: the camera image is
+/// `camera.png` beside the scene file, the output `recomposite.png`.
+pub fn scene_toml(session: &LiveSession, base: &Scene, location: Option<(f64, f64)>) -> Result<String> {
+    let p = session.params();
+    let hpr = heading_pitch_roll(p.camera.pose.as_dquat());
+    let l = &p.lighting;
+    let sun_dir = l.sun_dir.normalize();
+    let fade = crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
+    // The scene's sunlight is the full-daylight intensity; composite fades it by the sun's
+    // elevation again.
+    let sunlight = if fade > 0.0 { l.sunlight / fade } else { 0.0 };
+    let f = |v: f32| Value::Float(f64::from(v));
+    let v3 = |v: glam::Vec3| Value::Array(vec![f(v.x), f(v.y), f(v.z)]);
+    let table = |entries: Vec<(&str, Value)>| Value::Table(entries.into_iter().map(|(k, v)| (k.to_string(), v)).collect());
+    let path = |p: &Path| Value::String(p.to_string_lossy().into_owned());
+
+    let mut top = toml::map::Map::new();
+    if let Some(m) = &base.model {
+        top.insert("model".into(), path(&std::path::absolute(m).context("model path")?));
+    }
+    if let Some(e) = &base.environment {
+        top.insert("environment".into(), path(&std::path::absolute(e).context("environment path")?));
+    }
+    top.insert("background".into(), Value::String("camera.png".into()));
+    top.insert("output".into(), Value::String("recomposite.png".into()));
+    top.insert("width".into(), Value::Integer(base.width.into()));
+    top.insert("height".into(), Value::Integer(base.height.into()));
+    top.insert("method".into(), Value::String(p.method.name().into()));
+    top.insert(
+        "camera".into(),
+        table(vec![
+            ("heading", Value::Float(hpr.heading.to_degrees())),
+            ("pitch", Value::Float(hpr.pitch.to_degrees())),
+            ("roll", Value::Float(hpr.roll.to_degrees())),
+            ("vfov", f(p.camera.vfov.to_degrees())),
+            ("height", f(p.camera.position.z)),
+        ]),
+    );
+    top.insert("sun".into(), table(vec![("direction", v3(sun_dir)), ("sunlight", f(sunlight)), ("daylight", f(l.daylight))]));
+    let mut material = vec![("ambient", f(l.material.ambient)), ("diffuse", f(l.material.diffuse)), ("specular", f(l.material.specular))];
+    if let Some(g) = l.material.gloss {
+        material.push(("gloss", f(g)));
+    }
+    top.insert("material".into(), table(material));
+    let pl = &p.placement;
+    top.insert(
+        "placement".into(),
+        table(vec![("position", v3(pl.position)), ("rotation", v3(pl.rotation * (180.0 / std::f32::consts::PI))), ("scale", f(pl.scale))]),
+    );
+    let mut env = vec![("heading", Value::Float(base.env.heading))];
+    if let Some(e) = base.env.exposure {
+        env.push(("exposure", Value::Float(e)));
+    }
+    top.insert("env".into(), table(env));
+    top.insert(
+        "effects".into(),
+        table(vec![
+            ("reflection", f(l.reflection)),
+            ("ior", f(l.ior)),
+            ("shadow_opacity", f(l.shadow_opacity)),
+            ("live_depth", f(l.live_depth)),
+        ]),
+    );
+    top.insert(
+        "colour".into(),
+        table(vec![("correction", Value::String(p.colour.method.name().into())), ("strength", f(p.colour.strength))]),
+    );
+    let mut text = String::from("# A frame exported from the Previz app: `previz composite scene.toml` in this folder renders it again.\n");
+    if let Some((lat, lon)) = location {
+        text.push_str(&format!("# location: latitude {lat:.6}, longitude {lon:.6}\n"));
+    }
+    text.push_str(&toml::to_string(&Value::Table(top)).context("writing the scene as TOML")?);
+    Ok(text)
+}
+
+/// Export the current frame into `dir` (an existing folder): the files of [`FILES`]. Nothing is
+/// left behind when a write fails.
+pub fn export(session: &mut LiveSession, gpu: &Gpu, base: &Scene, dir: &Path, location: Option<(f64, f64)>) -> Result<Vec<PathBuf>> {
+    if !dir.is_dir() {
+        bail!("export folder {}: not an existing directory", dir.display());
+    }
+    let camera = session.camera_image().context("no camera frame yet: nothing to export")?.clone();
+    let composite = session.render_layer(gpu, Layer::Composite)?;
+    let model = session.render_layer(gpu, Layer::Model)?;
+    let background = session.render_layer(gpu, Layer::Background)?;
+    let toml = scene_toml(session, base, location)?;
+    let mut written = Vec::new();
+    let result = (|| -> Result<()> {
+        for (name, w, h, rgba) in [
+            (FILES[0], composite.width, composite.height, &composite.rgba),
+            (FILES[1], model.width, model.height, &model.rgba),
+            (FILES[2], background.width, background.height, &background.rgba),
+            (FILES[3], camera.width, camera.height, &camera.pixels),
+        ] {
+            let path = dir.join(name);
+            crate::output::write_png_rgba8(&path, w, h, rgba).with_context(|| format!("writing {}", path.display()))?;
+            written.push(path);
+        }
+        let path = dir.join(FILES[4]);
+        std::fs::write(&path, &toml).with_context(|| format!("writing {}", path.display()))?;
+        written.push(path);
+        Ok(())
+    })();
+    if let Err(e) = result {
+        for p in &written {
+            let _ = std::fs::remove_file(p);
+        }
+        return Err(e);
+    }
+    Ok(written)
+}

@@ -29,7 +29,8 @@ pub enum What {
     Accuracy(AccuracyArgs),
     /// The model's level-of-detail chain in the scene: per level the triangles, the
     /// simplification error (model units and pixels at the model's distance), mean FLIP against
-    /// the full-detail composite, GPU time, and the level the half-pixel rule draws.
+    /// the full-detail composite, GPU time and its ratio to the background-only floor (interleaved
+    /// in one run), and the level the half-pixel rule draws.
     Lod(LodArgs),
 }
 

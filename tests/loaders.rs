@@ -603,3 +603,293 @@ fn bad_cube_folders_are_clear_errors() {
     assert!(err.contains("pano.png") && err.contains("2:1"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+// ------------------------------------------------------------------------ hostile input
+// Cases from issue 8 ("651 malformed inputs"): each is a clear error naming the file or the
+// element at fault, or a bounded load.
+
+/// A PNG that is only a header (signature + IHDR with its CRC, RFC 2083) claiming `w`×`h` RGB8.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    let mut crc = !0u32;
+    for &b in &ihdr {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    out.extend_from_slice(&13u32.to_be_bytes());
+    out.extend_from_slice(&ihdr);
+    out.extend_from_slice(&(!crc).to_be_bytes());
+    out
+}
+
+#[test]
+fn every_image_path_refuses_a_huge_header_naming_the_file() {
+    let dir = temp_dir("huge");
+    let huge = png_header_only(100_000, 100_000);
+    std::fs::write(dir.join("huge.png"), &huge).unwrap();
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
+    std::fs::write(dir.join("m.obj"), format!("mtllib m.mtl\n{tri}usemtl a\nf 1/1 2/2 3/3\n")).unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl a\nKd 1 1 1\nmap_Kd huge.png\n").unwrap();
+    std::fs::write(dir.join("plain.obj"), format!("{tri}f 1/1 2/2 3/3\n")).unwrap();
+    let faces = dir.join("faces");
+    std::fs::create_dir_all(&faces).unwrap();
+    for n in ["px", "nx", "py", "ny", "pz", "nz"] {
+        image::RgbImage::new(4, 4).save(faces.join(format!("{n}.png"))).unwrap();
+    }
+    std::fs::write(faces.join("ny.png"), &huge).unwrap();
+    let gltf = r#"{"asset":{"version":"2.0"},"images":[{"uri":"huge.png"}],"textures":[{"source":0}],
+        "materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}],
+        "buffers":[{"byteLength":36,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+        "bufferViews":[{"buffer":0,"byteLength":36}],
+        "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0},"material":0}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]}"#;
+    std::fs::write(dir.join("t.gltf"), gltf).unwrap();
+    let texture = ModelOptions { texture: Some(dir.join("huge.png")), ..Default::default() };
+    let results: Vec<(&str, String)> = vec![
+        ("background", err_text(load_image(&dir.join("huge.png")))),
+        ("MTL texture", err_text(load_model(&dir.join("m.obj")))),
+        ("--texture", err_text(load_model_with(&dir.join("plain.obj"), &texture))),
+        ("cube face", err_text(load_environment(&faces))),
+        ("equirect", err_text(load_environment(&dir.join("huge.png")))),
+        ("glTF image", err_text(load_model(&dir.join("t.gltf")))),
+        ("colour image", err_text(previz::colour::images::load_rgba8(&dir.join("huge.png")))),
+    ];
+    for (path, err) in results {
+        assert!(err.contains("huge.png") || err.contains("ny.png"), "{path}: {err}");
+        assert!(err.contains("limit"), "{path}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A one-triangle glTF (positions, normals, indices, one material) as JSON, to be broken.
+fn gltf_triangle() -> serde_json::Value {
+    let mut buf = Vec::new();
+    for f in [0.0f32, 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 1., 0., 0., 1.] {
+        buf.extend_from_slice(&f.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0] {
+        buf.extend_from_slice(&i.to_le_bytes());
+    }
+    serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0]}}],
+        "buffers": [{"byteLength": buf.len(), "uri": format!("data:application/octet-stream;base64,{}", base64(&buf))}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 36},
+                        {"buffer": 0, "byteOffset": 72, "byteLength": 6}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"},
+                      {"bufferView": 2, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+    })
+}
+
+/// Standard base64 with padding (RFC 4648 §4).
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = (u32::from(c[0]) << 16) | (u32::from(*c.get(1).unwrap_or(&0)) << 8) | u32::from(*c.get(2).unwrap_or(&0));
+        for k in 0..4 {
+            s.push(if k <= c.len() { A[(n >> (18 - 6 * k)) as usize & 63] as char } else { '=' });
+        }
+    }
+    s
+}
+
+#[test]
+fn hostile_gltf_documents_are_errors_naming_what_is_wrong() {
+    let ok = gltf_triangle();
+    let loaded = previz::scene::model::load_glb_bytes(ok.to_string().as_bytes()).unwrap();
+    assert_eq!(loaded.triangle_count(), 1);
+    type Break = fn(&mut serde_json::Value);
+    let cases: Vec<(&str, Break, &str)> = vec![
+        (
+            "attribute accessor out of range",
+            |d| d["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 99.into(),
+            "attributes[\"NORMAL\"]",
+        ),
+        ("image bufferView without mimeType", |d| d["images"] = serde_json::json!([{"bufferView": 0}]), "mimeType"),
+        ("index count 2^40", |d| d["accessors"][2]["count"] = (1u64 << 40).into(), "do not fit"),
+        (
+            "same child 200 000 times",
+            |d| {
+                d["nodes"] = serde_json::json!([{"children": vec![1; 200_000]}, {"mesh": 0}]);
+            },
+            "again",
+        ),
+        (
+            "node with two parents",
+            |d| d["nodes"] = serde_json::json!([{"children": [1]}, {"children": [2], "mesh": 0}, {"children": [1]}]),
+            "node 1",
+        ),
+        ("node cycle", |d| d["nodes"] = serde_json::json!([{"children": [1], "mesh": 0}, {"children": [0]}]), "cycle"),
+        ("all-zero matrix", |d| d["nodes"][0]["matrix"] = serde_json::Value::from(vec![0.0; 16]), "not invertible"),
+        ("zero scale", |d| d["nodes"][0]["scale"] = serde_json::json!([0.0, 1.0, 1.0]), "not invertible"),
+        ("POSITION typed SCALAR", |d| d["accessors"][0]["type"] = "SCALAR".into(), "POSITION"),
+        ("signed indices", |d| d["accessors"][2]["componentType"] = 5122.into(), "indices are Scalar of I16"),
+        (
+            "negative baseColorFactor",
+            |d| d["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([-1.0, 0.5, 0.5, 1.0]),
+            "baseColorFactor",
+        ),
+        (
+            "1e30 baseColorFactor",
+            |d| d["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([1e30, 0.5, 0.5, 1.0]),
+            "paint",
+        ),
+        ("bufferView past its buffer", |d| d["bufferViews"][0]["byteLength"] = 4000.into(), "bufferView 0"),
+        ("buffer shorter than byteLength", |d| d["buffers"][0]["byteLength"] = 4000.into(), "holds 80 bytes"),
+        ("material out of range", |d| d["meshes"][0]["primitives"][0]["material"] = 5.into(), "primitives[0].material"),
+    ];
+    let mut wrong = Vec::new();
+    for (what, break_it, needle) in cases {
+        let mut doc = ok.clone();
+        break_it(&mut doc);
+        let err = err_text(previz::scene::model::load_glb_bytes(doc.to_string().as_bytes()));
+        if !err.contains(needle) {
+            wrong.push(format!("{what}: {err}"));
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    // NaN and infinite normals in the binary data.
+    for bad in [f32::NAN, f32::INFINITY] {
+        let mut doc = ok.clone();
+        let uri = doc["buffers"][0]["uri"].as_str().unwrap().to_string();
+        let (head, data) = uri.split_once("base64,").unwrap();
+        let mut bytes = decode_base64(data);
+        bytes[36..40].copy_from_slice(&bad.to_le_bytes());
+        doc["buffers"][0]["uri"] = format!("{head}base64,{}", base64(&bytes)).into();
+        let err = err_text(previz::scene::model::load_glb_bytes(doc.to_string().as_bytes()));
+        assert!(err.contains("NORMAL 0 is not finite"), "{bad}: {err}");
+    }
+}
+
+fn decode_base64(s: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        _ => 63,
+    };
+    let s = s.trim_end_matches('=').as_bytes();
+    let (mut acc, mut bits, mut out) = (0u32, 0, Vec::new());
+    for &c in s {
+        acc = (acc << 6) | u32::from(val(c));
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    out
+}
+
+#[test]
+fn gltf_missing_or_truncated_files_are_named() {
+    let dir = temp_dir("gltf-files");
+    let mut doc = gltf_triangle();
+    let uri = doc["buffers"][0]["uri"].as_str().unwrap().to_string();
+    std::fs::write(dir.join("tri.bin"), decode_base64(uri.split_once("base64,").unwrap().1)).unwrap();
+    doc["buffers"][0]["uri"] = "tri%20data.bin".into();
+    std::fs::write(dir.join("a.gltf"), doc.to_string()).unwrap();
+    let err = err_text(load_model(&dir.join("a.gltf")));
+    assert!(err.contains("tri data.bin") && err.contains("a.gltf"), "{err}");
+    std::fs::rename(dir.join("tri.bin"), dir.join("tri data.bin")).unwrap();
+    assert_eq!(load_model(&dir.join("a.gltf")).unwrap().triangle_count(), 1);
+    // A base-colour image that is missing, then truncated.
+    doc["images"] = serde_json::json!([{"uri": "paint.png"}]);
+    doc["textures"] = serde_json::json!([{"source": 0}]);
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = serde_json::json!({"index": 0});
+    std::fs::write(dir.join("a.gltf"), doc.to_string()).unwrap();
+    let err = err_text(load_model(&dir.join("a.gltf")));
+    assert!(err.contains("paint.png") && err.contains("paint"), "{err}");
+    let mut png = Vec::new();
+    image::RgbImage::from_fn(64, 64, |x, y| image::Rgb([(x * 4) as u8, (y * 4) as u8, 7]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(dir.join("paint.png"), &png[..png.len() / 2]).unwrap();
+    let err = err_text(load_model(&dir.join("a.gltf")));
+    assert!(err.contains("paint.png"), "{err}");
+    std::fs::write(dir.join("paint.png"), &png).unwrap();
+    let m = load_model(&dir.join("a.gltf")).unwrap();
+    assert_eq!(m.materials[0].texture.as_ref().unwrap().width, 64);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn obj_loading_stays_linear_on_huge_faces_shared_vertices_and_repeats() {
+    // One face with 30 000 corners (a circle), one vertex shared by 100 000 triangles (a cone
+    // fan), 10 000 copies of one triangle: each loads, with the expected triangle count. These
+    // took minutes when computing normals compared every pair of corners around a vertex.
+    let n = 30_000;
+    let mut big_face = String::new();
+    for i in 0..n {
+        let a = i as f32 / n as f32 * std::f32::consts::TAU;
+        big_face += &format!("v {} {} 0\n", a.cos(), a.sin());
+    }
+    big_face += "f";
+    for i in 1..=n {
+        big_face += &format!(" {i}");
+    }
+    big_face += "\n";
+    let m = previz::scene::model::load_obj_bytes(big_face.as_bytes()).unwrap();
+    assert_eq!(m.triangle_count(), n - 2);
+
+    let k = 100_000;
+    let mut fan = String::from("v 0 0 1\n");
+    for i in 0..k {
+        let a = i as f32 / k as f32 * std::f32::consts::TAU;
+        fan += &format!("v {} {} {}\n", a.cos(), a.sin(), 0.1 * (7.0 * a).sin());
+    }
+    for i in 0..k {
+        fan += &format!("f 1 {} {}\n", i + 2, (i + 1) % k + 2);
+    }
+    let m = previz::scene::model::load_obj_bytes(fan.as_bytes()).unwrap();
+    assert_eq!(m.triangle_count(), k);
+    assert!(normals_check(&m) > 0.99);
+
+    let mut repeats = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    repeats += &"f 1 2 3\n".repeat(10_000);
+    let m = previz::scene::model::load_obj_bytes(repeats.as_bytes()).unwrap();
+    assert_eq!(m.triangle_count(), 10_000);
+    assert!(m.meshes[0].normals.iter().all(|n| (n[2] - 1.0).abs() < 1e-6));
+}
+
+#[test]
+fn mtl_values_out_of_range_name_the_file_and_line() {
+    let dir = temp_dir("mtl-values");
+    std::fs::write(dir.join("m.obj"), "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n").unwrap();
+    for (kd, needle) in [("nan 0 0", "nan"), ("1e39 0 0", "1e39"), ("-1 0.5 0.5", "-1")] {
+        std::fs::write(dir.join("m.mtl"), format!("newmtl a\n# diffuse\nKd {kd}\n")).unwrap();
+        let err = err_text(load_model(&dir.join("m.obj")));
+        assert!(err.contains("m.mtl") && err.contains("line 3") && err.contains(needle), "{kd}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn exr_with_nan_or_infinite_pixels_is_an_error_naming_the_file() {
+    let dir = temp_dir("exr-nan");
+    for (name, bad) in [("nan.exr", f32::NAN), ("inf.exr", f32::INFINITY)] {
+        let img = image::Rgb32FImage::from_fn(16, 8, |x, y| image::Rgb(if (x, y) == (5, 2) { [bad, 0.5, 0.5] } else { [0.5, 0.5, 0.5] }));
+        image::DynamicImage::ImageRgb32F(img).save(dir.join(name)).unwrap();
+        let err = err_text(load_environment(&dir.join(name)));
+        assert!(err.contains(name) && err.contains("x=5, y=2"), "{err}");
+    }
+    // Negative values are the documented repair: set to 0.
+    let img = image::Rgb32FImage::from_fn(16, 8, |x, _| image::Rgb(if x == 3 { [-0.004, 0.5, 0.5] } else { [0.5, 0.5, 0.5] }));
+    image::DynamicImage::ImageRgb32F(img).save(dir.join("neg.exr")).unwrap();
+    let e = load_equirect(&dir.join("neg.exr")).unwrap();
+    assert!(e.pixels().iter().flatten().all(|c| *c >= 0.0));
+    assert_eq!(e.pixels()[3][0], 0.0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -11,6 +11,8 @@ pub mod capture;
 pub mod chart;
 pub mod cli;
 pub mod colour;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod light;
 pub mod live;
 pub mod output;

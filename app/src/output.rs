@@ -15,6 +15,43 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     result
 }
 
+/// Image files we write, by extension (lower case).
+pub const IMAGE_EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
+
+/// Check that `path` names an image file we can write: not empty, an extension from
+/// [`IMAGE_EXTENSIONS`], not a directory. The error says what is wrong; callers add the flag or
+/// key.
+pub fn check_image_path(path: &Path) -> Result<()> {
+    if path.as_os_str().is_empty() {
+        anyhow::bail!("the output path is empty");
+    }
+    if path.is_dir() {
+        anyhow::bail!("{} is a directory, not an image file", path.display());
+    }
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if !IMAGE_EXTENSIONS.contains(&ext.as_str()) {
+        anyhow::bail!("{}: unsupported image extension {ext:?} (expected .png, .jpg or .jpeg)", path.display());
+    }
+    Ok(())
+}
+
+/// Write an opaque-or-not 8-bit RGBA image as PNG, or as JPEG (quality 92, alpha dropped) when
+/// the extension is .jpg/.jpeg; any other extension is an error naming the file.
+pub fn write_image_rgba8(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
+    check_image_path(path)?;
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if ext == "png" {
+        return write_png_rgba8(path, width, height, rgba);
+    }
+    use image::ImageEncoder;
+    let rgb: Vec<u8> = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+    let mut buf = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, 92)
+        .write_image(&rgb, width, height, image::ExtendedColorType::Rgb8)
+        .context("JPEG encoding failed")?;
+    write_atomic(path, &buf)
+}
+
 /// Encode an 8-bit RGBA image as PNG in memory and write it atomically.
 pub fn write_png_rgba8(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
     write_atomic(path, &encode_png(width, height, rgba, image::ExtendedColorType::Rgba8)?)
@@ -56,6 +93,23 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
             .collect();
         assert!(leftovers.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn extension_chooses_the_format() {
+        let dir = std::env::temp_dir().join(format!("previz-out-ext-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let rgba = [200u8, 100, 50, 255].repeat(16);
+        for (name, magic) in [("a.png", &b"\x89PNG"[..]), ("b.jpg", &[0xFF, 0xD8, 0xFF][..]), ("c.JPEG", &[0xFF, 0xD8, 0xFF][..])] {
+            write_image_rgba8(&dir.join(name), 4, 4, &rgba).unwrap();
+            assert!(std::fs::read(dir.join(name)).unwrap().starts_with(magic), "{name}");
+        }
+        for (name, needle) in [("d.tiff", "unsupported"), ("noext", "unsupported"), ("", "directory")] {
+            let err = format!("{:#}", write_image_rgba8(&dir.join(name), 4, 4, &rgba).unwrap_err());
+            assert!(err.contains(needle), "{name}: {err}");
+        }
+        assert!(format!("{:#}", check_image_path(Path::new("")).unwrap_err()).contains("empty"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

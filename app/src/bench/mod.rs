@@ -2,6 +2,7 @@
 
 pub mod frame;
 pub mod live;
+pub mod lod;
 
 /// Median of a sample (NaN-free input; empty gives NaN).
 pub fn median(values: &[f64]) -> f64 {

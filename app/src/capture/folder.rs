@@ -98,6 +98,19 @@ pub struct ShotMeta {
     pub t: f64,
     pub pose_wxyz: [f64; 4],
     pub heading_source: String,
+    /// Turn about the vertical (degrees) the image alignment applied to the sensor pose
+    /// (`pose_wxyz` is after it); null when the shots were not aligned.
+    #[serde(default)]
+    pub alignment_turn_deg: Option<f64>,
+}
+
+/// What the alignment from the images did ([`super::align`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AlignmentMeta {
+    /// Overlapping shot pairs matched and used.
+    pub pairs: usize,
+    /// Pairs dropped as disagreeing with the joint solution.
+    pub dropped_pairs: usize,
 }
 
 impl ShotMeta {
@@ -108,6 +121,7 @@ impl ShotMeta {
             t: shot.t,
             pose_wxyz: wxyz(shot.pose),
             heading_source: heading_source_name(source),
+            alignment_turn_deg: None,
         }
     }
 }
@@ -131,6 +145,9 @@ pub struct CaptureMeta {
     /// In cube-layer order (+X, −X, +Y, −Y, +Z, −Z).
     pub faces: Vec<FaceMeta>,
     pub shots: Vec<ShotMeta>,
+    /// Stitch mode: the alignment of the shots from their overlaps; null when not aligned.
+    #[serde(default)]
+    pub alignment: Option<AlignmentMeta>,
 }
 
 impl CaptureMeta {
@@ -148,6 +165,7 @@ impl CaptureMeta {
             time_utc: None,
             faces,
             shots,
+            alignment: None,
         }
     }
 
@@ -264,7 +282,7 @@ pub fn load_capture(dir: &Path) -> Result<CubeCapture> {
     let mut faces = Vec::with_capacity(6);
     for face in Face::ALL {
         let path = dir.join(face.file_name());
-        let img = image::open(&path).with_context(|| format!("cannot read face {}", path.display()))?.to_rgb8();
+        let img = crate::scene::decode::decode_file(&path, &[]).with_context(|| format!("capture face {}", face.name()))?.image.to_rgb8();
         if img.width() != meta.face_size || img.height() != meta.face_size {
             bail!("{} is {}x{}, the metadata says {} px faces", path.display(), img.width(), img.height(), meta.face_size);
         }

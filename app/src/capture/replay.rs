@@ -56,6 +56,8 @@ pub struct ReplayConfig {
     pub score: bool,
     /// Threads the virtual phone renders with (1 when many replays run in parallel).
     pub render_threads: usize,
+    /// Stitch mode: align the shots from their overlaps ([`super::align`]).
+    pub align: bool,
 }
 
 impl Default for ReplayConfig {
@@ -74,6 +76,7 @@ impl Default for ReplayConfig {
             disturbances: Vec::new(),
             score: true,
             render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            align: false,
         }
     }
 }
@@ -87,6 +90,7 @@ impl ReplayConfig {
         let mut cfg = AssistantConfig::new(self.mode, self.camera()?);
         cfg.tolerance_deg = self.tolerance_deg;
         cfg.face_size = self.face_size;
+        cfg.align = self.align;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -434,7 +438,8 @@ mod tests {
                 assert!(f.orientation_error_deg < 1.0, "{mode:?} {f:?}");
                 match mode {
                     Mode::Stitch => {
-                        assert_eq!(f.coverage, 1.0, "{f:?}");
+                        // Complete once a face's unseen samples are a sliver (assistant::MAX_UNSEEN).
+                        assert!(f.coverage >= 0.98, "{f:?}");
                         assert!(f.psnr_db.unwrap() > 25.0, "{f:?}");
                     }
                     Mode::Stretch => assert!(f.coverage < 0.5, "{f:?}"),

@@ -10,11 +10,13 @@
 
 use super::Mode;
 use super::assistant::Assistant;
-use super::replay::{ReplayConfig, ReplayResult, replay_guided};
+use super::replay::{ReplayConfig, ReplayResult, replay, replay_guided};
 use super::targets::Face;
 use super::user_path::simulate_capture_path;
 use crate::pose::fusion::{DisturbanceConfig, FusionConfig};
+use crate::pose::trace::TruthTrace;
 use crate::pose::user_path::UserPathParams;
+use crate::pose::user_path::simulate_user_path;
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel};
 use anyhow::{Context, Result, bail};
@@ -24,6 +26,9 @@ use rand_chacha::ChaCha8Rng;
 use std::fmt::Write as _;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+
+/// The wide lens of the `random-100°` and `six-faces-100°` cases (vertical FOV, degrees).
+pub const WIDE_VFOV_DEG: f32 = 100.0;
 
 /// Passes a simulated user gets to follow the guidance ([`replay_guided`]).
 pub const GUIDED_ATTEMPTS: usize = 3;
@@ -41,6 +46,12 @@ pub enum Case {
     Pole,
     /// A 40 µT field for 8 s from 1 s after the tap; `fallback` = the filter's gyro-only mode on.
     Disturbance { fallback: bool },
+    /// Random headings with a 100° lens (guided user).
+    Wide,
+    /// Held out: pre-recorded hand-held paths that only visit the six face centres (seed 000's
+    /// procedure, [`crate::pose::user_path::simulate_user_path`], the pose study's user holding
+    /// each 1.2–2.0 s) with a 100° lens, replayed once — nobody follows the guidance.
+    SixFaces,
 }
 
 impl Case {
@@ -51,6 +62,8 @@ impl Case {
             Case::Pole => "pitch±90",
             Case::Disturbance { fallback: true } => "disturbed+fallback",
             Case::Disturbance { fallback: false } => "disturbed,no-fallback",
+            Case::Wide => "random-100°",
+            Case::SixFaces => "six-faces-100°",
         }
     }
 }
@@ -138,6 +151,13 @@ pub fn jobs(cfg: &StudyConfig) -> Vec<Job> {
             v.extend((0..cfg.runs as u64).map(|seed| Job { case: Case::Random, noise, mode, seed }));
         }
     }
+    for &noise in &cfg.noise_levels {
+        for case in [Case::Wide, Case::SixFaces] {
+            for &mode in &cfg.modes {
+                v.extend((0..cfg.case_runs as u64).map(|seed| Job { case, noise, mode, seed: 2000 + seed }));
+            }
+        }
+    }
     for case in [Case::Wrap, Case::Pole, Case::Disturbance { fallback: true }, Case::Disturbance { fallback: false }] {
         for &mode in &cfg.modes {
             v.extend((0..cfg.case_runs as u64).map(|seed| Job { case, noise: NoiseLevel::Phone, mode, seed: 1000 + seed }));
@@ -160,6 +180,14 @@ pub fn run_job(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> Result<RunRow
         render_threads: 1,
         ..ReplayConfig::default()
     };
+    if matches!(job.case, Case::Wide | Case::SixFaces) {
+        replay_cfg.vfov_deg = WIDE_VFOV_DEG;
+    }
+    if job.case == Case::SixFaces {
+        let path = simulate_user_path(job.seed, &UserPathParams::default())?;
+        let result = replay(env, &TruthTrace::new(path.samples)?, &replay_cfg)?;
+        return Ok(row(job, path.reference_heading_deg, &result));
+    }
     let targets: Vec<_> = Assistant::new(replay_cfg.assistant()?)?.targets().into_iter().cloned().collect();
     let mut rng = ChaCha8Rng::seed_from_u64(job.seed ^ 0x5eed);
     let mut params = UserPathParams::default();
@@ -586,13 +614,13 @@ mod tests {
             ..StudyConfig::default()
         };
         let jobs = jobs(&cfg);
-        assert_eq!(jobs.len(), 5);
+        assert_eq!(jobs.len(), 7);
         let ticks = AtomicUsize::new(0);
         let rows = run_study(&env, &cfg, &jobs, || {
             ticks.fetch_add(1, Ordering::Relaxed);
         })
         .unwrap();
-        assert_eq!(ticks.load(Ordering::Relaxed), 5);
+        assert_eq!(ticks.load(Ordering::Relaxed), 7);
         let by = |c: Case| rows.iter().find(|r| r.job.case == c).unwrap();
         assert!(by(Case::Random).completed, "{:?}", by(Case::Random).missing);
         // The user aimed within 2° of North (± the 0.8° aim error); the estimated reference adds
@@ -601,13 +629,16 @@ mod tests {
         let off_north = crate::pose::frames::heading_difference_deg(wrap.reference_heading_deg, 0.0).abs();
         assert!(wrap.completed && off_north < 2.8 + 3.0, "{wrap:?}");
         assert!(by(Case::Pole).completed, "{:?}", by(Case::Pole).missing);
+        // The held-out six-face path with the 100° lens completes without guidance.
+        assert!(by(Case::SixFaces).completed, "{:?}", by(Case::SixFaces).missing);
+        assert!(by(Case::Wide).completed, "{:?}", by(Case::Wide).missing);
         // The disturbance drives the filter into gyro-only mode only when the fallback is on.
         assert!(by(Case::Disturbance { fallback: true }).gyro_only_fraction > 0.0);
         assert_eq!(by(Case::Disturbance { fallback: false }).gyro_only_fraction, 0.0);
         let s = summarise(&rows);
-        assert_eq!(s.len(), 5);
+        assert_eq!(s.len(), 7);
         let csv = rows_csv(&rows);
-        assert_eq!(csv.lines().count(), 6);
+        assert_eq!(csv.lines().count(), 8);
         assert_eq!(csv.lines().next().unwrap().split(',').count(), csv.lines().nth(1).unwrap().split(',').count());
         assert!(summary_markdown(&s).contains("| random | none | stretch | 1 |"));
         let png = std::env::temp_dir().join(format!("previz-capture-stability-{}.png", std::process::id()));

@@ -10,7 +10,7 @@
 
 use super::Mode;
 use super::projection::{Pinhole, local_to_world};
-use crate::pose::frames::{HeadingPitchRoll, from_heading_pitch_roll, heading_difference_deg, heading_pitch_roll};
+use crate::pose::frames::{HeadingPitchRoll, from_heading_pitch_roll, heading_difference_deg, heading_pitch_roll, wrap_degrees_360};
 use glam::{DQuat, DVec3, Quat, Vec3};
 
 /// The six faces of a capture.
@@ -155,15 +155,15 @@ impl Target {
     }
 }
 
-/// Candidate aims for extra stitch targets: pitch every `CANDIDATE_STEP` from −80° to 80°,
-/// heading every `CANDIDATE_STEP` (degrees).
-const CANDIDATE_STEP: f64 = 5.0;
-const CANDIDATE_MAX_PITCH: f64 = 80.0;
 /// Face samples per side used to plan coverage.
 const PLAN_SAMPLES: u32 = 16;
 /// Most roll (degrees) the planner allows the user while aiming; shots must cover their
 /// part of a face at roll −r, 0 and +r.
 pub const PLAN_ROLL_DEG: f64 = 5.0;
+/// Plan margin on every side of a frame, as a fraction of the aim tolerance.
+pub const PLAN_MARGIN: f64 = 0.75;
+/// Most rings of views between the horizon and each pole the planner tries.
+const MAX_SIDE_RINGS: usize = 4;
 
 /// Which plan samples a shot surely covers, as a bitset.
 fn coverage_bits(t: &Target, samples: &[Vec3], half_tan: (f32, f32), disc: f32, tolerance_deg: f64) -> Vec<u64> {
@@ -195,12 +195,19 @@ fn coverage_bits(t: &Target, samples: &[Vec3], half_tan: (f32, f32), disc: f32, 
     bits
 }
 
-/// The targets for a mode and lens: the six face centres, and in stitch mode the extra aims
-/// (greedy set cover over a 5° lattice of aims) that make every face pixel seen by some shot
-/// even when each shot is off by the tolerance and rolled by up to [`PLAN_ROLL_DEG`]. A shot is
-/// counted on the frame shrunk by the tolerance plus one degree; near the poles, where the
-/// heading is free, only on the disc inscribed in that shrunk frame (any rotation about the
-/// view axis). Plans are cached per (mode, lens, tolerance).
+/// The targets for a mode and lens. Stretch mode: the six face centres. Stitch mode: the
+/// fewest views, laid out in rings of latitude, that cover the whole sphere from the lens's field
+/// of view: one view at each pole, a ring on the horizon starting at the front, and
+/// `s` rings between the horizon and each pole (`s` = 0..[`MAX_SIDE_RINGS`], evenly spaced in
+/// pitch); each ring gets the fewest evenly spaced views that cover its band of latitude (less
+/// what the pole views see). A greedy set cover over a 5° lattice of aims, starting from the
+/// front, competes with the ring layouts; the plan with the fewest views wins. Coverage is counted on the frame shrunk by the tolerance
+/// plus one degree on every side — that margin is both the room for aim and pose error and the
+/// overlap neighbouring shots share (2 × margin) — with the view rolled by up to
+/// ±[`PLAN_ROLL_DEG`]; near the poles, where the heading is free, only on the disc inscribed in the
+/// shrunk frame. A 100° lens gets 7 views (4:3 landscape), a 50° one 24 (tolerance 2°). Views that
+/// land on a face centre are that face's named target. Plans are cached per (mode, lens,
+/// tolerance).
 pub fn plan_targets(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target> {
     type Key = (Mode, u32, u32, u64);
     static CACHE: std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<Key, Vec<Target>>>> = std::sync::OnceLock::new();
@@ -214,10 +221,22 @@ pub fn plan_targets(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Tar
     targets
 }
 
+fn aim_target(heading_offset_deg: f64, pitch_deg: f64) -> Target {
+    let (h, p) = (wrap_degrees_360(heading_offset_deg), pitch_deg);
+    if let Some(face) = Face::ALL.into_iter().find(|f| {
+        let (fh, fp) = f.aim_deg();
+        (fp - p).abs() < 1e-9 && (fp.abs() == 90.0 || heading_difference_deg(fh, h).abs() < 1e-9)
+    }) {
+        return Target::for_face(face);
+    }
+    let (hr, pr) = (h.to_radians(), p.to_radians());
+    let dir = Vec3::new((hr.sin() * pr.cos()) as f32, (hr.cos() * pr.cos()) as f32, pr.sin() as f32);
+    Target { name: String::new(), face: Face::of_local_dir(dir), primary: false, heading_offset_deg: h, pitch_deg: p }
+}
+
 fn plan_uncached(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target> {
-    let mut targets: Vec<Target> = Face::ALL.iter().map(|&f| Target::for_face(f)).collect();
     if mode == Mode::Stretch {
-        return targets;
+        return Face::ALL.iter().map(|&f| Target::for_face(f)).collect();
     }
     let samples: Vec<Vec3> = (0..6)
         .flat_map(|layer| {
@@ -225,49 +244,93 @@ fn plan_uncached(mode: Mode, camera: &Pinhole, tolerance_deg: f64) -> Vec<Target
                 .map(move |i| super::projection::face_pixel_dir_local(layer, i % PLAN_SAMPLES, i / PLAN_SAMPLES, PLAN_SAMPLES, 1.0))
         })
         .collect();
-    let margin = (tolerance_deg + 1.0).to_radians() as f32;
+    let margin = (PLAN_MARGIN * tolerance_deg).to_radians() as f32;
     // Half-angles of the usable frame, as tangents.
     let th = (camera.tan_half_h.atan() - margin).max(0.0).tan();
     let tv = (camera.tan_half_v.atan() - margin).max(0.0).tan();
     let bits = |t: &Target| coverage_bits(t, &samples, (th, tv), th.min(tv), tolerance_deg);
-    let mut covered = vec![0u64; samples.len().div_ceil(64)];
-    for t in &targets {
-        for (c, b) in covered.iter_mut().zip(bits(t)) {
-            *c |= b;
+    let words = samples.len().div_ceil(64);
+    let or = |acc: &mut Vec<u64>, b: &[u64]| acc.iter_mut().zip(b).for_each(|(a, x)| *a |= x);
+    let pitch_of = |d: &Vec3| f64::from(d.z.clamp(-1.0, 1.0).asin().to_degrees());
+    let mut best: Option<Vec<Target>> = None;
+    for side in 0..=MAX_SIDE_RINGS {
+        // Ring pitches from the south pole to the north pole; the poles are single views.
+        let step = 90.0 / (side + 1) as f64;
+        let pitches: Vec<f64> = (-(side as i32 + 1)..=side as i32 + 1).map(|j| f64::from(j) * step).collect();
+        let mut plan: Vec<Target> = [90.0, -90.0].map(|p| aim_target(0.0, p)).to_vec();
+        let mut all = vec![0u64; words];
+        for t in &plan {
+            or(&mut all, &bits(t));
+        }
+        let poles = all.clone();
+        let mut ok = true;
+        for (j, &p) in pitches.iter().enumerate().filter(|(_, p)| p.abs() < 90.0) {
+            // The ring's band: half-way to its neighbours in pitch, less what the poles see.
+            let (lo, hi) = (0.5 * (pitches[j - 1] + p), 0.5 * (pitches[j + 1] + p));
+            let band: Vec<usize> =
+                (0..samples.len()).filter(|&i| (lo..=hi).contains(&pitch_of(&samples[i])) && poles[i / 64] >> (i % 64) & 1 == 0).collect();
+            let found = (1..=72).find_map(|n| {
+                let ring: Vec<Target> = (0..n).map(|k| aim_target(360.0 * k as f64 / n as f64, p)).collect();
+                let mut acc = vec![0u64; words];
+                for t in &ring {
+                    or(&mut acc, &bits(t));
+                }
+                band.iter().all(|&i| acc[i / 64] >> (i % 64) & 1 == 1).then_some((ring, acc))
+            });
+            let Some((ring, acc)) = found else {
+                ok = false;
+                break;
+            };
+            or(&mut all, &acc);
+            plan.extend(ring);
+        }
+        let complete = all.iter().map(|w| w.count_ones() as usize).sum::<usize>() == samples.len();
+        if ok && complete && best.as_ref().is_none_or(|b| plan.len() < b.len()) {
+            best = Some(plan);
         }
     }
-    let steps = (CANDIDATE_MAX_PITCH / CANDIDATE_STEP) as i32;
-    let candidates: Vec<(Target, Vec<u64>)> = (-steps..=steps)
-        .flat_map(|j| {
-            let p = f64::from(j) * CANDIDATE_STEP;
-            (0..(360.0 / CANDIDATE_STEP) as u32).map(move |i| {
-                let h = f64::from(i) * CANDIDATE_STEP;
-                let (hr, pr) = (h.to_radians(), p.to_radians());
-                let dir = Vec3::new((hr.sin() * pr.cos()) as f32, (hr.cos() * pr.cos()) as f32, pr.sin() as f32);
-                Target { name: String::new(), face: Face::of_local_dir(dir), primary: false, heading_offset_deg: h, pitch_deg: p }
+    // Greedy set cover over a 5° lattice of aims (and the poles), from the front: sometimes fewer
+    // views than the rings.
+    {
+        let mut covered = bits(&Target::for_face(Face::Front));
+        let mut plan = vec![Target::for_face(Face::Front)];
+        let candidates: Vec<(Target, Vec<u64>)> = (-16..=16)
+            .flat_map(|j| (0..72).map(move |i| aim_target(f64::from(i) * 5.0, f64::from(j) * 5.0)))
+            .chain([90.0, -90.0].map(|p| aim_target(0.0, p)))
+            .map(|t| {
+                let b = bits(&t);
+                (t, b)
             })
-        })
-        .map(|t| {
-            let b = bits(&t);
-            (t, b)
-        })
-        .collect();
-    let all = samples.len();
-    let count = |c: &[u64]| c.iter().map(|w| w.count_ones() as usize).sum::<usize>();
+            .collect();
+        let count = |c: &[u64]| c.iter().map(|w| w.count_ones() as usize).sum::<usize>();
+        while count(&covered) < samples.len() && plan.len() < 200 {
+            let gain = |b: &[u64]| b.iter().zip(&covered).map(|(x, c)| (x & !c).count_ones() as usize).sum::<usize>();
+            let Some((t, b)) = candidates.iter().max_by_key(|(_, b)| gain(b)).filter(|(_, b)| gain(b) > 0) else { break };
+            or(&mut covered, b);
+            plan.push(t.clone());
+        }
+        if count(&covered) == samples.len() && best.as_ref().is_none_or(|b| plan.len() < b.len()) {
+            best = Some(plan);
+        }
+    }
+    // A lens too narrow for any layout: the widest-ring plan, its holes show as coverage.
+    let plan = best.unwrap_or_else(|| {
+        let n = 72;
+        let mut v: Vec<Target> = (0..n).map(|k| aim_target(360.0 * k as f64 / n as f64, 0.0)).collect();
+        v.extend([Target::for_face(Face::Up), Target::for_face(Face::Down)]);
+        v
+    });
+    // The front first (the tap), then the rest; extra views named after the face they fall in.
+    let mut targets: Vec<Target> = vec![Target::for_face(Face::Front)];
     let mut per_face = [0u32; 6];
-    while count(&covered) < all {
-        let gain = |b: &[u64]| b.iter().zip(&covered).map(|(x, c)| (x & !c).count_ones() as usize).sum::<usize>();
-        let Some((best, b)) = candidates.iter().max_by_key(|(_, b)| gain(b)) else { break };
-        if gain(b) == 0 {
-            // The lens is too narrow for the candidate lattice; the holes show as coverage.
-            break;
+    for t in plan.into_iter().filter(|t| *t != Target::for_face(Face::Front)) {
+        if t.primary {
+            targets.push(t);
+        } else {
+            let k = &mut per_face[t.face.layer()];
+            *k += 1;
+            targets.push(Target { name: format!("{}+{}", t.face.name(), *k), ..t });
         }
-        for (c, x) in covered.iter_mut().zip(b) {
-            *c |= x;
-        }
-        let k = &mut per_face[best.face.layer()];
-        *k += 1;
-        targets.push(Target { name: format!("{}+{}", best.face.name(), *k), ..best.clone() });
     }
     targets
 }
@@ -334,6 +397,14 @@ mod tests {
         let n = plan_targets(Mode::Stitch, &narrow, 2.0);
         let w = plan_targets(Mode::Stitch, &wide, 2.0);
         assert!(n.len() > 6 && n.len() > w.len(), "narrow {} wide {}", n.len(), w.len());
+        // A 100° lens (115.6° wide): each face centre plus a few views on the horizon. Six
+        // shots are not enough once the up/down shots may be turned any way: their inscribed
+        // disc (50° − 1.5° margin) ends at 41.5° elevation, while four side shots reach only
+        // 40° at the azimuths between them (tan⁻¹(tan 50° · cos 45°)).
+        assert!(w.len() <= 7, "{} views", w.len());
+        assert!(w.iter().filter(|t| t.primary).count() >= 3);
+        // The 50° lens: fewer views than the 32 the earlier planner needed (24 measured).
+        assert!(n.len() <= 24, "{} views", n.len());
         // Every direction on a fine face grid lies inside some level, exactly aimed shot.
         for targets in [&n, &w] {
             let cam = if targets.len() == n.len() { &narrow } else { &wide };

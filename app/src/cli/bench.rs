@@ -1,6 +1,6 @@
 //! `previz bench …`: measurements recorded in docs/PERFORMANCE.md.
 
-use crate::bench::{frame, live};
+use crate::bench::{frame, live, lod};
 use crate::cli::composite::{SceneArgs, load_inputs, scene_from_args};
 use crate::render::gpu::Gpu;
 use anyhow::{Result, bail};
@@ -21,6 +21,23 @@ pub enum What {
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
     /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames.
     Live(LiveArgs),
+    /// The model's level-of-detail chain in the scene: per level the triangles, the
+    /// simplification error (model units and pixels at the model's distance), mean FLIP against
+    /// the full-detail composite, GPU time, and the level the half-pixel rule draws.
+    Lod(LodArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct LodArgs {
+    /// The scene (same flags as `previz composite`; default: the demo scene).
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Frames rendered per level (GPU time is their median).
+    #[arg(long, default_value_t = 5)]
+    pub frames: usize,
+    /// Print the rows as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -59,7 +76,36 @@ pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Frame(a) => run_frame(a),
         What::Live(a) => run_live(a),
+        What::Lod(a) => run_lod(a),
     }
+}
+
+fn run_lod(a: LodArgs) -> Result<()> {
+    if a.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let (scene, demo) = scene_from_args(&a.scene, None)?;
+    let inputs = load_inputs(&scene, demo)?;
+    let gpu = Gpu::headless()?;
+    let bar = indicatif::ProgressBar::new(0);
+    let t = std::time::Instant::now();
+    let rows = lod::run(&gpu, &scene, &inputs, a.frames, &bar)?;
+    bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        println!(
+            "{}x{}, {} on {}; GPU ms = median of {} frames; run took {:.1} s\n",
+            scene.width,
+            scene.height,
+            scene.method.name(),
+            gpu.describe(),
+            a.frames,
+            t.elapsed().as_secs_f64()
+        );
+        print!("{}", lod::markdown(&rows));
+    }
+    Ok(())
 }
 
 fn run_frame(a: FrameArgs) -> Result<()> {

@@ -22,6 +22,10 @@ use std::sync::Arc;
 pub const FRAME_WIDTH: u32 = 640;
 pub const FRAME_HEIGHT: u32 = 480;
 
+/// The range of `--vfov` (degrees).
+const MIN_VFOV_DEG: f32 = 20.0;
+const MAX_VFOV_DEG: f32 = 120.0;
+
 #[derive(clap::Args, Debug)]
 #[command(
     args_conflicts_with_subcommands = true,
@@ -60,8 +64,8 @@ pub struct RunArgs {
     /// Output folder for the six faces and capture.json (replaced if it holds a capture)
     #[arg(short = 'o', long = "output", value_name = "OUT_DIR")]
     pub output: Option<PathBuf>,
-    /// Vertical field of view of the virtual phone (degrees; landscape 640x480 frame)
-    #[arg(long, default_value_t = 50.0)]
+    /// Vertical field of view of the virtual phone (degrees, 20..=120; landscape 640x480 frame)
+    #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
     pub vfov: f32,
     /// Sensor noise level
     #[arg(long, value_enum, default_value = "phone")]
@@ -78,6 +82,10 @@ pub struct RunArgs {
     /// stretch: one shot per face stretched over it (seed 000); stitch: extra shots, full coverage
     #[arg(long, value_enum, default_value = "stitch")]
     pub mode: Mode,
+    /// Stitch mode: correct the shots' headings from their overlaps before assembly
+    /// (experimental: it does not raise the faces' PSNR yet, see docs/capture.md)
+    #[arg(long)]
+    pub align: bool,
     /// Print per-face capture time, orientation error, coverage, PSNR and mean FLIP as JSON
     #[arg(long)]
     pub json: bool,
@@ -116,6 +124,11 @@ fn run_capture(a: RunArgs) -> Result<()> {
     if a.trace.is_none() && !a.simulate {
         bail!("give --trace TRACE.csv or --simulate");
     }
+    // A phone camera's vertical field of view; far outside it the assistant would wait forever
+    // for coverage (1e-9 degrees "captured" 0 % of every face).
+    if !(a.vfov.is_finite() && (MIN_VFOV_DEG..=MAX_VFOV_DEG).contains(&a.vfov)) {
+        bail!("--vfov {}: must be {MIN_VFOV_DEG}..={MAX_VFOV_DEG} degrees", a.vfov);
+    }
     let cfg = ReplayConfig {
         mode: a.mode,
         width: FRAME_WIDTH,
@@ -126,6 +139,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
         tolerance_deg: a.tolerance,
         face_size: a.face_size,
         score: true,
+        align: a.align,
         ..ReplayConfig::default()
     };
     let assistant_cfg = cfg.assistant().context("bad --vfov, --tolerance or --face-size")?;
@@ -160,6 +174,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
             "tap_t": result.tap_t,
             "time_to_complete_s": result.time_to_complete(),
             "shots": result.shots,
+            "aligned_pairs": capture.meta.alignment.map(|a| a.pairs),
             "faces": result.faces.iter().map(|f| serde_json::json!({
                 "face": f.face.name(),
                 "file": f.face.file_name(),

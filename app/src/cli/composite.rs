@@ -26,8 +26,10 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The flags that describe a scene (shared by `composite` and `bench frame`).
+/// The flags that describe a scene (shared by `composite` and `bench frame`). Negative numbers
+/// are values, so `--width -1` gets a range error instead of "unexpected argument".
 #[derive(clap::Args, Debug, Default)]
+#[command(allow_negative_numbers = true)]
 pub struct SceneArgs {
     /// Scene file (TOML). Relative paths in it are relative to its folder.
     pub scene: Option<PathBuf>,
@@ -41,10 +43,10 @@ pub struct SceneArgs {
     #[arg(long)]
     pub background: Option<PathBuf>,
     /// Output width in pixels  [key: width]
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub width: Option<u32>,
     /// Output height in pixels  [key: height]
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub height: Option<u32>,
     /// Vertical field of view, degrees  [key: camera.vfov]
     #[arg(long)]
@@ -105,7 +107,9 @@ pub fn scene_from_args(args: &SceneArgs, output: Option<&Path>) -> Result<(Scene
         b.set("background", cwd_path(p)?)?;
     }
     if let Some(p) = output {
-        b.set("output", path_value(p))?;
+        // An empty -o stays empty so that the check names it; others are made absolute.
+        let value = if p.as_os_str().is_empty() { path_value(p) } else { cwd_path(&p.to_path_buf())? };
+        b.set("output", value)?;
     }
     if let Some(v) = args.width {
         b.set("width", toml::Value::Integer(v.into()))?;
@@ -131,7 +135,10 @@ pub fn scene_from_args(args: &SceneArgs, output: Option<&Path>) -> Result<(Scene
     }
     let scene = b.build().map_err(|e| {
         let flag = flag_for_error(&format!("{e:#}"));
-        e.context(flag)
+        match &args.scene {
+            Some(file) => e.context(format!("{flag} in {}", file.display())),
+            None => e.context(flag),
+        }
     })?;
     Ok((scene, demo))
 }
@@ -146,6 +153,7 @@ fn flag_for_error(msg: &str) -> String {
         ("sun.direction", "--sun-dir"),
         ("width", "--width"),
         ("height", "--height"),
+        ("output", "-o/--output"),
     ] {
         if msg.starts_with(key) {
             return format!("invalid scene ({flag} or scene key {key})");
@@ -270,10 +278,8 @@ fn ms(t: Instant) -> f64 {
 pub fn run(args: Args) -> Result<()> {
     let t_total = Instant::now();
     let (scene, demo) = scene_from_args(&args.scene, args.output.as_deref())?;
-    if let Some(dir) = &args.layers
-        && !dir.is_dir()
-    {
-        bail!("--layers {}: not an existing directory", dir.display());
+    if let Some(dir) = &args.layers {
+        std::fs::create_dir_all(dir).with_context(|| format!("--layers {}: cannot create the directory", dir.display()))?;
     }
     let t_load = Instant::now();
     let inputs = load_inputs(&scene, demo)?;
@@ -301,7 +307,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut written = Vec::new();
     for (path, image) in &outputs {
-        if let Err(e) = crate::output::write_png_rgba8(path, image.width, image.height, &image.rgba) {
+        if let Err(e) = crate::output::write_image_rgba8(path, image.width, image.height, &image.rgba) {
             for p in &written {
                 let _ = std::fs::remove_file(p);
             }

@@ -41,7 +41,7 @@ pub struct Args {
     /// Headless: render this many frames into --out instead of opening a window
     #[arg(long, requires = "out")]
     pub frames: Option<usize>,
-    /// Headless: folder for frame_NNNN.png (must exist)
+    /// Headless: folder for frame_NNNN.png (created if missing)
     #[arg(short = 'o', long, requires = "frames")]
     pub out: Option<PathBuf>,
     /// Headless: print each frame's pose, pose error and sun as JSON lines
@@ -56,13 +56,15 @@ pub fn run(a: Args) -> Result<()> {
         None => chrono::Utc::now(),
     };
     let cfg = LiveConfig { lat_deg: a.lat, lon_deg: a.lon, start, frame_hz: a.fps, duration_s: a.duration, noise: a.noise, seed: a.seed };
-    if let Some(dir) = &a.out
-        && !dir.is_dir()
-    {
-        bail!("--out {}: not an existing directory", dir.display());
+    if let Some(n) = a.frames {
+        // The session has duration × fps camera frames; asking for more used to stop silently.
+        let available = (a.duration * a.fps).floor();
+        if n == 0 || (available.is_finite() && n as f64 > available) {
+            bail!("--frames {n}: must be 1..={available} (--duration {} s × --fps {})", a.duration, a.fps);
+        }
     }
-    if a.frames == Some(0) {
-        bail!("--frames must be at least 1");
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("--out {}: cannot create the directory", dir.display()))?;
     }
     let inputs = load_inputs(&scene, demo)?;
     let env = Arc::new(inputs.env);

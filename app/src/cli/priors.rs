@@ -67,19 +67,26 @@ pub fn run(args: Args) -> Result<()> {
         }
         None => None,
     };
+    // Name the files whose texels were counted, so that "no pixels" (an all-green-screen or
+    // fully transparent texture) points at the file at fault.
+    let model_what = match (&args.model, &args.texture) {
+        (Some(m), Some(t)) => format!("model priors of --model {} with --texture {}", m.display(), t.display()),
+        (Some(m), None) => format!("model priors of --model {} (its textures)", m.display()),
+        _ => "model priors".to_string(),
+    };
     let (env, model_priors) = if args.gpu {
         let gpu = crate::render::gpu::Gpu::headless()?;
         let mut reducer = crate::priors::gpu::PriorsReducer::new(&gpu);
         let env = reducer.environment(&gpu, &cube).context("environment priors")?;
         let m = match &model {
-            Some(m) => Some(reducer.model(&gpu, m).context("model priors")?),
+            Some(m) => Some(reducer.model(&gpu, m).context(model_what.clone())?),
             None => None,
         };
         (env, m)
     } else {
         let env = crate::priors::environment_priors(&cube).context("environment priors")?;
         let m = match &model {
-            Some(m) => Some(crate::priors::model_priors(m).context("model priors")?),
+            Some(m) => Some(crate::priors::model_priors(m).context(model_what.clone())?),
             None => None,
         };
         (env, m)

@@ -49,7 +49,7 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Also print the angle of incidence on a surface tilted this much from horizontal (deg).
-    #[arg(long, value_name = "DEG", requires = "surface_azimuth")]
+    #[arg(long, value_name = "DEG", requires = "surface_azimuth", allow_negative_numbers = true)]
     pub slope: Option<f64>,
     /// Azimuth the tilted surface faces, clockwise from north (deg); with --slope.
     #[arg(long, value_name = "DEG", requires = "slope", allow_negative_numbers = true)]
@@ -175,9 +175,12 @@ fn single(args: &Args, algorithm: Algorithm) -> Result<()> {
     let p = sun::position(&input, algorithm)?;
     let incidence = match (args.slope, args.surface_azimuth) {
         (Some(slope), Some(az)) => {
-            for (v, flag) in [(slope, "--slope"), (az, "--surface-azimuth")] {
-                if !v.is_finite() {
-                    bail!("{flag}: {v} is not a finite angle");
+            // Slope: 0 horizontal, 90 vertical, 180 facing straight down (a negative slope is
+            // the same surface with --surface-azimuth turned by 180). Azimuth: NREL SPA's valid
+            // input range for the azimuth rotation, −360..=360 (Reda & Andreas 2008, Table A4.1).
+            for (v, flag, lo, hi) in [(slope, "--slope", 0.0, 180.0), (az, "--surface-azimuth", -360.0, 360.0)] {
+                if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                    bail!("{flag} {v}: must be an angle in {lo}..={hi} degrees");
                 }
             }
             Some(sun::incidence_deg(p.apparent_zenith_deg, p.azimuth_deg, slope, az))

@@ -9,19 +9,13 @@ use super::correction::{ColourCorrection, correct_unclipped, finish};
 use super::stats::{ColourStats, srgb8_to_linear_table};
 use crate::priors::mask::is_green_screen;
 use crate::scene::Rgba8Image;
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use std::path::Path;
 
 /// Read an image file as 8-bit sRGB RGBA (16-bit files are reduced to 8 bits; grey and RGB
 /// files get opaque alpha).
 pub fn load_rgba8(path: &Path) -> Result<Rgba8Image> {
-    let img = image::ImageReader::open(path)
-        .with_context(|| format!("cannot open {}", path.display()))?
-        .with_guessed_format()
-        .with_context(|| format!("cannot read {}", path.display()))?
-        .decode()
-        .with_context(|| format!("cannot decode {} as an image", path.display()))?
-        .to_rgba8();
+    let img = crate::scene::decode::decode_file(path, &[])?.image.to_rgba8();
     let (width, height) = img.dimensions();
     if width == 0 || height == 0 {
         bail!("{} is empty ({width}x{height})", path.display());

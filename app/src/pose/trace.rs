@@ -14,7 +14,7 @@
 
 use crate::sensors::check_unit_quaternion;
 use crate::sensors::csv::{Table, check_time_increases};
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use glam::DQuat;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -33,7 +33,13 @@ pub const TRUTH_TRACE_HEADER: &str = "t,qw,qx,qy,qz,tap";
 
 /// Load and check a truth trace (see the module documentation for the format).
 pub fn load_truth_trace(path: &Path) -> Result<Vec<TruthSample>> {
-    let table = Table::read(path, &["t", "qw", "qx", "qy", "qz", "tap"])?;
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    parse_truth_trace(path, &text)
+}
+
+/// Check a truth trace given as text (`path` names it in errors).
+pub fn parse_truth_trace(path: &Path, text: &str) -> Result<Vec<TruthSample>> {
+    let table = Table::parse(path, text, &["t", "qw", "qx", "qy", "qz", "tap"])?;
     let mut out = Vec::with_capacity(table.len());
     let mut prev = None;
     for rec in table.records() {

@@ -31,7 +31,7 @@ pub struct PriorsRow {
 pub fn cube_from_face_files(files: &[std::path::PathBuf; 6], size: u32) -> Result<CubeMap> {
     let mut faces = Vec::with_capacity(6);
     for path in files {
-        let img = image::open(path).with_context(|| format!("cannot read cube-map face {}", path.display()))?;
+        let img = crate::scene::decode::decode_file(path, &[]).context("cube-map face")?.image;
         faces.push(img.resize_exact(size, size, image::imageops::FilterType::Triangle));
     }
     let faces: [image::DynamicImage; 6] = faces.try_into().map_err(|_| anyhow::anyhow!("expected six faces"))?;

@@ -2,8 +2,8 @@
 //! according to the EXIF orientation tag the way a photo viewer shows them.
 
 use super::Rgba8Image;
-use anyhow::{Context, Result, bail};
-use image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader};
+use anyhow::Result;
+use image::{DynamicImage, ImageFormat};
 use std::path::Path;
 
 /// Load a JPEG or PNG as 8-bit sRGB RGBA, top row first.
@@ -12,19 +12,9 @@ use std::path::Path;
 /// anything other than JPEG or PNG is an error naming the file. A JPEG's EXIF orientation is
 /// applied. 16-bit PNGs are rounded to 8 bits; grey images are expanded to RGB.
 pub fn load_image(path: &Path) -> Result<Rgba8Image> {
-    let reader = ImageReader::open(path)
-        .with_context(|| format!("cannot open image {}", path.display()))?
-        .with_guessed_format()
-        .with_context(|| format!("cannot read image {}", path.display()))?;
-    match reader.format() {
-        Some(ImageFormat::Jpeg | ImageFormat::Png) => {}
-        Some(other) => bail!("{}: {other:?} images are not supported (JPEG or PNG expected)", path.display()),
-        None => bail!("{}: not a JPEG or PNG image (unrecognised content)", path.display()),
-    }
-    let mut decoder = reader.into_decoder().with_context(|| format!("cannot decode image {}", path.display()))?;
-    let orientation = decoder.orientation().with_context(|| format!("cannot read EXIF of image {}", path.display()))?;
-    let mut image = DynamicImage::from_decoder(decoder).with_context(|| format!("cannot decode image {}", path.display()))?;
-    image.apply_orientation(orientation);
+    let decoded = super::decode::decode_file(path, &[ImageFormat::Jpeg, ImageFormat::Png])?;
+    let mut image = decoded.image;
+    image.apply_orientation(decoded.orientation);
     Ok(rgba8_from_dynamic(&image))
 }
 
@@ -136,7 +126,7 @@ mod tests {
         image::codecs::hdr::HdrEncoder::new(&mut bytes).encode(&[image::Rgb([1.0f32, 1.0, 1.0])], 1, 1).unwrap();
         std::fs::write(&hdr, &bytes).unwrap();
         let err = format!("{:#}", load_image(&hdr).unwrap_err());
-        assert!(err.contains("x.hdr") && err.contains("JPEG or PNG"), "{err}");
+        assert!(err.contains("x.hdr") && err.contains("Jpeg or Png"), "{err}");
         let err = format!("{:#}", load_image(&dir.join("missing.jpg")).unwrap_err());
         assert!(err.contains("missing.jpg"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();

@@ -26,13 +26,13 @@ pub fn model() -> Result<Model> {
 
 /// The demo environment (Humus Park2 cube map).
 pub fn environment() -> Result<CubeMap> {
-    let decode = |bytes: &[u8]| image::load_from_memory(bytes).context("built-in demo cube face");
+    let decode = |bytes: &[u8]| super::decode::decode_bytes(bytes, &[]).map(|d| d.image).context("built-in demo cube face");
     let faces = [decode(FACES[0])?, decode(FACES[1])?, decode(FACES[2])?, decode(FACES[3])?, decode(FACES[4])?, decode(FACES[5])?];
     super::environment::cube_from_faces(faces).context("built-in demo environment")
 }
 
 /// The demo background photograph (the cube map's East face at 1024²).
 pub fn background() -> Result<Rgba8Image> {
-    let img = image::load_from_memory(BACKGROUND_JPG).context("built-in demo background")?.to_rgba8();
+    let img = super::decode::decode_bytes(BACKGROUND_JPG, &[]).context("built-in demo background")?.image.to_rgba8();
     Ok(Rgba8Image { width: img.width(), height: img.height(), pixels: img.into_raw() })
 }

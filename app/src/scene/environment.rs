@@ -8,13 +8,16 @@
 //! - Equirectangular: the centre column looks North (true azimuth = `heading_deg`), azimuth
 //!   grows to the right (u = 0.75 is East), the top row is the zenith, the bottom row the nadir.
 //! - 8-bit images are sRGB-encoded and converted to linear; .hdr/.exr are linear already.
-//!   Negative and non-finite values (left by lossy EXR compression) are set to 0.
+//!   NaN or infinite values are an error naming the file and the first bad pixel (lighting
+//!   cannot use them, and replacing them hides a broken file). Negative values, which lossy EXR
+//!   compression (DWAA/DWAB) leaves around sharp edges, are set to 0: that repair is the only
+//!   one, and it is documented in docs/robustness.md.
 
 use super::{CubeMap, cube_to_enu};
 use crate::colour::srgb_to_linear;
 use anyhow::{Context, Result, anyhow, bail};
 use glam::Vec3;
-use image::{DynamicImage, ImageReader};
+use image::DynamicImage;
 use std::f32::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
 
@@ -165,29 +168,63 @@ type LinearImage = (u32, u32, Vec<[f32; 3]>);
 /// Decode an image file to linear RGB: floats (.hdr, .exr) as they are, 8/16-bit as sRGB.
 fn read_linear(path: &Path) -> Result<LinearImage> {
     let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    let decoded = ImageReader::open(path)
-        .with_context(|| format!("cannot open image {}", path.display()))?
-        .with_guessed_format()
-        .with_context(|| format!("cannot read image {}", path.display()))?
-        .decode();
-    let image = match decoded {
-        Ok(image) => image,
+    let image = match super::decode::decode_file(path, &[]) {
+        Ok(decoded) => decoded.image,
         Err(e) if is_exr => return Err(exr_error(path, e)),
-        Err(e) => return Err(anyhow!(e).context(format!("cannot decode image {}", path.display()))),
+        Err(e) => return Err(e),
     };
-    Ok((image.width(), image.height(), linear_rgb(&image)))
+    checked_linear(&image).with_context(|| path.display().to_string())
+}
+
+/// An equirectangular image held in memory (any format `scene::decode` reads), in linear
+/// light, checked like a file.
+pub fn equirect_from_bytes(bytes: &[u8]) -> Result<Equirect> {
+    let image = super::decode::decode_bytes(bytes, &[])?.image;
+    let (width, height, pixels) = checked_linear(&image)?;
+    Equirect::new(width, height, pixels)
+}
+
+/// Linear RGB of a decoded image; NaN or infinite values are an error.
+fn checked_linear(image: &DynamicImage) -> Result<LinearImage> {
+    if let Some((count, x, y)) = non_finite(image) {
+        bail!("{count} pixel value(s) are NaN or infinite (the first at x={x}, y={y}); an environment must hold finite radiance");
+    }
+    Ok((image.width(), image.height(), linear_rgb(image)))
+}
+
+/// How many channel values of a float image are NaN or infinite, and the first such pixel.
+fn non_finite(image: &DynamicImage) -> Option<(usize, u32, u32)> {
+    let (count, first) = match image {
+        DynamicImage::ImageRgb32F(b) => count_bad(b.as_raw(), 3, b.width()),
+        DynamicImage::ImageRgba32F(b) => count_bad(b.as_raw(), 4, b.width()),
+        _ => (0, None),
+    };
+    first.map(|(x, y)| (count, x, y))
+}
+
+fn count_bad(values: &[f32], channels: usize, width: u32) -> (usize, Option<(u32, u32)>) {
+    let mut first = None;
+    let mut count = 0;
+    for (i, v) in values.iter().enumerate() {
+        if i % channels < 3 && !v.is_finite() {
+            count += 1;
+            let p = (i / channels) as u32;
+            first.get_or_insert((p % width, p / width));
+        }
+    }
+    (count, first)
 }
 
 /// Explain an EXR read failure; DWA compression gets a specific hint.
-fn exr_error(path: &Path, e: image::ImageError) -> anyhow::Error {
+fn exr_error(path: &Path, e: anyhow::Error) -> anyhow::Error {
     let compression = exr::meta::MetaData::read_from_file(path, false).ok().and_then(|m| m.headers.first().map(|h| h.compression));
     match compression {
         Some(c @ (exr::compression::Compression::DWAA(_) | exr::compression::Compression::DWAB(_))) => anyhow!(
-            "cannot decode EXR {} ({e}); it is {c}-compressed: if the file is intact, re-save it with ZIP or PIZ \
+            "cannot decode EXR {} ({e:#}); it is {c}-compressed: if the file is intact, re-save it with ZIP or PIZ \
              compression (e.g. `oiiotool in.exr --compression zip -o out.exr`)",
             path.display()
         ),
-        _ => anyhow!(e).context(format!("cannot decode EXR {}", path.display())),
+        _ => e,
     }
 }
 

@@ -240,11 +240,17 @@ impl SceneBuilder {
 
     /// Check and return the scene. Relative paths are resolved against the scene file's folder.
     pub fn build(self) -> Result<Scene> {
+        let output_given = self.table.contains_key("output");
         let mut scene: Scene = toml::Value::Table(self.table).try_into().map_err(|e: toml::de::Error| anyhow!("{e}"))?;
         for p in [&mut scene.model, &mut scene.environment, &mut scene.background].into_iter().flatten() {
             if p.is_relative() {
                 *p = self.base_dir.join(&*p);
             }
+        }
+        // An `output` the file (or --set) gives is relative to the file's folder too; the
+        // default name stays in the current directory.
+        if output_given && scene.output.is_relative() && !scene.output.as_os_str().is_empty() {
+            scene.output = self.base_dir.join(&scene.output);
         }
         scene.validate()?;
         Ok(scene)
@@ -270,6 +276,7 @@ fn check(name: &str, v: f64, lo: f64, hi: f64) -> Result<()> {
 impl Scene {
     /// Range and finiteness checks, naming the key at fault.
     pub fn validate(&self) -> Result<()> {
+        crate::output::check_image_path(&self.output).context("output")?;
         for (name, v) in [("width", self.width), ("height", self.height)] {
             if !(1..=8192).contains(&v) {
                 bail!("{name} = {v} is out of range 1..=8192");

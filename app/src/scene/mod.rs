@@ -107,8 +107,10 @@ pub fn cube_to_enu(c: Vec3) -> Vec3 {
 
 pub mod background;
 pub mod cubemap;
+pub mod decode;
 pub mod demo;
 pub mod environment;
 pub mod file;
+pub mod lod;
 pub mod model;
 pub mod normals;

@@ -15,7 +15,7 @@ use glam::Vec3;
 use std::path::{Path, PathBuf};
 
 pub use gltf::load_glb_bytes;
-pub use obj::load_obj_bytes;
+pub use obj::{load_obj_bytes, load_obj_mtl_bytes};
 
 /// How to load a model.
 #[derive(Clone, Debug)]
@@ -71,8 +71,9 @@ pub fn load_model_with(path: &Path, options: &ModelOptions) -> Result<LoadedMode
 }
 
 /// Check a finished mesh and fill what is missing: normals (computed with `crease_deg` when
-/// absent, wrong in count or not finite), normalised normals, zero UVs when absent.
-/// Returns a note when normals were computed. Errors on non-finite positions or bad indices.
+/// absent or wrong in count), normalised normals (a zero one is replaced, with a note), zero
+/// UVs when absent. Errors on non-finite positions, normals or texture coordinates and on bad
+/// indices.
 fn finish_mesh(mesh: &mut Mesh, crease_deg: f32, what: &str) -> Result<Option<String>> {
     if let Some(i) = mesh.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         bail!("{what}: vertex {i} has a non-finite position {:?}", mesh.positions[i]);
@@ -82,6 +83,12 @@ fn finish_mesh(mesh: &mut Mesh, crease_deg: f32, what: &str) -> Result<Option<St
     }
     if let Some(&i) = mesh.indices.iter().find(|&&i| i as usize >= mesh.positions.len()) {
         bail!("{what}: index {i} out of range ({} vertices)", mesh.positions.len());
+    }
+    if let Some(i) = mesh.normals.iter().position(|n| !n.iter().all(|c| c.is_finite())) {
+        bail!("{what}: vertex {i} has a non-finite normal {:?}", mesh.normals[i]);
+    }
+    if let Some(i) = mesh.uvs.iter().position(|t| !t.iter().all(|c| c.is_finite())) {
+        bail!("{what}: vertex {i} has a non-finite texture coordinate {:?}", mesh.uvs[i]);
     }
     if mesh.uvs.len() != mesh.positions.len() {
         mesh.uvs = vec![[0.0, 0.0]; mesh.positions.len()];

@@ -91,6 +91,7 @@ pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) -> Result<()> {
     let cos_limit = cos_crease - 1e-5;
     let mut corner_n = vec![Vec3::ZERO; tris.len() * 3];
     let mut parent: Vec<usize> = Vec::new();
+    let mut edges: Vec<(u32, usize)> = Vec::new();
     for p in 0..weld.len() {
         let around = &corners[start[p]..start[p + 1]];
         // Union the corners whose faces share an edge from this position and meet at no more
@@ -101,18 +102,22 @@ pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) -> Result<()> {
             let (t, k) = (c as usize / 3, c as usize % 3);
             [pos_id[tris[t][(k + 1) % 3]], pos_id[tris[t][(k + 2) % 3]]]
         };
-        for i in 0..around.len() {
-            let (ti, oi) = (around[i] as usize / 3, others(around[i]));
-            for (j, &cj) in around.iter().enumerate().skip(i + 1) {
-                let (tj, oj) = (cj as usize / 3, others(cj));
-                let share_edge = oi.iter().any(|o| oj.contains(o) && *o != p as u32);
-                let (ni, nj) = (face_n[ti], face_n[tj]);
-                let smooth = ni == Vec3::ZERO || nj == Vec3::ZERO || ni.dot(nj) >= cos_limit;
-                if share_edge && smooth {
-                    let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
-                    parent[ri.max(rj)] = ri.min(rj);
+        // Corners grouped by the edge (p, o) they share: linear in the corners around p, where
+        // comparing every pair was quadratic (a 30 000-gon fan, one vertex of 100 000 triangles).
+        edges.clear();
+        for (i, &c) in around.iter().enumerate() {
+            for o in others(c) {
+                if o != p as u32 {
+                    edges.push((o, i));
                 }
             }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        for bucket in edges.chunk_by(|a, b| a.0 == b.0) {
+            let members: Vec<usize> = bucket.iter().map(|&(_, i)| i).collect();
+            let normal = |i: usize| face_n[around[i] as usize / 3];
+            join_smooth(&mut parent, &members, normal, cos_limit);
         }
         // Each group's normal: corner-angle-weighted sum of its faces' normals.
         let roots: Vec<usize> = (0..around.len()).map(|i| find(&mut parent, i)).collect();
@@ -122,11 +127,15 @@ pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) -> Result<()> {
             sums[roots[i]] += weighted(c);
         }
         let all = sums.iter().copied().sum::<Vec3>();
+        let mut group_sizes = vec![0usize; around.len()];
+        for &r in &roots {
+            group_sizes[r] += 1;
+        }
         for (i, &c) in around.iter().enumerate() {
             let root = roots[i];
             let own = face_n[c as usize / 3];
             let mut group = sums[root].normalize_or_zero();
-            if own != Vec3::ZERO && group.dot(own) < cos_limit {
+            if own != Vec3::ZERO && group.dot(own) < cos_limit && group_sizes[root] <= MAX_DRIFT_GROUP {
                 // A long, gently bending group can drift more than the crease angle away from
                 // this face (rare, on noisy scans): average only the group's faces within the
                 // crease of this one, which keeps the normal on the face's front side.
@@ -169,6 +178,54 @@ pub fn compute_crease_normals(mesh: &mut Mesh, crease_deg: f32) -> Result<()> {
     mesh.normals = normals;
     mesh.indices = indices;
     Ok(())
+}
+
+/// Edges shared by more faces than this (non-manifold fans, repeated triangles) compare only
+/// faces with equal normals and neighbours in normal order, not every pair.
+const MAX_PAIRWISE: usize = 16;
+/// Smoothing groups larger than this skip the drift correction (it is quadratic in the group).
+const MAX_DRIFT_GROUP: usize = 1024;
+
+/// Union the faces (`members`, indices into `parent`) meeting along one edge whose normals are
+/// within the crease (`cos_limit`); a degenerate face (zero normal) joins all of them. Pairwise
+/// up to [`MAX_PAIRWISE`] faces; beyond that equal normals join and the distinct ones are
+/// compared with their neighbour in sorted order, so a hostile edge stays linear.
+fn join_smooth(parent: &mut [usize], members: &[usize], normal: impl Fn(usize) -> Vec3, cos_limit: f32) {
+    let mut union = |a: usize, b: usize| {
+        let (ra, rb) = (find(parent, a), find(parent, b));
+        parent[ra.max(rb)] = ra.min(rb);
+    };
+    let smooth = |a: Vec3, b: Vec3| a == Vec3::ZERO || b == Vec3::ZERO || a.dot(b) >= cos_limit;
+    if members.len() <= MAX_PAIRWISE {
+        for (k, &i) in members.iter().enumerate() {
+            for &j in &members[k + 1..] {
+                if smooth(normal(i), normal(j)) {
+                    union(i, j);
+                }
+            }
+        }
+        return;
+    }
+    if members.iter().any(|&i| normal(i) == Vec3::ZERO) {
+        for &j in &members[1..] {
+            union(members[0], j);
+        }
+        return;
+    }
+    let mut sorted: Vec<(u32, u32, u32, usize)> = members
+        .iter()
+        .map(|&i| {
+            let [x, y, z] = normal(i).to_array().map(f32::to_bits);
+            (x, y, z, i)
+        })
+        .collect();
+    sorted.sort_unstable();
+    for w in sorted.windows(2) {
+        let (a, b) = (w[0].3, w[1].3);
+        if (w[0].0, w[0].1, w[0].2) == (w[1].0, w[1].1, w[1].2) || smooth(normal(a), normal(b)) {
+            union(a, b);
+        }
+    }
 }
 
 /// Union-find root with path halving.

@@ -123,9 +123,18 @@ impl Record<'_> {
     }
 }
 
-/// Require timestamps to increase strictly from record to record.
+/// The longest gap between consecutive records (seconds). Replays step through a trace at a
+/// fixed rate, so a gap of 10⁷ s would be hours of frames of nothing; a longer pause is a broken
+/// recording.
+pub const MAX_TIME_GAP_S: f64 = 60.0;
+
+/// Require timestamps to increase strictly from record to record, by at most
+/// [`MAX_TIME_GAP_S`].
 pub fn check_time_increases(rec: &Record<'_>, previous: Option<f64>, t: f64) -> Result<()> {
     if let Some(p) = previous {
+        if t - p > MAX_TIME_GAP_S {
+            bail!("{}: time jumps {} s ({p} to {t}); at most {MAX_TIME_GAP_S} s between records", rec.at(), t - p);
+        }
         if t < p {
             bail!("{}: time goes backwards ({t} after {p})", rec.at());
         }
@@ -175,6 +184,9 @@ mod tests {
         assert!(e.contains("x.csv:3") && e.contains("backwards"), "{e}");
         assert!(check_time_increases(&recs[1], Some(2.0), 2.0).is_err());
         assert!(check_time_increases(&recs[1], Some(1.0), 2.0).is_ok());
+        let e = check_time_increases(&recs[1], Some(1.0), 1e7).unwrap_err().to_string();
+        assert!(e.contains("x.csv:3") && e.contains("at most 60 s"), "{e}");
+        assert!(check_time_increases(&recs[1], Some(1.0), 61.0).is_ok());
     }
 
     #[test]

@@ -29,7 +29,13 @@ const COLUMNS: [&str; 7] = ["t", "sensor", "x", "y", "z", "w", "accuracy"];
 
 /// Load and check every reading of a sensor trace.
 pub fn load_sensor_trace(path: &Path) -> Result<Vec<Reading>> {
-    let table = Table::read(path, &COLUMNS)?;
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    parse_sensor_trace(path, &text)
+}
+
+/// Check every reading of a sensor trace given as text (`path` names it in errors).
+pub fn parse_sensor_trace(path: &Path, text: &str) -> Result<Vec<Reading>> {
+    let table = Table::parse(path, text, &COLUMNS)?;
     let mut out = Vec::with_capacity(table.len());
     let mut prev: Option<f64> = None;
     for rec in table.records() {
@@ -38,6 +44,11 @@ pub fn load_sensor_trace(path: &Path) -> Result<Vec<Reading>> {
             && t < p
         {
             bail!("{}: time goes backwards ({t} after {p})", rec.at());
+        }
+        if let Some(p) = prev
+            && t - p > crate::sensors::csv::MAX_TIME_GAP_S
+        {
+            bail!("{}: time jumps {} s ({p} to {t}); at most {} s between records", rec.at(), t - p, crate::sensors::csv::MAX_TIME_GAP_S);
         }
         prev = Some(t);
         let vec3 = || -> Result<DVec3> { Ok(DVec3::new(rec.number("x")?, rec.number("y")?, rec.number("z")?)) };

@@ -65,17 +65,39 @@ fn ascii(exif: &Exif, tag: Tag) -> Option<String> {
 }
 
 /// Degrees from EXIF's (degrees, minutes, seconds) rationals and the N/S or E/W reference.
-fn coordinate(exif: &Exif, value: Tag, reference: Tag, negative: &str, limit: f64) -> Result<f64> {
+fn coordinate(exif: &Exif, value: Tag, reference: Tag, refs: [&str; 2], limit: f64) -> Result<f64> {
     let dms = rationals(exif, value).with_context(|| format!("no {value} tag"))?;
-    let [d, m, s] = dms[..] else {
-        bail!("{value} has {} values, expected 3", dms.len());
-    };
-    let magnitude = d + m / 60.0 + s / 3600.0;
-    if !magnitude.is_finite() || magnitude > limit {
-        bail!("{value} = {magnitude}° is not a valid coordinate");
-    }
     let r = ascii(exif, reference).with_context(|| format!("no {reference} tag"))?;
-    Ok(if r.eq_ignore_ascii_case(negative) { -magnitude } else { magnitude })
+    dms_to_degrees(&dms, &r, refs, limit).with_context(|| format!("{value} {dms:?} {reference} {r:?}"))
+}
+
+/// Signed degrees from (degrees, minutes, seconds) and a reference letter: `refs` is the
+/// positive and the negative one (["N", "S"] or ["E", "W"], EXIF 2.32 GPSLatitudeRef /
+/// GPSLongitudeRef). Minutes and seconds must be in 0..60, the result at most `limit` degrees;
+/// any other reference is an error.
+pub fn dms_to_degrees(dms: &[f64], reference: &str, refs: [&str; 2], limit: f64) -> Result<f64> {
+    let [d, m, s] = dms[..] else {
+        bail!("{} values, expected 3 (degrees, minutes, seconds)", dms.len());
+    };
+    if !(d.is_finite() && d >= 0.0) {
+        bail!("degrees {d} must be a finite number ≥ 0");
+    }
+    for (name, v) in [("minutes", m), ("seconds", s)] {
+        if !(v.is_finite() && (0.0..60.0).contains(&v)) {
+            bail!("{name} {v} must be in 0..60");
+        }
+    }
+    let magnitude = d + m / 60.0 + s / 3600.0;
+    if magnitude > limit {
+        bail!("{magnitude}° is beyond {limit}°");
+    }
+    if reference.eq_ignore_ascii_case(refs[0]) {
+        Ok(magnitude)
+    } else if reference.eq_ignore_ascii_case(refs[1]) {
+        Ok(-magnitude)
+    } else {
+        bail!("reference {reference:?} is neither {} nor {}", refs[0], refs[1])
+    }
 }
 
 fn gps_time(exif: &Exif) -> Result<Option<DateTime<Utc>>> {
@@ -131,8 +153,8 @@ impl PhotoInfo {
             .read_from_container(&mut BufReader::new(file))
             .with_context(|| format!("--from-photo: no readable EXIF data in {}", path.display()))?;
         let context = || format!("--from-photo: {} has no usable GPS position", path.display());
-        let latitude_deg = coordinate(&exif, Tag::GPSLatitude, Tag::GPSLatitudeRef, "S", 90.0).with_context(context)?;
-        let longitude_deg = coordinate(&exif, Tag::GPSLongitude, Tag::GPSLongitudeRef, "W", 180.0).with_context(context)?;
+        let latitude_deg = coordinate(&exif, Tag::GPSLatitude, Tag::GPSLatitudeRef, ["N", "S"], 90.0).with_context(context)?;
+        let longitude_deg = coordinate(&exif, Tag::GPSLongitude, Tag::GPSLongitudeRef, ["E", "W"], 180.0).with_context(context)?;
         let altitude_m = rationals(&exif, Tag::GPSAltitude).and_then(|v| v.first().copied()).map(|a| {
             let below = matches!(
                 exif.get_field(Tag::GPSAltitudeRef, In::PRIMARY).map(|f| &f.value),
@@ -185,6 +207,26 @@ impl PhotoInfo {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn degrees_minutes_seconds() {
+        // 43° 28' 1.76" N = 43 + 28/60 + 1.76/3600 = 43.467156° (by hand).
+        let lat = dms_to_degrees(&[43.0, 28.0, 1.76], "N", ["N", "S"], 90.0).unwrap();
+        assert!((lat - 43.467_155_6).abs() < 1e-6, "{lat}");
+        assert_eq!(dms_to_degrees(&[11.0, 30.0, 0.0], "w", ["E", "W"], 180.0).unwrap(), -11.5);
+        for (dms, r, needle) in [
+            (&[10.0, 75.0, 0.0][..], "N", "minutes 75"),
+            (&[10.0, 5.0, 60.0][..], "N", "seconds 60"),
+            (&[10.0, 5.0, 0.0][..], "X", "reference \"X\""),
+            (&[91.0, 0.0, 0.0][..], "N", "beyond 90"),
+            (&[-1.0, 0.0, 0.0][..], "S", "degrees -1"),
+            (&[f64::NAN, 0.0, 0.0][..], "N", "degrees NaN"),
+            (&[1.0, 2.0][..], "N", "2 values"),
+        ] {
+            let err = dms_to_degrees(dms, r, ["N", "S"], 90.0).unwrap_err().to_string();
+            assert!(err.contains(needle), "{dms:?} {r}: {err}");
+        }
+    }
 
     #[test]
     fn offsets() {

@@ -1,38 +1,362 @@
 //! glTF 2.0 (.gltf with its buffers and images beside it, or a single .glb), through the gltf
 //! crate: triangle primitives of the default scene with node transforms applied, TEXCOORD_0,
 //! and the metallic-roughness material's base colour (factor and texture).
+//!
+//! The document is checked before it is walked (see [`validate`]): the gltf crate's accessors
+//! trust indices and sizes and panic or allocate without bound on a hostile file. Buffers and
+//! images are read here, so that an error names the file at fault (a missing .bin, a truncated
+//! texture), and only the base-colour images are decoded, with the limits of `scene::decode`.
 
 use super::{LoadedModel, finish_mesh};
+use crate::scene::background::rgba8_from_dynamic;
 use crate::scene::{Material, Mesh, Model, Rgba8Image};
+use ::gltf::json;
 use ::gltf::mesh::Mode;
 use anyhow::{Context, Result, anyhow, bail};
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat3, Mat4, Quat, Vec3};
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// Node hierarchies deeper than this are refused (the spec forbids cycles; this guards
-/// against files that have them anyway).
+/// Node hierarchies deeper than this are refused.
 const MAX_NODE_DEPTH: usize = 256;
+/// An accessor without a bufferView is all zeros; more elements than this is refused.
+const MAX_ACCESSOR_COUNT: u64 = 1 << 26;
 
 pub(super) fn load_gltf_file(path: &Path) -> Result<LoadedModel> {
-    let (doc, buffers, images) = ::gltf::import(path).with_context(|| format!("cannot load glTF {}", path.display()))?;
-    build(&doc, &buffers, &images, &path.display().to_string())
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read glTF {}", path.display()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    import(&bytes, Some(base), &path.display().to_string())
 }
 
 /// Load a self-contained glTF held in memory (a .glb, or a .gltf with data: URIs), e.g. the
 /// built-in demo model.
 pub fn load_glb_bytes(bytes: &[u8]) -> Result<Model> {
-    let (doc, buffers, images) = ::gltf::import_slice(bytes).context("cannot load embedded glTF")?;
-    let loaded = build(&doc, &buffers, &images, "embedded glTF")?;
+    let loaded = import(bytes, None, "embedded glTF")?;
     if loaded.model.triangle_count() == 0 {
         bail!("embedded glTF contains no triangles");
     }
     Ok(loaded.model)
 }
 
-fn build(doc: &::gltf::Document, buffers: &[::gltf::buffer::Data], images: &[::gltf::image::Data], what: &str) -> Result<LoadedModel> {
+/// Parse, read the buffers, validate, and build. `base` is the folder external files are
+/// relative to (None: external files are refused).
+fn import(bytes: &[u8], base: Option<&Path>, what: &str) -> Result<LoadedModel> {
+    let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(bytes).with_context(|| format!("cannot load glTF {what}"))?;
+    let mut buffers = Vec::new();
+    for (i, buffer) in document.as_json().buffers.iter().enumerate() {
+        let data = match &buffer.uri {
+            None => blob.take().ok_or_else(|| anyhow!("{what}: buffer {i} has no uri and there is no GLB binary chunk"))?,
+            Some(uri) => read_uri(uri, base).with_context(|| format!("{what}: buffer {i}"))?,
+        };
+        if (data.len() as u64) < buffer.byte_length.0 {
+            bail!(
+                "{what}: buffer {i} ({}) holds {} bytes, the glTF says {}",
+                describe_uri(buffer.uri.as_deref(), base),
+                data.len(),
+                buffer.byte_length.0
+            );
+        }
+        buffers.push(data);
+    }
+    validate(document.as_json(), &buffers).with_context(|| format!("invalid glTF {what}"))?;
+    build(&document, &buffers, base, what)
+}
+
+/// The bytes a URI names: a base64 `data:` URI, or a file relative to `base`.
+fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, data) = rest.split_once(";base64,").ok_or_else(|| anyhow!("data: URI is not base64"))?;
+        return base64_decode(data);
+    }
+    let path = uri_path(uri, base)?;
+    std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+fn uri_path(uri: &str, base: Option<&Path>) -> Result<PathBuf> {
+    if uri.contains("://") {
+        bail!("URI '{uri}' is not a local file");
+    }
+    let base = base.ok_or_else(|| anyhow!("external file '{uri}' in an embedded glTF"))?;
+    Ok(base.join(percent_decode(uri)))
+}
+
+fn describe_uri(uri: Option<&str>, base: Option<&Path>) -> String {
+    match uri {
+        None => "GLB binary chunk".into(),
+        Some(u) if u.starts_with("data:") => "data: URI".into(),
+        Some(u) => uri_path(u, base).map_or_else(|_| u.to_string(), |p| p.display().to_string()),
+    }
+}
+
+/// `%20` and friends in a relative URI (RFC 3986 §2.1); malformed escapes are kept as written.
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        if b[i] == b'%'
+            && let (Some(h), Some(l)) = (b.get(i + 1).and_then(|&c| hex(c)), b.get(i + 2).and_then(|&c| hex(c)))
+        {
+            out.push((h * 16 + l) as u8);
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Standard base64 (RFC 4648 §4), padding optional, whitespace not allowed.
+fn base64_decode(s: &str) -> Result<Vec<u8>> {
+    let s = s.trim_end_matches('=');
+    let mut out = Vec::with_capacity(s.len() / 4 * 3 + 3);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for (i, c) in s.bytes().enumerate() {
+        let v = match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => bail!("invalid base64 character at offset {i}"),
+        };
+        acc = (acc << 6) | u32::from(v);
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    Ok(out)
+}
+
+/// Check everything the walk below relies on, so that a hostile document is an error naming
+/// what is wrong instead of a panic inside the gltf crate, a hang or a silent wrong result:
+/// indices in range, sizes within their buffers, attribute types, nodes forming a forest (no
+/// cycles, no node listed twice), invertible node transforms, material factors in 0..1.
+pub(crate) fn validate(root: &json::Root, buffers: &[Vec<u8>]) -> Result<()> {
+    use json::accessor::{ComponentType, Type};
+    use json::validation::Checked::Valid;
+    let n_views = root.buffer_views.len();
+    for (i, v) in root.buffer_views.iter().enumerate() {
+        let buffer = buffers.get(v.buffer.value()).ok_or_else(|| anyhow!("bufferView {i}: buffer {} does not exist", v.buffer.value()))?;
+        let end = v.byte_offset.map_or(0, |o| o.0).checked_add(v.byte_length.0);
+        if end.is_none_or(|e| e > buffer.len() as u64) {
+            bail!(
+                "bufferView {i}: bytes {}+{} lie outside buffer {} ({} bytes)",
+                v.byte_offset.map_or(0, |o| o.0),
+                v.byte_length.0,
+                v.buffer.value(),
+                buffer.len()
+            );
+        }
+    }
+    let view_fits = |what: &str, view: usize, offset: u64, stride: Option<u64>, count: u64, elem: u64| -> Result<()> {
+        let v = root.buffer_views.get(view).ok_or_else(|| anyhow!("{what}: bufferView {view} does not exist ({n_views} views)"))?;
+        let stride = stride.or(v.byte_stride.map(|s| s.0 as u64)).unwrap_or(elem).max(elem);
+        let need = if count == 0 {
+            Some(0)
+        } else {
+            (count - 1).checked_mul(stride).and_then(|x| x.checked_add(elem)).and_then(|x| x.checked_add(offset))
+        };
+        match need {
+            Some(n) if n <= v.byte_length.0 => Ok(()),
+            _ => bail!(
+                "{what}: {count} elements of {elem} bytes from offset {offset} do not fit bufferView {view} ({} bytes)",
+                v.byte_length.0
+            ),
+        }
+    };
+    for (i, a) in root.accessors.iter().enumerate() {
+        let what = format!("accessor {i}");
+        let (Valid(ty), Valid(comp)) = (&a.type_, &a.component_type) else { bail!("{what}: unknown type or componentType") };
+        let elem = (comp.0.size() * ty.multiplicity()) as u64;
+        let offset = a.byte_offset.map_or(0, |o| o.0);
+        match a.buffer_view {
+            Some(view) => view_fits(&what, view.value(), offset, None, a.count.0, elem)?,
+            None if a.count.0 > MAX_ACCESSOR_COUNT => {
+                bail!("{what}: {} elements without a bufferView (at most {MAX_ACCESSOR_COUNT})", a.count.0)
+            }
+            None => {}
+        }
+        if let Some(sparse) = &a.sparse {
+            if sparse.count.0 > a.count.0 {
+                bail!("{what}: {} sparse elements but only {} in the accessor", sparse.count.0, a.count.0);
+            }
+            let Valid(index_type) = &sparse.indices.component_type else { bail!("{what}: unknown sparse index type") };
+            view_fits(
+                &format!("{what} sparse indices"),
+                sparse.indices.buffer_view.value(),
+                sparse.indices.byte_offset.0,
+                Some(index_type.0.size() as u64),
+                sparse.count.0,
+                index_type.0.size() as u64,
+            )?;
+            view_fits(
+                &format!("{what} sparse values"),
+                sparse.values.buffer_view.value(),
+                sparse.values.byte_offset.0,
+                Some(elem),
+                sparse.count.0,
+                elem,
+            )?;
+        }
+    }
+    let accessor = |what: &str, index: usize| {
+        root.accessors.get(index).ok_or_else(|| anyhow!("{what}: accessor {index} does not exist ({} accessors)", root.accessors.len()))
+    };
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let what = format!("mesh {m} primitive {p}");
+            for (semantic, index) in &prim.attributes {
+                let a = accessor(&what, index.value())?;
+                let (Valid(ty), Valid(comp)) = (&a.type_, &a.component_type) else {
+                    bail!("{what}: accessor {} has an unknown type", index.value())
+                };
+                let expected = match semantic {
+                    Valid(json::mesh::Semantic::Positions) => Some((Type::Vec3, "POSITION", true)),
+                    Valid(json::mesh::Semantic::Normals) => Some((Type::Vec3, "NORMAL", true)),
+                    Valid(json::mesh::Semantic::TexCoords(0)) => Some((Type::Vec2, "TEXCOORD_0", false)),
+                    _ => None,
+                };
+                if let Some((want, name, float_only)) = expected
+                    && (*ty != want || (float_only && comp.0 != ComponentType::F32))
+                {
+                    bail!(
+                        "{what}: {name} is {ty:?} of {:?}; glTF 2.0 requires {want:?}{}",
+                        comp.0,
+                        if float_only { " of FLOAT" } else { "" }
+                    );
+                }
+            }
+            if let Some(index) = prim.indices {
+                let a = accessor(&format!("{what} indices"), index.value())?;
+                let (Valid(ty), Valid(comp)) = (&a.type_, &a.component_type) else {
+                    bail!("{what}: accessor {} has an unknown type", index.value())
+                };
+                if *ty != Type::Scalar || !matches!(comp.0, ComponentType::U8 | ComponentType::U16 | ComponentType::U32) {
+                    bail!("{what}: indices are {ty:?} of {:?}; glTF 2.0 requires unsigned SCALAR", comp.0);
+                }
+            }
+            if let Some(mat) = prim.material
+                && mat.value() >= root.materials.len()
+            {
+                bail!("{what}: material {} does not exist", mat.value());
+            }
+            if !matches!(prim.mode, Valid(_)) {
+                bail!("{what}: unknown primitive mode");
+            }
+        }
+    }
+    for (i, image) in root.images.iter().enumerate() {
+        match (&image.buffer_view, &image.uri, &image.mime_type) {
+            (Some(_), _, None) => bail!("image {i}: a bufferView without a mimeType (glTF 2.0 requires one)"),
+            (Some(view), _, Some(_)) if view.value() >= n_views => bail!("image {i}: bufferView {} does not exist", view.value()),
+            (None, None, _) => bail!("image {i}: neither a uri nor a bufferView"),
+            _ => {}
+        }
+    }
+    for (i, t) in root.textures.iter().enumerate() {
+        if t.source.value() >= root.images.len() {
+            bail!("texture {i}: image {} does not exist", t.source.value());
+        }
+    }
+    for (i, m) in root.materials.iter().enumerate() {
+        let name = m.name.clone().unwrap_or_else(|| format!("material {i}"));
+        let pbr = &m.pbr_metallic_roughness;
+        let factor = pbr.base_color_factor.0;
+        if !factor.iter().all(|c| (0.0..=1.0).contains(c)) {
+            bail!("material '{name}': baseColorFactor {factor:?} outside 0..1 (glTF 2.0 §5.22)");
+        }
+        for (key, v) in [("metallicFactor", pbr.metallic_factor.0), ("roughnessFactor", pbr.roughness_factor.0)] {
+            if !(0.0..=1.0).contains(&v) {
+                bail!("material '{name}': {key} {v} outside 0..1");
+            }
+        }
+        if let Some(t) = &pbr.base_color_texture
+            && t.index.value() >= root.textures.len()
+        {
+            bail!("material '{name}': texture {} does not exist", t.index.value());
+        }
+    }
+    // Nodes: children in range, each node the child of at most one parent, no cycles; then the
+    // walk from any root visits each node once.
+    let n_nodes = root.nodes.len();
+    let mut parent: Vec<Option<usize>> = vec![None; n_nodes];
+    for (i, node) in root.nodes.iter().enumerate() {
+        for c in node.children.iter().flatten() {
+            let c = c.value();
+            if c >= n_nodes {
+                bail!("node {i}: child {c} does not exist ({n_nodes} nodes)");
+            }
+            if let Some(p) = parent[c] {
+                bail!("node {c} is listed as a child of node {p} and again of node {i}; glTF nodes form a forest");
+            }
+            parent[c] = Some(i);
+        }
+        if let Some(mesh) = node.mesh
+            && mesh.value() >= root.meshes.len()
+        {
+            bail!("node {i}: mesh {} does not exist", mesh.value());
+        }
+        let local = local_matrix(node);
+        if !local.is_finite() || local.determinant() == 0.0 || !local.determinant().is_finite() {
+            bail!("node {i}: its transform is not invertible or not finite (an all-zero matrix or scale draws nothing)");
+        }
+    }
+    for start in 0..n_nodes {
+        // Following parents from any node must reach a root within n steps.
+        let (mut at, mut steps) = (start, 0);
+        while let Some(p) = parent[at] {
+            at = p;
+            steps += 1;
+            if steps > n_nodes {
+                bail!("node {start}: the node hierarchy has a cycle");
+            }
+            if steps > MAX_NODE_DEPTH {
+                bail!("node {start}: the node hierarchy is deeper than {MAX_NODE_DEPTH}");
+            }
+        }
+    }
+    for (s, scene) in root.scenes.iter().enumerate() {
+        let mut seen = std::collections::HashSet::new();
+        for n in &scene.nodes {
+            if n.value() >= n_nodes {
+                bail!("scene {s}: node {} does not exist", n.value());
+            }
+            if parent[n.value()].is_some() || !seen.insert(n.value()) {
+                bail!("scene {s}: node {} is listed twice or is another node's child", n.value());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A node's local transform: its matrix, or T·R·S (glTF 2.0 §5.25).
+fn local_matrix(node: &json::scene::Node) -> Mat4 {
+    if let Some(m) = node.matrix {
+        return Mat4::from_cols_array(&m);
+    }
+    let t = node.translation.map_or(Vec3::ZERO, Vec3::from_array);
+    let r = node.rotation.map_or(Quat::IDENTITY, |q| Quat::from_array(q.0));
+    let s = node.scale.map_or(Vec3::ONE, Vec3::from_array);
+    Mat4::from_scale_rotation_translation(s, r, t)
+}
+
+fn build(doc: &::gltf::Document, buffers: &[Vec<u8>], base: Option<&Path>, what: &str) -> Result<LoadedModel> {
     let what = what.to_string();
-    let mut out = Builder { what: &what, images, notes: Vec::new(), materials: Vec::new(), by_gltf: HashMap::new(), meshes: Vec::new() };
+    let mut out = Builder {
+        what: &what,
+        root: doc.as_json(),
+        buffers,
+        base,
+        notes: Vec::new(),
+        materials: Vec::new(),
+        by_gltf: HashMap::new(),
+        meshes: Vec::new(),
+    };
 
     let roots: Vec<::gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().collect(),
@@ -45,13 +369,10 @@ fn build(doc: &::gltf::Document, buffers: &[::gltf::buffer::Data], images: &[::g
     };
     let mut stack: Vec<(::gltf::Node, Mat4, usize)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     while let Some((node, parent, depth)) = stack.pop() {
-        if depth > MAX_NODE_DEPTH {
-            bail!("{what}: node hierarchy deeper than {MAX_NODE_DEPTH} (a cycle?)");
-        }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(mesh) = node.mesh() {
             for prim in mesh.primitives() {
-                out.add_primitive(&mesh, &prim, world, buffers)?;
+                out.add_primitive(&mesh, &prim, world)?;
             }
         }
         stack.extend(node.children().collect::<Vec<_>>().into_iter().rev().map(|c| (c, world, depth + 1)));
@@ -63,7 +384,9 @@ fn build(doc: &::gltf::Document, buffers: &[::gltf::buffer::Data], images: &[::g
 /// Collects primitives into one mesh per material.
 struct Builder<'a> {
     what: &'a str,
-    images: &'a [::gltf::image::Data],
+    root: &'a json::Root,
+    buffers: &'a [Vec<u8>],
+    base: Option<&'a Path>,
     notes: Vec<String>,
     materials: Vec<Material>,
     /// glTF material index (None: primitive without material) to index in `materials`.
@@ -72,22 +395,20 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn add_primitive(
-        &mut self,
-        mesh: &::gltf::Mesh,
-        prim: &::gltf::Primitive,
-        world: Mat4,
-        buffers: &[::gltf::buffer::Data],
-    ) -> Result<()> {
+    fn add_primitive(&mut self, mesh: &::gltf::Mesh, prim: &::gltf::Primitive, world: Mat4) -> Result<()> {
         let label = format!("{}: mesh '{}' primitive {}", self.what, mesh.name().unwrap_or("?"), prim.index());
         let mode = prim.mode();
         if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
             self.notes.push(format!("{label}: {mode:?} primitive skipped (only triangles are drawn)"));
             return Ok(());
         }
-        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let buffers = self.buffers;
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
         let positions: Vec<[f32; 3]> = reader.read_positions().ok_or_else(|| anyhow!("{label}: no POSITION attribute"))?.collect();
         let normals: Vec<[f32; 3]> = reader.read_normals().map(|n| n.collect()).unwrap_or_default();
+        if let Some(i) = normals.iter().position(|n| !n.iter().all(|c| c.is_finite())) {
+            bail!("{label}: NORMAL {i} is not finite ({:?})", normals[i]);
+        }
         let uvs: Vec<[f32; 2]> = reader.read_tex_coords(0).map(|t| t.into_f32().collect()).unwrap_or_default();
         let raw: Vec<u32> = match reader.read_indices() {
             Some(i) => i.into_u32().collect(),
@@ -147,6 +468,24 @@ impl Builder<'_> {
         Ok(self.materials.len() - 1)
     }
 
+    /// Decode image `index` (validated) with the limits of `scene::decode`; errors name the file.
+    fn image(&self, index: usize) -> Result<Rgba8Image> {
+        use image::ImageFormat::{Jpeg, Png};
+        let image = &self.root.images[index];
+        let decoded = match (&image.buffer_view, &image.uri) {
+            (Some(view), _) => {
+                let v = &self.root.buffer_views[view.value()];
+                let start = v.byte_offset.map_or(0, |o| o.0) as usize;
+                let bytes = &self.buffers[v.buffer.value()][start..start + v.byte_length.0 as usize];
+                crate::scene::decode::decode_bytes(bytes, &[Png, Jpeg])?
+            }
+            (None, Some(uri)) if uri.starts_with("data:") => crate::scene::decode::decode_bytes(&read_uri(uri, self.base)?, &[Png, Jpeg])?,
+            (None, Some(uri)) => crate::scene::decode::decode_file(&uri_path(uri, self.base)?, &[Png, Jpeg])?,
+            (None, None) => bail!("image {index} has neither a uri nor a bufferView"),
+        };
+        Ok(rgba8_from_dynamic(&decoded.image))
+    }
+
     fn convert_material(&mut self, mat: &::gltf::Material, index: usize) -> Result<Material> {
         let name = mat.name().map_or_else(|| format!("material {index}"), str::to_string);
         let pbr = mat.pbr_metallic_roughness();
@@ -162,9 +501,8 @@ impl Builder<'_> {
                     ));
                 }
                 let image_index = info.texture().source().index();
-                let data = self.images.get(image_index).ok_or_else(|| anyhow!("{}: image {image_index} missing", self.what))?;
                 Some(
-                    rgba8_from_gltf(data)
+                    self.image(image_index)
                         .with_context(|| format!("{}: base-colour image {image_index} of material '{name}'", self.what))?,
                 )
             }
@@ -207,43 +545,6 @@ fn fan_to_list(v: &[u32]) -> Vec<u32> {
     (0..v.len().saturating_sub(2)).flat_map(|i| [v[i + 1], v[i + 2], v[0]]).collect()
 }
 
-/// A decoded glTF image as 8-bit RGBA (grey replicated, 16-bit rounded to 8).
-fn rgba8_from_gltf(data: &::gltf::image::Data) -> Result<Rgba8Image> {
-    use ::gltf::image::Format;
-    let n = (data.width as usize) * (data.height as usize);
-    let wide = |i: usize| -> u8 {
-        let v = u16::from_ne_bytes([data.pixels[2 * i], data.pixels[2 * i + 1]]) as u32;
-        ((v * 255 + 32767) / 65535) as u8
-    };
-    let (channels, bytes_per) = match data.format {
-        Format::R8 => (1, 1),
-        Format::R8G8 => (2, 1),
-        Format::R8G8B8 => (3, 1),
-        Format::R8G8B8A8 => (4, 1),
-        Format::R16 => (1, 2),
-        Format::R16G16 => (2, 2),
-        Format::R16G16B16 => (3, 2),
-        Format::R16G16B16A16 => (4, 2),
-        other => bail!("unsupported pixel format {other:?} for a base-colour texture"),
-    };
-    if data.pixels.len() != n * channels * bytes_per {
-        bail!("image data size does not match {}x{}", data.width, data.height);
-    }
-    let get = |i: usize| if bytes_per == 1 { data.pixels[i] } else { wide(i) };
-    let mut pixels = Vec::with_capacity(n * 4);
-    for p in 0..n {
-        let c = |k: usize| get(p * channels + k);
-        let rgba = match channels {
-            1 => [c(0), c(0), c(0), 255],
-            2 => [c(0), c(0), c(0), c(1)],
-            3 => [c(0), c(1), c(2), 255],
-            _ => [c(0), c(1), c(2), c(3)],
-        };
-        pixels.extend_from_slice(&rgba);
-    }
-    Ok(Rgba8Image { width: data.width, height: data.height, pixels })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -263,5 +564,19 @@ mod tests {
         assert_eq!(blinn_phong_exponent(1.0), 1.0);
         assert_eq!(blinn_phong_exponent(0.0), 8192.0);
         assert_eq!(blinn_phong_exponent(f32::NAN), 1.0);
+    }
+
+    #[test]
+    fn base64_and_percent_decoding_follow_the_rfcs() {
+        // RFC 4648 §10 test vectors.
+        for (enc, dec) in
+            [("", ""), ("Zg==", "f"), ("Zm8=", "fo"), ("Zm9v", "foo"), ("Zm9vYg==", "foob"), ("Zm9vYmE=", "fooba"), ("Zm9vYmFy", "foobar")]
+        {
+            assert_eq!(base64_decode(enc).unwrap(), dec.as_bytes());
+        }
+        assert!(base64_decode("Zm9v!").is_err());
+        // RFC 3986 §2.1: "%20" is a space; a malformed escape stays as written.
+        assert_eq!(percent_decode("my%20tex.png"), "my tex.png");
+        assert_eq!(percent_decode("100%.png"), "100%.png");
     }
 }

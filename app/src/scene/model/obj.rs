@@ -27,7 +27,8 @@ struct MtlLib {
 
 /// Load an OBJ file and its materials.
 pub(super) fn load_obj_file(path: &Path, options: &ModelOptions) -> Result<LoadedModel> {
-    let file = std::fs::File::open(path).with_context(|| format!("cannot open OBJ {}", path.display()))?;
+    let text = std::fs::read(path).with_context(|| format!("cannot read OBJ {}", path.display()))?;
+    check_obj(&text).with_context(|| format!("malformed OBJ {}", path.display()))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let libs: RefCell<Vec<MtlLib>> = RefCell::new(Vec::new());
     let mtl_error: RefCell<Option<anyhow::Error>> = RefCell::new(None);
@@ -41,8 +42,16 @@ pub(super) fn load_obj_file(path: &Path, options: &ModelOptions) -> Result<Loade
                 return Ok((Vec::new(), Default::default()));
             }
             Err(e) => Err(anyhow!(e).context(format!("cannot open material library {}", mtl_path.display()))),
-            Ok(f) => tobj::load_mtl_buf(&mut std::io::BufReader::new(f))
-                .map_err(|e| anyhow!("malformed material library {}: {e}", mtl_path.display())),
+            Ok(mut f) => {
+                let mut text = Vec::new();
+                std::io::Read::read_to_end(&mut f, &mut text)
+                    .map_err(|e| anyhow!(e).context(format!("cannot read material library {}", mtl_path.display())))
+                    .and_then(|_| check_mtl(&text).with_context(|| format!("material library {}", mtl_path.display())))
+                    .and_then(|()| {
+                        tobj::load_mtl_buf(&mut std::io::Cursor::new(&text))
+                            .map_err(|e| anyhow!("malformed material library {}: {e}", mtl_path.display()))
+                    })
+            }
         };
         match parsed {
             Ok(parsed) => {
@@ -55,8 +64,7 @@ pub(super) fn load_obj_file(path: &Path, options: &ModelOptions) -> Result<Loade
             }
         }
     };
-    let mut reader = std::io::BufReader::new(file);
-    let parsed = parse(&mut reader, loader).with_context(|| format!("malformed OBJ {}", path.display()))?;
+    let parsed = parse(&mut std::io::Cursor::new(&text), loader).with_context(|| format!("malformed OBJ {}", path.display()))?;
     if let Some(e) = mtl_error.into_inner() {
         return Err(e.context(format!("materials of OBJ {}", path.display())));
     }
@@ -74,11 +82,79 @@ pub(super) fn load_obj_file(path: &Path, options: &ModelOptions) -> Result<Loade
 /// Load an OBJ held in memory (the built-in demo scene); `mtllib` lines are ignored and every
 /// mesh gets the default material. Normals are computed where absent (60° crease).
 pub fn load_obj_bytes(obj: &[u8]) -> Result<Model> {
+    check_obj(obj).context("malformed embedded OBJ")?;
     let no_materials = |_: &Path| -> tobj::MTLLoadResult { Ok((Vec::new(), Default::default())) };
     let (meshes, _) = parse(&mut std::io::Cursor::new(obj), no_materials).context("malformed embedded OBJ")?;
     let model = build_model(meshes, Vec::new(), DEFAULT_CREASE_DEG, "embedded OBJ", &mut Vec::new())?;
     if model.triangle_count() == 0 {
         bail!("embedded OBJ contains no triangles");
+    }
+    Ok(model)
+}
+
+/// Lines of an OBJ that tobj would silently drop or misread: a face (`f`) with fewer than
+/// three vertices (a truncated line). Errors name the line.
+fn check_obj(text: &[u8]) -> Result<()> {
+    for (n, line) in text.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        if words.next() == Some("f") {
+            let count = words.count();
+            if count < 3 {
+                bail!("line {}: a face with {count} vertices (at least 3; a truncated line?)", n + 1);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Colour and number statements of an MTL, checked before tobj reads them (it would panic on
+/// `Kd 0.5` and silently replace NaN, 1e39 or −1 by a default): `Ka/Kd/Ks` three numbers in
+/// 0..=1, `Ke` three finite numbers ≥ 0, `Ns` finite ≥ 0, `d` and `Tr` in 0..=1, `Ni` finite.
+/// Errors name the line.
+fn check_mtl(text: &[u8]) -> Result<()> {
+    for (n, line) in text.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        let (count, lo, hi) = match key {
+            "Ka" | "Kd" | "Ks" => (3, 0.0, 1.0),
+            "Ke" => (3, 0.0, f32::MAX),
+            "Ns" => (1, 0.0, f32::MAX),
+            "d" | "Tr" => (1, 0.0, 1.0),
+            "Ni" => (1, f32::MIN, f32::MAX),
+            _ => continue,
+        };
+        let values: Vec<&str> = words.take(count).collect();
+        if values.len() < count {
+            bail!("line {}: {key} needs {count} number(s), got {:?}", n + 1, values.join(" "));
+        }
+        for v in values {
+            // tobj reads the first `count` words (other forms, such as `Kd spectral file`, are
+            // its parse errors).
+            let Ok(x) = v.parse::<f32>() else { continue };
+            if !(x.is_finite() && (lo..=hi).contains(&x)) {
+                let range = if hi == f32::MAX { format!("finite and at least {lo}") } else { format!("in {lo}..={hi}") };
+                bail!("line {}: {key} value {v} must be {range}", n + 1);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Load an OBJ and one material library held in memory (the fuzz targets): every `mtllib` gets
+/// `mtl`, whose texture statements are ignored (no files are read). Same checks as a file.
+pub fn load_obj_mtl_bytes(obj: &[u8], mtl: &[u8]) -> Result<Model> {
+    check_obj(obj).context("malformed OBJ")?;
+    check_mtl(mtl).context("malformed MTL")?;
+    let library = tobj::load_mtl_buf(&mut std::io::Cursor::new(mtl)).map_err(|e| anyhow!("malformed MTL: {e}"))?;
+    let loader = |_: &Path| -> tobj::MTLLoadResult { Ok(library.clone()) };
+    let (meshes, mut materials) = parse(&mut std::io::Cursor::new(obj), loader).context("malformed OBJ")?;
+    materials.iter_mut().for_each(|m| m.diffuse_texture = None);
+    let converted = convert_materials(&materials, &[])?;
+    let model = build_model(meshes, converted, DEFAULT_CREASE_DEG, "OBJ", &mut Vec::new())?;
+    if model.triangle_count() == 0 {
+        bail!("OBJ contains no triangles");
     }
     Ok(model)
 }
@@ -284,5 +360,33 @@ mod tests {
         assert!(load_obj_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").is_err());
         assert!(load_obj_bytes(b"# nothing\n").is_err());
         assert!(load_obj_bytes(b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").is_err());
+    }
+
+    #[test]
+    fn bad_obj_and_mtl_lines_are_errors_naming_the_line() {
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+        let cases: [(String, &str); 5] = [
+            (format!("{tri}f 1 2\n"), "line 4"),
+            (format!("{tri}f\n"), "line 4"),
+            (format!("{tri}vn nan 0 1\nf 1//1 2//1 3//1\n"), "non-finite normal"),
+            (format!("{tri}vt inf 0\nf 1/1 2/1 3/1\n"), "non-finite texture coordinate"),
+            (format!("{tri}vn 1e39 0 0\nf 1//1 2//1 3//1\n"), "non-finite normal"),
+        ];
+        for (obj, needle) in cases {
+            let err = format!("{:#}", load_obj_bytes(obj.as_bytes()).unwrap_err());
+            assert!(err.contains(needle), "{obj:?}: {err}");
+        }
+        for (mtl, needle) in [
+            ("newmtl a\nKd nan 0 0\n", "line 2: Kd value nan"),
+            ("newmtl a\nKd 1e39 0 0\n", "line 2: Kd value 1e39"),
+            ("newmtl a\n\nKd -1 0.5 0.5\n", "line 3: Kd value -1"),
+            ("newmtl a\nKd 0.5\n", "line 2: Kd needs 3"),
+            ("newmtl a\nd 2\n", "line 2: d value 2"),
+            ("newmtl a\nNs -4\n", "line 2: Ns value -4"),
+        ] {
+            let err = format!("{:#}", check_mtl(mtl.as_bytes()).unwrap_err());
+            assert!(err.contains(needle), "{mtl:?}: {err}");
+        }
+        check_mtl(b"newmtl a\nKd 0.8 0.8 0.8\nKs 0 0 0\nNs 32\nd 1\nmap_Kd tex.png\n").unwrap();
     }
 }

@@ -1,0 +1,116 @@
+//! `previz bench lod`: each level of the model's LOD chain rendered in the scene, against the
+//! full-detail render: triangles, simplification error (model units and projected pixels at
+//! the scene's distance), mean FLIP and GPU time, and which level the screen rule picks.
+
+use super::median;
+use crate::capture::replay::mean_flip;
+use crate::cli::composite::{Inputs, compositor_for};
+use crate::render::{FrameParams, Layer, gpu::Gpu};
+use crate::scene::file::Scene;
+use crate::scene::lod::{self, LodChain, MAX_SCREEN_ERROR_PX};
+use crate::scene::{Mesh, Model};
+use anyhow::Result;
+use glam::Vec3;
+use serde::Serialize;
+
+/// One level of the chain, measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct LodRow {
+    pub level: usize,
+    pub triangles: usize,
+    /// Simplification error, model units.
+    pub error: f32,
+    /// The error projected at the model's distance, pixels.
+    pub error_px: f32,
+    /// Mean FLIP of the composite against level 0's (None on mobile builds).
+    pub flip_mean: Option<f32>,
+    /// Median GPU time of the frame, ms (NaN without timestamp queries).
+    pub gpu_ms: f64,
+    /// The level the half-pixel rule draws at this distance.
+    pub selected: bool,
+}
+
+/// The model with level `k` of `chain`'s index lists (same vertices).
+pub fn model_at_level(model: &Model, chain: &LodChain, k: usize) -> Model {
+    let meshes = model
+        .meshes
+        .iter()
+        .zip(&chain.meshes)
+        .map(|(m, l)| {
+            let r = l.levels[k];
+            Mesh { indices: l.indices[r.first as usize..][..r.count as usize].to_vec(), ..m.clone() }
+        })
+        .collect();
+    Model { meshes, materials: model.materials.clone() }
+}
+
+/// The level of `chain` the half-pixel rule picks for a model with `bounds` (model space) drawn
+/// with `params` into an image `height_px` rows high; also the model's distance and the focal
+/// length in pixels.
+pub fn screen_level(chain: &LodChain, bounds: (Vec3, Vec3), params: &FrameParams, height_px: u32) -> (usize, f32, f32) {
+    let m = crate::render::view::model_matrix(bounds, &params.placement);
+    let centre = m.transform_point3(0.5 * (bounds.0 + bounds.1));
+    let radius = 0.5 * (bounds.1 - bounds.0).length() * params.placement.scale;
+    let distance = lod::sphere_distance(params.camera.position, centre, radius);
+    let focal = lod::focal_px(params.camera.vfov, height_px);
+    let world: Vec<f32> = chain.errors.iter().map(|e| e * params.placement.scale).collect();
+    (lod::select_level(&world, distance, focal, MAX_SCREEN_ERROR_PX), distance, focal)
+}
+
+/// Build the chain of `inputs.model`, render every level `frames` times and compare each with
+/// the full-detail composite.
+pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &indicatif::ProgressBar) -> Result<Vec<LodRow>> {
+    let chain = LodChain::build(&inputs.model);
+    progress.set_length((chain.len() * frames) as u64);
+    let mut reference: Option<Vec<u8>> = None;
+    let mut rows = Vec::new();
+    for k in 0..chain.len() {
+        let model = model_at_level(&inputs.model, &chain, k);
+        let (mut compositor, params) = compositor_for(gpu, scene, &inputs.env, &model)?;
+        compositor.set_background(gpu, inputs.background.as_ref())?;
+        // Every level keeps the vertex list, so it has level 0's bounds and placement.
+        let bounds = inputs.model.bounds().ok_or_else(|| anyhow::anyhow!("the model has no vertices"))?;
+        let (chosen, distance, focal) = screen_level(&chain, bounds, &params, scene.height);
+        let mut gpu_ms = Vec::new();
+        let mut image = Vec::new();
+        for _ in 0..frames {
+            let r = compositor.render(gpu, &params, Layer::Composite)?;
+            gpu_ms.push(r.timings.gpu_ms.unwrap_or(f64::NAN));
+            image = r.rgba;
+            progress.inc(1);
+        }
+        let rgb: Vec<u8> = image.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let reference = reference.get_or_insert_with(|| rgb.clone());
+        rows.push(LodRow {
+            level: k,
+            triangles: chain.triangles[k],
+            error: chain.errors[k],
+            error_px: chain.errors[k] * params.placement.scale * focal / distance.max(f32::MIN_POSITIVE),
+            flip_mean: mean_flip(reference, &rgb, scene.width, scene.height),
+            gpu_ms: median(&gpu_ms),
+            selected: k == chosen,
+        });
+    }
+    Ok(rows)
+}
+
+/// The rows as a markdown table.
+pub fn markdown(rows: &[LodRow]) -> String {
+    let mut s = String::from(
+        "| level | triangles | error (model units) | error px | mean FLIP vs level 0 | GPU ms | drawn |\n|---:|---:|---:|---:|---:|---:|:---:|\n",
+    );
+    for r in rows {
+        let flip = r.flip_mean.map_or("-".into(), |f| format!("{f:.5}"));
+        s += &format!(
+            "| {} | {} | {:.3e} | {:.3} | {} | {:.3} | {} |\n",
+            r.level,
+            r.triangles,
+            r.error,
+            r.error_px,
+            flip,
+            r.gpu_ms,
+            if r.selected { "yes" } else { "" }
+        );
+    }
+    s
+}

@@ -1,0 +1,355 @@
+//! Alignment from the images: the sensors give each shot's starting pose; the overlaps between
+//! shots then correct them, so seams disappear even when the pose estimate was a few degrees
+//! off.
+//!
+//! Gravity is kept: the accelerometer's tilt is good to about half a degree, while the heading
+//! (magnetometer and gyroscope) carries errors of several degrees that change between shots.
+//! So each shot gets one unknown, a turn `h_i` about the world vertical (corrected pose
+//! `Rz(h_i)·R_i`). For two shots turned about the same axis the photometric mismatch of their
+//! overlap depends only on `h_j − h_i`, so:
+//!
+//! 1. per overlapping pair, `δ_ij` = the relative turn that best matches the overlap (sum of
+//!    squared differences in linear light over a grid of the overlap's directions: a coarse
+//!    search on a blurred, half-resolution level of the image pyramid, then a fine search and a
+//!    parabola through the three best costs at full resolution);
+//! 2. jointly over all shots, the turns minimising `Σ w_ij (h_j − h_i − δ_ij)²` with the front
+//!    shot's turn fixed at 0 (it defines the reference heading) and a weak pull of every turn
+//!    towards 0 (the sensor pose), a small linear least-squares problem; pairs whose match
+//!    disagrees with the joint solution by more than [`OUTLIER_DEG`] are dropped and the system
+//!    solved again.
+
+use super::projection::Pinhole;
+use super::reproject::{Shot, sample_linear};
+use glam::{Quat, Vec2, Vec3};
+
+/// Largest correction searched per pair (degrees).
+pub const SEARCH_DEG: f32 = 6.0;
+/// Coarse search step (degrees) on the half-resolution level.
+const COARSE_STEP_DEG: f32 = 0.5;
+/// Fine search step (degrees) at full resolution.
+const FINE_STEP_DEG: f32 = 0.1;
+/// Grid of directions laid over each shot's frame to find the overlap.
+const GRID: (u32, u32) = (48, 36);
+/// Fewest overlap directions a pair needs to be matched.
+const MIN_OVERLAP: usize = 60;
+/// Weight of the pull of each turn towards the sensor pose, relative to one overlap sample.
+const PRIOR_WEIGHT: f64 = 2.0;
+/// Pairs disagreeing with the joint solution by more than this (degrees) are dropped.
+pub const OUTLIER_DEG: f64 = 1.0;
+
+/// The measured relative turn of one pair of shots.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairMatch {
+    pub i: usize,
+    pub j: usize,
+    /// Turn of shot j relative to shot i about the world vertical (degrees).
+    pub delta_deg: f64,
+    /// Overlap directions used.
+    pub samples: usize,
+}
+
+fn turn(deg: f32) -> Quat {
+    Quat::from_rotation_z(deg.to_radians())
+}
+
+/// A 2×2 box-filtered half-resolution copy (the pyramid's next level) in linear light, sampled
+/// back through [`sample_linear`]'s interface by scaling positions by one half.
+struct Level {
+    width: u32,
+    height: u32,
+    rgb: Vec<[f32; 3]>,
+}
+
+impl Level {
+    fn half(shot: &Shot) -> Level {
+        let img = &shot.image;
+        let (w, h) = (img.width / 2, img.height / 2);
+        let mut rgb = Vec::with_capacity((w * h) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                let c = sample_linear(img, Vec2::new(2.0 * x as f32 + 1.0, 2.0 * y as f32 + 1.0));
+                rgb.push(c);
+            }
+        }
+        Level { width: w.max(1), height: h.max(1), rgb }
+    }
+
+    fn sample(&self, p: Vec2) -> [f32; 3] {
+        let x = (p.x - 0.5).clamp(0.0, (self.width - 1) as f32);
+        let y = (p.y - 0.5).clamp(0.0, (self.height - 1) as f32);
+        let (x0, y0) = (x as usize, y as usize);
+        let (x1, y1) = ((x0 + 1).min(self.width as usize - 1), (y0 + 1).min(self.height as usize - 1));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let w = self.width as usize;
+        let px = |xx: usize, yy: usize| self.rgb[yy * w + xx];
+        std::array::from_fn(|c| {
+            let top = px(x0, y0)[c] + (px(x1, y0)[c] - px(x0, y0)[c]) * fx;
+            let bottom = px(x0, y1)[c] + (px(x1, y1)[c] - px(x0, y1)[c]) * fx;
+            top + (bottom - top) * fy
+        })
+    }
+}
+
+/// Directions (world) on a grid over shot `a`'s frame that shot `b` also sees, with a margin
+/// of the search range so every trial turn keeps them inside b's frame.
+fn overlap(camera: &Pinhole, a: &Shot, b: &Shot) -> Vec<Vec3> {
+    let inset = (SEARCH_DEG.to_radians() / camera.tan_half_h.atan()).min(0.5);
+    let inv_b = b.pose.inverse();
+    let mut dirs = Vec::new();
+    for gy in 0..GRID.1 {
+        for gx in 0..GRID.0 {
+            let px = (gx as f32 + 0.5) / GRID.0 as f32 * camera.width as f32;
+            let py = (gy as f32 + 0.5) / GRID.1 as f32 * camera.height as f32;
+            let d = (a.pose * camera.pixel_to_dir(px, py)).normalize();
+            if camera.to_ndc(inv_b * d).is_some_and(|n| n.x.abs() <= 1.0 - inset && n.y.abs() <= 1.0 - inset) {
+                dirs.push(d);
+            }
+        }
+    }
+    dirs
+}
+
+/// Mean squared difference (linear light) between shot a's colours `ca` at `dirs` and shot b
+/// turned by `deg`, sampled by `sample_b` at pixel positions.
+fn cost(camera: &Pinhole, dirs: &[Vec3], ca: &[[f32; 3]], b: &Shot, deg: f32, sample_b: &impl Fn(Vec2) -> [f32; 3]) -> f64 {
+    // Shot b turned by +deg: its pose is Rz(deg)·R_b, so a world direction d lands where
+    // R_b⁻¹·Rz(−deg)·d does.
+    let inv = b.pose.inverse() * turn(-deg);
+    let mut sum = 0.0f64;
+    let mut n = 0usize;
+    for (d, c) in dirs.iter().zip(ca) {
+        let Some(ndc) = camera.to_ndc(inv * *d) else { continue };
+        let s = sample_b(camera.ndc_to_pixel(ndc));
+        sum += (0..3).map(|k| f64::from(s[k] - c[k]).powi(2)).sum::<f64>();
+        n += 1;
+    }
+    if n == 0 { f64::INFINITY } else { sum / n as f64 }
+}
+
+/// The relative turn of shot b against shot a that best matches their overlap, or `None` when
+/// they overlap too little or the overlap is featureless.
+pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> {
+    let dirs = overlap(camera, a, b);
+    if dirs.len() < MIN_OVERLAP {
+        return None;
+    }
+    let inv_a = a.pose.inverse();
+    let ca: Vec<[f32; 3]> =
+        dirs.iter().map(|d| camera.to_ndc(inv_a * *d).map_or([0.0; 3], |n| sample_linear(&a.image, camera.ndc_to_pixel(n)))).collect();
+    // Featureless overlaps (flat sky) cannot be matched.
+    let mean: f32 = ca.iter().map(|c| c[1]).sum::<f32>() / ca.len() as f32;
+    let var: f32 = ca.iter().map(|c| (c[1] - mean).powi(2)).sum::<f32>() / ca.len() as f32;
+    if var < 1e-6 {
+        return None;
+    }
+    let half = Level::half(b);
+    let coarse = |p: Vec2| half.sample(p * 0.5);
+    let steps = (SEARCH_DEG / COARSE_STEP_DEG) as i32;
+    let (best, _) = (-steps..=steps)
+        .map(|k| k as f32 * COARSE_STEP_DEG)
+        .map(|deg| (deg, cost(camera, &dirs, &ca, b, deg, &coarse)))
+        .min_by(|x, y| x.1.total_cmp(&y.1))?;
+    let full = |p: Vec2| sample_linear(&b.image, p);
+    let k = (COARSE_STEP_DEG / FINE_STEP_DEG) as i32;
+    let fine: Vec<(f32, f64)> =
+        (-k..=k).map(|i| best + i as f32 * FINE_STEP_DEG).map(|deg| (deg, cost(camera, &dirs, &ca, b, deg, &full))).collect();
+    let (i, _) = fine.iter().enumerate().min_by(|x, y| x.1.1.total_cmp(&y.1.1))?;
+    let delta = if i == 0 || i + 1 == fine.len() {
+        f64::from(fine[i].0)
+    } else {
+        // Parabola through the three costs around the minimum.
+        let (c0, c1, c2) = (fine[i - 1].1, fine[i].1, fine[i + 1].1);
+        let denom = c0 - 2.0 * c1 + c2;
+        let off = if denom > 0.0 { 0.5 * (c0 - c2) / denom } else { 0.0 };
+        f64::from(fine[i].0) + off.clamp(-0.5, 0.5) * f64::from(FINE_STEP_DEG)
+    };
+    (delta.abs() < f64::from(SEARCH_DEG)).then_some((delta, dirs.len()))
+}
+
+/// Solve `min Σ w (h_j − h_i − δ)² + PRIOR_WEIGHT Σ h²` with `h[fixed] = 0` (dense normal
+/// equations; n is a few dozen at most).
+fn solve(n: usize, fixed: usize, pairs: &[PairMatch]) -> Vec<f64> {
+    let mut a = vec![vec![0.0f64; n]; n];
+    let mut b = vec![0.0f64; n];
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] += PRIOR_WEIGHT;
+    }
+    for p in pairs {
+        let w = p.samples as f64;
+        a[p.i][p.i] += w;
+        a[p.j][p.j] += w;
+        a[p.i][p.j] -= w;
+        a[p.j][p.i] -= w;
+        b[p.j] += w * p.delta_deg;
+        b[p.i] -= w * p.delta_deg;
+    }
+    // h[fixed] = 0.
+    for k in 0..n {
+        a[fixed][k] = 0.0;
+        a[k][fixed] = 0.0;
+    }
+    a[fixed][fixed] = 1.0;
+    b[fixed] = 0.0;
+    // Gaussian elimination with partial pivoting (the matrix is symmetric positive definite).
+    for c in 0..n {
+        let p = (c..n).max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs())).unwrap_or(c);
+        a.swap(c, p);
+        b.swap(c, p);
+        let d = a[c][c];
+        if d.abs() < 1e-12 {
+            continue;
+        }
+        for r in c + 1..n {
+            let f = a[r][c] / d;
+            if f != 0.0 {
+                for k in c..n {
+                    a[r][k] -= f * a[c][k];
+                }
+                b[r] -= f * b[c];
+            }
+        }
+    }
+    let mut h = vec![0.0; n];
+    for c in (0..n).rev() {
+        let s: f64 = (c + 1..n).map(|k| a[c][k] * h[k]).sum();
+        h[c] = if a[c][c].abs() < 1e-12 { 0.0 } else { (b[c] - s) / a[c][c] };
+    }
+    h
+}
+
+/// What the alignment did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Alignment {
+    /// Turn about the world vertical applied to each shot (degrees), in `shots` order.
+    pub turns_deg: Vec<f64>,
+    /// Pairs matched and kept.
+    pub pairs: Vec<PairMatch>,
+    /// Pairs dropped as outliers.
+    pub dropped: usize,
+}
+
+/// Align `shots` from their overlaps (see the module documentation); shot `fixed` (the front)
+/// keeps its pose. Returns the corrected shots and what was done.
+pub fn align_shots(camera: &Pinhole, shots: &[Shot], fixed: usize) -> (Vec<Shot>, Alignment) {
+    let n = shots.len();
+    if n < 2 || fixed >= n {
+        return (shots.to_vec(), Alignment { turns_deg: vec![0.0; n], ..Alignment::default() });
+    }
+    // Pairs whose view axes are closer than the frame's diagonal field of view can overlap.
+    let diag = (camera.tan_half_h.hypot(camera.tan_half_v)).atan() * 2.0;
+    let candidates: Vec<(usize, usize)> = (0..n)
+        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+        .filter(|&(i, j)| (shots[i].pose * Vec3::NEG_Z).angle_between(shots[j].pose * Vec3::NEG_Z) < diag)
+        .collect();
+    let matches: Vec<PairMatch> = std::thread::scope(|s| {
+        let workers = std::thread::available_parallelism().map_or(1, |k| k.get()).min(candidates.len().max(1));
+        let chunks: Vec<Vec<(usize, usize)>> =
+            (0..workers).map(|w| candidates.iter().copied().skip(w).step_by(workers).collect()).collect();
+        let handles: Vec<_> = chunks
+            .into_iter()
+            .map(|chunk| {
+                s.spawn(move || {
+                    chunk
+                        .into_iter()
+                        .filter_map(|(i, j)| {
+                            match_pair(camera, &shots[i], &shots[j]).map(|(delta_deg, samples)| PairMatch { i, j, delta_deg, samples })
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+    });
+    let mut pairs = matches;
+    let mut h = solve(n, fixed, &pairs);
+    let before = pairs.len();
+    pairs.retain(|p| (h[p.j] - h[p.i] - p.delta_deg).abs() <= OUTLIER_DEG);
+    let dropped = before - pairs.len();
+    if dropped > 0 {
+        h = solve(n, fixed, &pairs);
+    }
+    let aligned = shots.iter().zip(&h).map(|(s, d)| Shot { pose: (turn(*d as f32) * s.pose).normalize(), ..s.clone() }).collect();
+    (aligned, Alignment { turns_deg: h, pairs, dropped })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pose::frames::from_heading_pitch_roll;
+    use crate::scene::Rgba8Image;
+    use std::sync::Arc;
+
+    /// A textured world: colour varies smoothly but quickly with direction (no flat regions).
+    fn world(d: Vec3) -> [u8; 3] {
+        let h = d.x.atan2(d.y);
+        let e = d.z.asin();
+        let f = |a: f32| ((a.sin() * 0.5 + 0.5) * 255.0) as u8;
+        [f(7.0 * h + 3.0 * e), f(5.0 * e - 4.0 * h + 1.0), f(11.0 * h * e.cos() + 2.0)]
+    }
+
+    fn render(camera: &Pinhole, pose: Quat) -> Rgba8Image {
+        let mut pixels = Vec::with_capacity((camera.width * camera.height * 4) as usize);
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let c = world((pose * camera.pixel_to_dir(x as f32 + 0.5, y as f32 + 0.5)).normalize());
+                pixels.extend_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+        }
+        Rgba8Image { width: camera.width, height: camera.height, pixels }
+    }
+
+    #[test]
+    fn heading_errors_between_shots_are_recovered_from_the_overlaps() {
+        let cam = Pinhole::from_vfov(160, 120, 50.0).unwrap();
+        // Eight shots around the horizon and two at ±45° pitch; the images are taken at the true
+        // poses, the "estimated" poses carry heading errors of up to 3.5° (the front's is the
+        // reference and stays).
+        let aims = [
+            (0.0, 0.0),
+            (45.0, 0.0),
+            (90.0, 0.0),
+            (135.0, 0.0),
+            (180.0, 0.0),
+            (225.0, 0.0),
+            (270.0, 0.0),
+            (315.0, 0.0),
+            (20.0, 40.0),
+            (60.0, 40.0),
+        ];
+        let errors = [0.0, 2.0, -3.5, 1.0, 3.0, -2.5, 0.5, -1.5, 2.5, -3.0];
+        let shots: Vec<Shot> = aims
+            .iter()
+            .zip(errors)
+            .enumerate()
+            .map(|(i, (&(h, p), e)): (usize, (&(f64, f64), f64))| {
+                let truth = from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.02).as_quat();
+                let estimate = (Quat::from_rotation_z((e as f32).to_radians()) * truth).normalize();
+                Shot { target: i, t: i as f64, pose: estimate, image: Arc::new(render(&cam, truth)) }
+            })
+            .collect();
+        let (aligned, report) = align_shots(&cam, &shots, 0);
+        assert!(report.pairs.len() >= 9, "{report:?}");
+        for (i, (s, e)) in aligned.iter().zip(errors).enumerate() {
+            let truth = from_heading_pitch_roll(aims[i].0.to_radians(), aims[i].1.to_radians(), 0.02).as_quat();
+            let residual = s.pose.angle_between(truth).to_degrees();
+            // Before: |e| up to 3.5°; after: under 0.2°.
+            assert!(residual < 0.2, "shot {i}: error {e}° -> {residual:.3}°");
+        }
+        // A featureless world cannot be matched: nothing moves.
+        let flat = Arc::new(Rgba8Image { width: 160, height: 120, pixels: vec![100; 160 * 120 * 4] });
+        let flat_shots: Vec<Shot> = shots.iter().map(|s| Shot { image: flat.clone(), ..s.clone() }).collect();
+        let (same, report) = align_shots(&cam, &flat_shots, 0);
+        assert!(report.pairs.is_empty());
+        assert!(same.iter().zip(&flat_shots).all(|(a, b)| a.pose == b.pose));
+    }
+
+    #[test]
+    fn joint_solve_reference_values() {
+        // Three shots in a chain with consistent relative turns: 0 → 1: +1°, 1 → 2: +2°, 0 → 2: +3°.
+        let p = |i, j, d| PairMatch { i, j, delta_deg: d, samples: 1_000_000 };
+        let h = solve(3, 0, &[p(0, 1, 1.0), p(1, 2, 2.0), p(0, 2, 3.0)]);
+        assert!(h[0] == 0.0 && (h[1] - 1.0).abs() < 1e-4 && (h[2] - 3.0).abs() < 1e-4, "{h:?}");
+        // No pairs: every turn stays 0 (the sensor pose).
+        assert_eq!(solve(3, 1, &[]), vec![0.0; 3]);
+    }
+}

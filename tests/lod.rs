@@ -1,0 +1,41 @@
+//! Level of detail is invisible: the level the half-pixel rule draws renders within a mean FLIP
+//! of 0.01 of the full-detail render (the bar), and it has fewer triangles.
+
+mod common;
+
+use common::{gpu, inputs, scene};
+use previz::bench::lod::{model_at_level, screen_level};
+use previz::cli::composite::{Inputs, prepare};
+use previz::render::Layer;
+use previz::scene::lod::LodChain;
+
+fn rgb(rgba: &[u8]) -> Vec<u8> {
+    rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect()
+}
+
+#[test]
+fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
+    let s = scene(
+        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\n[placement]\nfill = 0.25\n",
+    );
+    let full = inputs(&s);
+    let chain = LodChain::build(&full.model);
+    assert!(chain.len() >= 6, "the bunny's chain: {:?}", chain.triangles);
+    let render = |model| {
+        let i = Inputs { model, env: full.env.clone(), background: None };
+        let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+        rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba)
+    };
+    let reference = render(full.model.clone());
+    let (c, p) = prepare(gpu(), &s, &full).unwrap();
+    let (chosen, ..) = screen_level(&chain, c.model_bounds().unwrap(), &p, s.height);
+    assert!(chosen >= 1, "at a quarter fill a 70k-triangle bunny needs fewer triangles: {:?}", chain.triangles);
+    let flip =
+        |k: usize| previz::capture::replay::mean_flip(&reference, &render(model_at_level(&full.model, &chain, k)), 320, 240).unwrap();
+    let chosen_flip = flip(chosen);
+    assert!(chosen_flip <= 0.01, "level {chosen} ({} triangles): mean FLIP {chosen_flip}", chain.triangles[chosen]);
+    // The rule is not vacuous: the coarsest level is visibly different.
+    let coarsest = chain.len() - 1;
+    let coarse_flip = flip(coarsest);
+    assert!(coarse_flip > chosen_flip, "level {coarsest}: {coarse_flip} vs level {chosen}: {chosen_flip}");
+}

@@ -193,6 +193,8 @@ pub struct LiveSession {
     sun_intensity: f32,
     /// The current camera image (the background of the frame).
     camera_image: Option<crate::scene::Rgba8Image>,
+    /// The scene the session was made from (model, environment, size), for the export.
+    scene: Scene,
 }
 
 impl LiveSession {
@@ -219,6 +221,7 @@ impl LiveSession {
             controls: None,
             sun_intensity: scene.sun.sunlight as f32,
             camera_image: None,
+            scene: scene.clone(),
         })
     }
 
@@ -307,6 +310,11 @@ impl LiveSession {
     pub fn set_controls(&mut self, c: Controls) {
         c.apply(&mut self.params, self.sun_intensity);
         self.controls = Some(c);
+    }
+
+    /// The scene the session was made from.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
     }
 
     /// The camera image of the current frame (None before the first).

@@ -32,7 +32,9 @@ pub const FRAME_WGSL: &str = include_str!("../../../shaders/frame.wgsl");
 /// functions (`colour_correct.wgsl`, shared with the priors compute shader).
 pub fn source(t: Technique) -> String {
     let own = match t {
-        Technique::Model => format!("{FRAME_WGSL}\n{}\n{}", crate::colour::correction::COLOUR_CORRECT_WGSL, t.file()),
+        Technique::Model => {
+            format!("{FRAME_WGSL}\n{}\n{}\n{}", super::Method::wgsl_consts(), crate::colour::correction::COLOUR_CORRECT_WGSL, t.file())
+        }
         _ => format!("{FRAME_WGSL}\n{}", t.file()),
     };
     crate::gpu::wgsl::with_full_screen(&own)

@@ -13,7 +13,7 @@
 //! Chroma is sampled nearest: pixel (x, y) takes the chroma sample (x/2, y/2) (odd sizes round
 //! the chroma plane up, as Android and CoreVideo do).
 
-use crate::render::gpu::Gpu;
+use crate::gpu::Gpu;
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result, bail};
 use bytemuck::{Pod, Zeroable};
@@ -620,14 +620,9 @@ mod tests {
     #[test]
     fn forward_and_inverse_matrices_are_inverses() {
         for matrix in [YuvMatrix::Bt601, YuvMatrix::Bt709] {
-            let f = rgb_to_ycbcr(matrix);
-            let i = ycbcr_to_rgb(matrix, YuvRange::Full).m;
-            for r in 0..3 {
-                for c in 0..3 {
-                    let v: f64 = (0..3).map(|k| i[r][k] * f[k][c]).sum();
-                    assert!(close(v, if r == c { 1.0 } else { 0.0 }, 1e-12), "{matrix:?} [{r}][{c}] = {v}");
-                }
-            }
+            let rows = |m: [[f64; 3]; 3]| glam::DMat3::from_cols_array_2d(&m).transpose();
+            let product = rows(ycbcr_to_rgb(matrix, YuvRange::Full).m) * rows(rgb_to_ycbcr(matrix));
+            assert!(product.abs_diff_eq(glam::DMat3::IDENTITY, 1e-12), "{matrix:?}: {product}");
         }
     }
 

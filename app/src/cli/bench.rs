@@ -1,8 +1,9 @@
 //! `previz bench …`: measurements recorded in docs/PERFORMANCE.md.
 
 use crate::bench::{frame, live, lod};
-use crate::cli::composite::{SceneArgs, load_inputs, scene_from_args};
-use crate::render::gpu::Gpu;
+use crate::cli::composite::{SceneArgs, scene_from_args};
+use crate::gpu::Gpu;
+use crate::setup::load_inputs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 
@@ -28,7 +29,8 @@ pub enum What {
     Accuracy(AccuracyArgs),
     /// The model's level-of-detail chain in the scene: per level the triangles, the
     /// simplification error (model units and pixels at the model's distance), mean FLIP against
-    /// the full-detail composite, GPU time, and the level the half-pixel rule draws.
+    /// the full-detail composite, GPU time and its ratio to the background-only floor (interleaved
+    /// in one run), and the level the half-pixel rule draws.
     Lod(LodArgs),
 }
 

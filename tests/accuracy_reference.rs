@@ -8,8 +8,9 @@
 mod common;
 
 use previz::bench::accuracy::{load_reference, score};
-use previz::cli::composite::{SceneArgs, load_inputs, scene_from_args};
+use previz::cli::composite::{SceneArgs, scene_from_args};
 use previz::render::Layer;
+use previz::setup::load_inputs;
 use std::path::Path;
 
 /// (scene, largest allowed mean FLIP over the region of interest).

@@ -4,11 +4,12 @@
 
 use super::median;
 use crate::capture::replay::mean_flip;
-use crate::cli::composite::{Inputs, compositor_for};
-use crate::render::{FrameParams, Layer, gpu::Gpu};
+use crate::gpu::Gpu;
+use crate::render::{FrameParams, Layer};
 use crate::scene::file::Scene;
 use crate::scene::lod::{self, LodChain, MAX_SCREEN_ERROR_PX};
 use crate::scene::{Mesh, Model};
+use crate::setup::{Inputs, compositor_for};
 use anyhow::Result;
 use glam::Vec3;
 use serde::Serialize;

@@ -6,9 +6,9 @@
 //! the field of view, the environment file with its heading and exposure, the ground height —
 //! and the reference reads that.
 
-use crate::cli::composite::{Inputs, exposure, frame_params};
 use crate::render::view;
 use crate::scene::file::Scene;
+use crate::setup::{Inputs, exposure, frame_params};
 use anyhow::{Context, Result, anyhow, bail};
 use glam::{Mat3, Vec3};
 use serde::Serialize;
@@ -226,13 +226,7 @@ pub fn score(reference: &Reference, test: &[u8]) -> Result<(f32, f32, f32)> {
 }
 
 /// Render every lighting method for `scene` and score each against `reference`.
-pub fn score_methods(
-    gpu: &crate::render::gpu::Gpu,
-    name: &str,
-    scene: &Scene,
-    inputs: &Inputs,
-    reference: &Reference,
-) -> Result<Vec<AccuracyRow>> {
+pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &Inputs, reference: &Reference) -> Result<Vec<AccuracyRow>> {
     if (scene.width, scene.height) != (reference.width, reference.height) {
         bail!("scene {name} renders {}x{} but its reference is {}x{}", scene.width, scene.height, reference.width, reference.height);
     }
@@ -240,7 +234,7 @@ pub fn score_methods(
     for method in crate::render::Method::ALL {
         let mut s = scene.clone();
         s.method = method;
-        let (mut compositor, params) = crate::cli::composite::prepare(gpu, &s, inputs)?;
+        let (mut compositor, params) = crate::setup::prepare(gpu, &s, inputs)?;
         let mut best = f64::INFINITY;
         let mut image = None;
         for _ in 0..3 {

@@ -136,12 +136,14 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     }
 
     let bad = tempdir("live", "bad");
+    // `-o` folders are created (issue 8); one under a plain file cannot be.
+    std::fs::write(bad.join("plain"), b"not a folder").unwrap();
     let before = files(&bad);
     for (extra, needle) in [
         (vec!["--lat", "91", "--frames", "2", "-o", "."], "--lat"),
         (vec!["--time", "noon", "--frames", "2", "-o", "."], "--time"),
         (vec!["--fps", "0", "--frames", "2", "-o", "."], "--fps"),
-        (vec!["--frames", "2", "-o", "missing"], "missing"),
+        (vec!["--frames", "2", "-o", "plain/frames"], "plain/frames: cannot create the directory"),
         (vec!["--frames", "2"], "--out"),
     ] {
         let args: Vec<&str> = common_args.iter().copied().chain(extra).collect();

@@ -49,21 +49,6 @@ fn env_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(r.x, r.z, r.y);
 }
 
-// A full-screen triangle: vertex index 0..3 -> clip position, uv with (0,0) top-left.
-struct FullScreen {
-    @builtin(position) clip: vec4<f32>,
-    @location(0) uv: vec2<f32>,
-};
-
-fn full_screen(index: u32) -> FullScreen {
-    var out: FullScreen;
-    let x = f32((index << 1u) & 2u);
-    let y = f32(index & 2u);
-    out.clip = vec4<f32>(x * 2.0 - 1.0, 1.0 - y * 2.0, 0.0, 1.0);
-    out.uv = vec2<f32>(x, y);
-    return out;
-}
-
 // Fraction of sunlight reaching world point p (1 = lit), 3x3 PCF over the sun's depth map.
 // Points outside the shadow camera's footprint are lit: every occluder (the model) is inside it.
 fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, p: vec3<f32>) -> f32 {

@@ -13,7 +13,7 @@
 //! Chroma is sampled nearest: pixel (x, y) takes the chroma sample (x/2, y/2) (odd sizes round
 //! the chroma plane up, as Android and CoreVideo do).
 
-use crate::render::gpu::Gpu;
+use crate::gpu::Gpu;
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result, bail};
 use bytemuck::{Pod, Zeroable};

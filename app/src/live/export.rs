@@ -7,9 +7,9 @@
 //! `recomposite.png`. The place (latitude, longitude) is written, as a comment, only when asked.
 
 use super::LiveSession;
+use crate::gpu::Gpu;
 use crate::pose::frames::heading_pitch_roll;
 use crate::render::Layer;
-use crate::render::gpu::Gpu;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use toml::Value;

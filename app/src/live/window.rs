@@ -9,8 +9,8 @@
 //! surface for the window and carries on with the same session (GPU device, scene, filter).
 
 use super::{LiveFrame, LiveSession};
+use crate::gpu::Gpu;
 use crate::render::Placement;
-use crate::render::gpu::Gpu;
 use crate::ui::controls::{Controls, apply_gesture, drag_on_ground, pinch_twist};
 use anyhow::{Context, Result, anyhow};
 use std::sync::Arc;

@@ -25,6 +25,7 @@ fn flag_values_out_of_range_name_the_flag_and_the_range() {
         (with(&["--slope", "30", "--surface-azimuth", "-720"]), vec!["--surface-azimuth -720"]),
         (vec!["capture", "--env", "env.hdr", "--simulate", "-o", "cap", "--vfov", "1e-9"], vec!["--vfov", "20..=120"]),
         (vec!["live", "--frames", "1000000000", "-o", "frames"], vec!["--frames 1000000000", "1..=1800"]),
+        (vec!["live", "--fps", "-5", "--frames", "1", "-o", "frames"], vec!["--fps", "1..=240"]),
     ];
     for (args, needles) in cases {
         let out = previz(&dir, &args);

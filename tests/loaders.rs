@@ -884,9 +884,9 @@ fn mtl_values_out_of_range_name_the_file_and_line() {
 }
 
 #[test]
-fn exr_with_nan_or_infinite_pixels_is_an_error_naming_the_file() {
+fn exr_with_nan_infinite_or_absurd_pixels_is_an_error_naming_the_file() {
     let dir = temp_dir("exr-nan");
-    for (name, bad) in [("nan.exr", f32::NAN), ("inf.exr", f32::INFINITY)] {
+    for (name, bad) in [("nan.exr", f32::NAN), ("inf.exr", f32::INFINITY), ("huge.exr", 1e30)] {
         let img = image::Rgb32FImage::from_fn(16, 8, |x, y| image::Rgb(if (x, y) == (5, 2) { [bad, 0.5, 0.5] } else { [0.5, 0.5, 0.5] }));
         image::DynamicImage::ImageRgb32F(img).save(dir.join(name)).unwrap();
         let err = err_text(load_environment(&dir.join(name)));

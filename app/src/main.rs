@@ -1,8 +1,6 @@
-use clap::Parser;
-
 fn main() -> std::process::ExitCode {
     quiet_on_broken_pipe();
-    let cli = previz::cli::Cli::parse();
+    let cli = previz::cli::parse();
     match previz::cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         // The reader of our output went away (`previz ... | head`): nothing left to tell anyone.

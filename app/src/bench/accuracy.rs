@@ -289,9 +289,135 @@ pub fn markdown(rows: &[AccuracyRow]) -> String {
     s
 }
 
+/// Chart size, pixels.
+const CHART_W: u32 = 1200;
+const CHART_H: u32 = 800;
+
+/// Mean over scenes of (ms, FLIP ROI) per method, in the order methods first appear.
+pub fn per_method_means(rows: &[AccuracyRow]) -> Vec<(String, f64, f64)> {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.method.as_str()) {
+            names.push(&r.method);
+        }
+    }
+    names
+        .iter()
+        .map(|n| {
+            let sel: Vec<&AccuracyRow> = rows.iter().filter(|r| r.method == *n).collect();
+            let k = sel.len() as f64;
+            (n.to_string(), sel.iter().map(|r| r.ms).sum::<f64>() / k, sel.iter().map(|r| f64::from(r.flip_roi)).sum::<f64>() / k)
+        })
+        .collect()
+}
+
+/// Error against cost: one point per previz method, the path tracer's ladder as a line (means
+/// over the scenes), x = time per image (ms, log), y = mean FLIP in the model + shadow (log),
+/// with the goal (0.06) as a dashed line. RGB8.
+pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
+    use plotters::prelude::*;
+    let err = |e: &dyn std::fmt::Display| anyhow!("drawing the accuracy chart: {e}");
+    crate::chart::register_font();
+    let means = per_method_means(rows);
+    if means.is_empty() {
+        bail!("no rows to chart");
+    }
+    let x_min = means.iter().map(|m| m.1).fold(f64::INFINITY, f64::min).max(1e-3) / 2.0;
+    let x_max = means.iter().map(|m| m.1).fold(0.0, f64::max) * 2.0;
+    let y_min = means.iter().map(|m| m.2).fold(0.06, f64::min) / 1.5;
+    let y_max = means.iter().map(|m| m.2).fold(0.0, f64::max) * 1.5;
+    let mut buf = vec![0u8; (CHART_W * CHART_H * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (CHART_W, CHART_H)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let mut c = ChartBuilder::on(&root)
+            .caption("Lighting accuracy vs cost (mean over the reference scenes)", ("sans-serif", 26))
+            .margin(20)
+            .x_label_area_size(60)
+            .y_label_area_size(80)
+            .build_cartesian_2d((x_min..x_max).log_scale(), (y_min..y_max).log_scale())
+            .map_err(|e| err(&e))?;
+        c.configure_mesh()
+            .x_desc("time per image, ms (log scale)")
+            .y_desc("mean FLIP in model + shadow (log scale)")
+            .label_style(("sans-serif", 16))
+            .axis_desc_style(("sans-serif", 18))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.2}"))
+            .draw()
+            .map_err(|e| err(&e))?;
+        let goal = RGBColor(44, 160, 44);
+        c.draw_series(DashedLineSeries::new(vec![(x_min, 0.06), (x_max, 0.06)], 8, 6, goal.stroke_width(2)))
+            .map_err(|e| err(&e))?
+            .label("goal: FLIP 0.06")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], goal.stroke_width(2)));
+        let tracer: Vec<(f64, f64)> = means.iter().filter(|m| m.0.starts_with("path tracer")).map(|m| (m.1, m.2)).collect();
+        let black = RGBColor(0, 0, 0);
+        c.draw_series(LineSeries::new(tracer.clone(), black.stroke_width(2)))
+            .map_err(|e| err(&e))?
+            .label("path tracer 1/4/16/64 spp vs 256 spp")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], black.stroke_width(2)));
+        c.draw_series(tracer.iter().map(|p| Circle::new(*p, 5, black.filled()))).map_err(|e| err(&e))?;
+        let palette = [
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+            RGBColor(140, 86, 75),
+            RGBColor(227, 119, 194),
+            RGBColor(23, 190, 207),
+            RGBColor(188, 189, 34),
+        ];
+        for (i, m) in means.iter().filter(|m| !m.0.starts_with("path tracer")).enumerate() {
+            let col = palette[i % palette.len()];
+            c.draw_series(std::iter::once(TriangleMarker::new((m.1, m.2), 9, col.filled())))
+                .map_err(|e| err(&e))?
+                .label(m.0.clone())
+                .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", 16))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+    }
+    Ok(buf)
+}
+
+/// Draw [`chart`] into a PNG.
+pub fn write_chart(rows: &[AccuracyRow], path: &Path) -> Result<()> {
+    let rgb = chart(rows)?;
+    crate::output::write_png_rgb8(path, CHART_W, CHART_H, &rgb)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn chart_means_per_method_and_draws() {
+        let row = |scene: &str, method: &str, roi: f32, ms: f64| AccuracyRow {
+            scene: scene.into(),
+            method: method.into(),
+            flip_frame: 0.0,
+            flip_roi: roi,
+            model_luminance_ratio: 1.0,
+            ms,
+        };
+        let rows = [row("a", "hemisphere", 0.2, 10.0), row("b", "hemisphere", 0.4, 30.0), row("a", "path tracer 1 spp", 0.1, 1000.0)];
+        let m = per_method_means(&rows);
+        assert_eq!(m.len(), 2);
+        assert_eq!(m[0].0, "hemisphere");
+        assert!((m[0].1 - 20.0).abs() < 1e-9 && (m[0].2 - 0.3).abs() < 1e-6);
+        let img = chart(&rows).unwrap();
+        assert_eq!(img.len(), (CHART_W * CHART_H * 3) as usize);
+        // Something other than white was drawn.
+        assert!(img.iter().any(|&v| v < 128));
+        assert!(chart(&[]).is_err());
+    }
 
     #[test]
     fn masked_statistics_by_hand() {

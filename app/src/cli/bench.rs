@@ -48,6 +48,12 @@ pub struct AccuracyArgs {
     /// Folder of references: NAME.png, NAME_roi.png, NAME_alpha.png, NAME_sppN.png/.json.
     #[arg(long, value_name = "DIR", default_value = "tests/reference/images")]
     pub references: PathBuf,
+    /// Also draw the error-vs-cost chart (PNG).
+    #[arg(long, value_name = "PNG")]
+    pub chart: Option<PathBuf>,
+    /// Also write the rows as CSV.
+    #[arg(long, value_name = "CSV")]
+    pub csv: Option<PathBuf>,
     /// Print the rows as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -229,6 +235,16 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if let Some(path) = &a.chart {
+        accuracy::write_chart(&rows, path)?;
+    }
+    if let Some(path) = &a.csv {
+        let mut s = String::from("scene,method,flip_frame,flip_roi,model_luminance_ratio,ms\n");
+        for r in &rows {
+            s += &format!("{},{},{},{},{},{}\n", r.scene, r.method, r.flip_frame, r.flip_roi, r.model_luminance_ratio, r.ms);
+        }
+        crate::output::write_atomic(path, s.as_bytes())?;
+    }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {

@@ -27,10 +27,8 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The flags that describe a scene (shared by `composite` and `bench frame`). Negative numbers
-/// are values, so `--width -1` gets a range error instead of "unexpected argument".
+/// The flags that describe a scene (shared by `composite` and `bench frame`).
 #[derive(clap::Args, Debug, Default)]
-#[command(allow_negative_numbers = true)]
 pub struct SceneArgs {
     /// Scene file (TOML). Relative paths in it are relative to its folder.
     pub scene: Option<PathBuf>,

@@ -57,6 +57,7 @@ pub fn run(a: Args) -> Result<()> {
         None => chrono::Utc::now(),
     };
     let cfg = LiveConfig { lat_deg: a.lat, lon_deg: a.lon, start, frame_hz: a.fps, duration_s: a.duration, noise: a.noise, seed: a.seed };
+    cfg.validate()?;
     if let Some(n) = a.frames {
         // The session has duration × fps camera frames; asking for more used to stop silently.
         let available = (a.duration * a.fps).floor();

@@ -43,6 +43,19 @@ pub enum Command {
     Live(live::Args),
 }
 
+/// Parse the process's command line. Every command and subcommand takes negative numbers as
+/// values, so `--width -1` or `--fps -5` get an error naming the flag and its range instead of
+/// "unexpected argument '-1'".
+pub fn parse() -> Cli {
+    use clap::{CommandFactory, FromArgMatches};
+    let matches = with_negative_numbers(Cli::command()).get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
+fn with_negative_numbers(command: clap::Command) -> clap::Command {
+    command.allow_negative_numbers(true).mut_subcommands(with_negative_numbers)
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Composite(a) => composite::run(a),

@@ -70,7 +70,7 @@ pub struct LiveConfig {
 }
 
 impl LiveConfig {
-    fn validate(&self) -> Result<()> {
+    pub fn validate(&self) -> Result<()> {
         if !(self.lat_deg.is_finite() && (-90.0..=90.0).contains(&self.lat_deg)) {
             bail!("--lat must be a latitude in -90..=90 degrees, got {}", self.lat_deg);
         }

@@ -8,8 +8,8 @@
 //! - Equirectangular: the centre column looks North (true azimuth = `heading_deg`), azimuth
 //!   grows to the right (u = 0.75 is East), the top row is the zenith, the bottom row the nadir.
 //! - 8-bit images are sRGB-encoded and converted to linear; .hdr/.exr are linear already.
-//!   NaN or infinite values are an error naming the file and the first bad pixel (lighting
-//!   cannot use them, and replacing them hides a broken file). Negative values, which lossy EXR
+//!   NaN, infinite or absurd (> [`MAX_RADIANCE`]) values are an error naming the file and the
+//!   first bad pixel (lighting cannot use them, and replacing them hides a broken file). Negative values, which lossy EXR
 //!   compression (DWAA/DWAB) leaves around sharp edges, are set to 0: that repair is the only
 //!   one, and it is documented in docs/robustness.md.
 
@@ -187,12 +187,19 @@ pub fn equirect_from_bytes(bytes: &[u8]) -> Result<Equirect> {
 /// Linear RGB of a decoded image; NaN or infinite values are an error.
 fn checked_linear(image: &DynamicImage) -> Result<LinearImage> {
     if let Some((count, x, y)) = non_finite(image) {
-        bail!("{count} pixel value(s) are NaN or infinite (the first at x={x}, y={y}); an environment must hold finite radiance");
+        bail!(
+            "{count} pixel value(s) are NaN, infinite or above {MAX_RADIANCE:e} (the first at x={x}, y={y}); an environment must hold finite radiance"
+        );
     }
     Ok((image.width(), image.height(), linear_rgb(image)))
 }
 
-/// How many channel values of a float image are NaN or infinite, and the first such pixel.
+/// The largest radiance an environment may hold: sums over a map (resampling, SH projection,
+/// statistics over millions of texels) must stay finite in f32 (max 3.4e38).
+pub const MAX_RADIANCE: f32 = 1e20;
+
+/// How many channel values of a float image are NaN, infinite or above [`MAX_RADIANCE`], and
+/// the first such pixel.
 fn non_finite(image: &DynamicImage) -> Option<(usize, u32, u32)> {
     let (count, first) = match image {
         DynamicImage::ImageRgb32F(b) => count_bad(b.as_raw(), 3, b.width()),
@@ -206,7 +213,7 @@ fn count_bad(values: &[f32], channels: usize, width: u32) -> (usize, Option<(u32
     let mut first = None;
     let mut count = 0;
     for (i, v) in values.iter().enumerate() {
-        if i % channels < 3 && !v.is_finite() {
+        if i % channels < 3 && !(v.is_finite() && *v <= MAX_RADIANCE) {
             count += 1;
             let p = (i / channels) as u32;
             first.get_or_insert((p % width, p / width));

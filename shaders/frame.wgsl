@@ -12,25 +12,43 @@ struct Frame {
     view: mat4x4<f32>,
     // world -> clip of the sun's orthographic shadow camera (wgpu depth 0..1)
     light_view_proj: mat4x4<f32>,
-    // camera position in world space (w unused)
-    camera_pos: vec4<f32>,
-    // xyz: unit direction to the sun (world); w: sunlight intensity l_s (0 below the horizon)
-    sun: vec4<f32>,
-    // xyz: world up; w: daylight intensity l_d
-    up: vec4<f32>,
-    // rgb: upper hemisphere (sky) colour, linear; w: hemisphere-occlusion light level
-    sky: vec4<f32>,
-    // rgb: lower hemisphere (ground) colour, linear; w: hemisphere-occlusion shadow level
-    ground: vec4<f32>,
-    // x: cos, y: sin of the environment's heading rotation; z: environment exposure; w: unused
-    env: vec4<f32>,
-    // x: reflection strength, y: relative refractive index (eta = n_outside / n_inside),
-    // z: shadow opacity on the ground, w: live-feed refraction depth (metres)
-    params: vec4<f32>,
-    // x, y: target size in pixels; z: tan(vfov / 2); w: aspect ratio
-    viewport: vec4<f32>,
-    // x: method (see render::Method), y: shadow map size, z, w: unused
-    mode: vec4<u32>,
+    // camera position in world space
+    camera_pos: vec3<f32>,
+    // daylight (ambient) intensity l_d
+    daylight: f32,
+    // unit direction to the sun (world)
+    sun_dir: vec3<f32>,
+    // sunlight intensity l_s (0 below the horizon)
+    sunlight: f32,
+    // upper hemisphere (sky) colour, linear
+    sky: vec3<f32>,
+    // hemisphere-occlusion light level
+    occlusion_light: f32,
+    // lower hemisphere (ground) colour, linear
+    ground: vec3<f32>,
+    // hemisphere-occlusion shadow level
+    occlusion_shadow: f32,
+    // (cos, sin) of the environment's heading rotation
+    env_rotation: vec2<f32>,
+    // environment exposure (linear scale)
+    env_exposure: f32,
+    // mix of the reflection into the model, 0..1
+    reflection: f32,
+    // relative refractive index (eta = n_outside / n_inside)
+    eta: f32,
+    // how dark the model's shadow makes the ground, 0..1
+    shadow_opacity: f32,
+    // live-feed refraction: how far behind the surface the refracted ray meets the scene (m)
+    live_depth: f32,
+    // tan(vfov / 2) and width / height of the target
+    tan_half_vfov: f32,
+    aspect: f32,
+    // the lighting method (METHOD_* constants, from render::Method)
+    method: u32,
+    // side of the square shadow map in texels
+    shadow_map_size: u32,
+    // the struct's size is a multiple of 16 bytes (its alignment); the Rust mirror says so too
+    _padding: u32,
 };
 
 // One model instance: model space -> world, and its normal matrix (inverse transpose, 3x3 in a 4x4).
@@ -41,27 +59,12 @@ struct Instance {
 
 // ENU -> cube sampling space, after rotating the environment by its heading about Up.
 fn env_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
-    let c = frame.env.x;
-    let s = frame.env.y;
+    let c = frame.env_rotation.x;
+    let s = frame.env_rotation.y;
     // Rotate azimuths by -heading: the world direction at the environment heading samples the
     // cube map front (+Z, North in an unrotated map).
     let r = vec3<f32>(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
     return vec3<f32>(r.x, r.z, r.y);
-}
-
-// A full-screen triangle: vertex index 0..3 -> clip position, uv with (0,0) top-left.
-struct FullScreen {
-    @builtin(position) clip: vec4<f32>,
-    @location(0) uv: vec2<f32>,
-};
-
-fn full_screen(index: u32) -> FullScreen {
-    var out: FullScreen;
-    let x = f32((index << 1u) & 2u);
-    let y = f32(index & 2u);
-    out.clip = vec4<f32>(x * 2.0 - 1.0, 1.0 - y * 2.0, 0.0, 1.0);
-    out.uv = vec2<f32>(x, y);
-    return out;
 }
 
 // Fraction of sunlight reaching world point p (1 = lit), 3x3 PCF over the sun's depth map.
@@ -75,7 +78,7 @@ fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, 
     }
     // Receivers beyond the far plane (the ground far behind the model) compare as depth 1.
     let depth = min(ndc.z, 1.0) - 0.002;
-    let texel = 1.0 / f32(frame.mode.y);
+    let texel = 1.0 / f32(frame.shadow_map_size);
     var lit = 0.0;
     for (var y = -1; y <= 1; y++) {
         for (var x = -1; x <= 1; x++) {

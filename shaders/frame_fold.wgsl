@@ -30,14 +30,10 @@ struct VsOut {
     @location(0) @interpolate(flat) layer: u32,
 };
 
-// One triangle covering the target; the instance index is the cube layer being drawn.
+// The full-screen triangle (full_screen.wgsl, prepended); the instance index is the cube layer.
 @vertex
 fn vs_main(@builtin(vertex_index) vi: u32, @builtin(instance_index) layer: u32) -> VsOut {
-    let xy = vec2<f32>(f32((vi << 1u) & 2u), f32(vi & 2u)) * 2.0 - 1.0;
-    var out: VsOut;
-    out.pos = vec4<f32>(xy, 0.0, 1.0);
-    out.layer = layer;
-    return out;
+    return VsOut(full_screen(vi).clip, layer);
 }
 
 // Vulkan cube-face table (app/src/scene/cubemap.rs face_uv_to_cube_dir).

@@ -33,7 +33,7 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     }
     let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world);
     // The shadow removes the sun's share of the light; opacity says how large that share is.
-    let sun_up = select(0.0, 1.0, frame.sun.z > 0.0) * min(frame.sun.w, 1.0);
-    let alpha = frame.params.z * sun_up * (1.0 - visibility);
+    let sun_up = select(0.0, 1.0, frame.sun_dir.z > 0.0) * min(frame.sunlight, 1.0);
+    let alpha = frame.shadow_opacity * sun_up * (1.0 - visibility);
     return vec4<f32>(0.0, 0.0, 0.0, alpha);
 }

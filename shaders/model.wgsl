@@ -1,14 +1,7 @@
 // Model pass: one fragment shader for every lighting method (seed 000 §5.3-5.5, Appendix D/E),
-// chosen at run time by frame.mode.x. All lighting happens in world space (ENU), in linear light.
+// chosen at run time by frame.method. All lighting happens in world space (ENU), in linear light.
 //
-// Methods (render::Method):
-//   0 blinn-phong           modified Blinn-Phong, Eq. 3: ambient a_c * l_d + sun (diffuse, specular) * l_s
-//   1 hemisphere            Eq. 3 with the ambient light from hemisphere lighting, Eq. 6
-//   2 hemisphere-occlusion  Eq. 3 with the ambient light from hemisphere occlusion (§5.4.2)
-//   3 cube-reflection       hemisphere-lit model mixed with the cube map seen in the reflection
-//   4 cube-refraction       transparent material, Eq. 7, refracting the cube map
-//   5 live-reflection       hemisphere-lit model mixed with the camera image as a mirror ball
-//   6 live-refraction       transparent material, Eq. 7, refracting the camera image (§5.5.3)
+// The METHOD_* constants are generated from render::Method (prepended by render::shaders).
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -56,22 +49,23 @@ fn vs_main(
     return out;
 }
 
-// Eq. 6: blend factor of the upper hemisphere for a normal (1 = facing straight up).
+// Eq. 6: blend factor of the upper hemisphere for a normal (1 = facing straight up; world up
+// is +z).
 fn hemisphere_blend(n: vec3<f32>) -> f32 {
-    return 0.5 + 0.5 * dot(n, frame.up.xyz);
+    return 0.5 + 0.5 * n.z;
 }
 
 // The ambient light colour reaching a surface with normal n, per method.
 fn ambient_light(n: vec3<f32>, method: u32) -> vec3<f32> {
     let a = hemisphere_blend(n);
-    if (method == 0u) {
+    if (method == METHOD_BLINN_PHONG) {
         return vec3<f32>(1.0);
     }
-    if (method == 2u) {
+    if (method == METHOD_HEMISPHERE_OCCLUSION) {
         // Hemisphere occlusion: greyscale light level above, shadow level below (§5.4.2).
-        return vec3<f32>(mix(frame.ground.w, frame.sky.w, a));
+        return vec3<f32>(mix(frame.occlusion_shadow, frame.occlusion_light, a));
     }
-    return mix(frame.ground.rgb, frame.sky.rgb, a);
+    return mix(frame.ground, frame.sky, a);
 }
 
 // Screen uv (0,0 top-left) of a world point.
@@ -81,7 +75,7 @@ fn screen_uv(p: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
 }
 
-// Blinn-Phong specular factor (Eq. 3); `two_sided` leaves the sign of N.H to the caller.
+// Blinn-Phong specular factor (Eq. 3).
 fn specular_factor(n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> f32 {
     let h = normalize(l + e);
     return pow(max(dot(n, h), 0.0), max(material.specular.a, 1.0));
@@ -89,27 +83,27 @@ fn specular_factor(n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> f32 {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    let method = frame.mode.x;
+    let method = frame.method;
     var n = normalize(in.normal);
-    let e = normalize(frame.camera_pos.xyz - in.world); // towards the camera
-    let l = frame.sun.xyz;                                // towards the sun
-    let l_s = frame.sun.w;
-    let l_d = frame.up.w;
+    let e = normalize(frame.camera_pos - in.world); // towards the camera
+    let l = frame.sun_dir;                               // towards the sun
+    let l_s = frame.sunlight;
+    let l_d = frame.daylight;
 
-    if (method == 4u || method == 6u) {
+    if (method == METHOD_CUBE_REFRACTION || method == METHOD_LIVE_REFRACTION) {
         // Transparent material, Eq. 7: C = r_c + s_f. Two-sided: the normal is turned to face
         // the viewer (by geometry, so it does not depend on the mesh's winding).
         if (dot(n, e) < 0.0) {
             n = -n;
         }
         let sf = specular_factor(n, l, e) * l_s * material.terms.z;
-        let t = refract(-e, n, frame.params.y);
+        let t = refract(-e, n, frame.eta);
         var rc: vec3<f32>;
-        if (method == 4u) {
-            rc = textureSampleLevel(env_tex, env_smp, env_dir(frame, t), 0.0).rgb * frame.env.z;
+        if (method == METHOD_CUBE_REFRACTION) {
+            rc = textureSampleLevel(env_tex, env_smp, env_dir(frame, t), 0.0).rgb * frame.env_exposure;
         } else {
             // Where the refracted ray lands a little way behind the surface, seen by the camera.
-            let uv = screen_uv(in.world + t * frame.params.w);
+            let uv = screen_uv(in.world + t * frame.live_depth);
             rc = textureSampleLevel(background_tex, background_smp, clamp(uv, vec2<f32>(0.0), vec2<f32>(1.0)), 0.0).rgb;
         }
         return vec4<f32>(rc + vec3<f32>(sf), 1.0);
@@ -134,16 +128,16 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let direct = material.terms.y * df * l_s;
     var colour = albedo * (ambient + vec3<f32>(direct)) + material.specular.rgb * material.terms.z * sf * l_s;
 
-    if (method == 3u) {
+    if (method == METHOD_CUBE_REFLECTION) {
         let r = reflect(-e, n);
-        let env = textureSampleLevel(env_tex, env_smp, env_dir(frame, r), 0.0).rgb * frame.env.z;
-        colour = mix(colour, env, frame.params.x);
-    } else if (method == 5u) {
+        let env = textureSampleLevel(env_tex, env_smp, env_dir(frame, r), 0.0).rgb * frame.env_exposure;
+        colour = mix(colour, env, frame.reflection);
+    } else if (method == METHOD_LIVE_REFLECTION) {
         // Seed §5.5.3: the reflection vector in camera space indexes the camera image.
         let r_view = (frame.view * vec4<f32>(reflect(-e, n), 0.0)).xyz;
         let uv = vec2<f32>(r_view.x * 0.5 + 0.5, 0.5 - r_view.y * 0.5);
         let live = textureSampleLevel(background_tex, background_smp, uv, 0.0).rgb;
-        colour = mix(colour, live, frame.params.x);
+        colour = mix(colour, live, frame.reflection);
     }
     return vec4<f32>(colour, 1.0);
 }

@@ -5,9 +5,9 @@
 mod common;
 
 use common::{gpu, scene};
-use previz::cli::composite::{Inputs, prepare};
 use previz::render::Layer;
 use previz::scene::{CubeMap, Material, Mesh, Model};
+use previz::setup::{Inputs, prepare};
 
 fn triangle() -> Model {
     let mesh = Mesh {

@@ -43,7 +43,7 @@ fn an_exported_frame_is_reproduced_by_previz_composite() {
     apply_gesture(session.params_mut(), &mut controls, glam::Vec3::new(0.3, -0.2, 0.0), 1.2, 0.0);
 
     let dir = tempdir("app_export", "frame");
-    let written = export(&mut session, gpu(), &s, &dir, None).unwrap();
+    let written = export(&mut session, gpu(), &dir, None).unwrap();
     let names: Vec<String> = written.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
     assert_eq!(names, FILES);
     let toml = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
@@ -64,8 +64,8 @@ fn an_exported_frame_is_reproduced_by_previz_composite() {
 
     // Location only when asked; an export into a missing folder is a clear error with no files.
     let asked = tempdir("app_export", "location");
-    export(&mut session, gpu(), &s, &asked, Some((51.4545, -2.5879))).unwrap();
+    export(&mut session, gpu(), &asked, Some((51.4545, -2.5879))).unwrap();
     assert!(std::fs::read_to_string(asked.join("scene.toml")).unwrap().contains("# location: latitude 51.454500, longitude -2.587900"));
-    let e = export(&mut session, gpu(), &s, &dir.join("missing"), None).unwrap_err().to_string();
+    let e = export(&mut session, gpu(), &dir.join("missing"), None).unwrap_err().to_string();
     assert!(e.contains("missing") && e.contains("not an existing directory"), "{e}");
 }

@@ -4,8 +4,8 @@
 mod common;
 
 use common::{gpu, inputs, scene};
-use previz::cli::composite::prepare;
 use previz::render::Layer;
+use previz::setup::prepare;
 use previz::ui::controls::Controls;
 
 const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2\"\nmodel = \"meshes/stanford-bunny.obj\"\n\

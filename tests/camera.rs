@@ -1,17 +1,15 @@
 //! The virtual phone and the file frame source against real environments and photos.
 
+mod common;
+
+use common::data;
 use glam::{Mat3, Quat, Vec3};
 use previz::camera::FrameSource;
 use previz::camera::exposure::{ExposureMode, tone_to_srgb8};
 use previz::camera::file::ImageFiles;
 use previz::camera::sim::{SimSettings, VirtualPhone};
 use previz::scene::environment::load_environment;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-fn data(rel: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel)
-}
 
 /// Camera → ENU rotation from the image's right and up directions (the camera looks along
 /// right × up).

@@ -94,11 +94,13 @@ fn bad_traces_and_inputs_fail_cleanly() {
         &out,
         &dir,
         &before,
-        &["capture incomplete", "5 face(s) missing", "up: never within ±2° (closest 90.0° off", "left:"],
+        // The tolerance is 2° widened by twice the pose's own uncertainty (so not a fixed ±2°).
+        &["capture incomplete", "5 face(s) missing", "up: never within ±", "° (closest 90.0° off", "left:"],
     );
-    // Stitch mode (the default) also misses the front's extra shots, and says how many.
+    // Stitch mode (the default) also misses the rest of the front, says how much of it is
+    // unseen, and how many shots are not taken.
     let out = previz(&dir, &["capture", "--env", &env, "--trace", "still.csv", "--noise", "none", "-o", "out"]);
-    assert_clean_failure(&out, &dir, &before, &["6 face(s) missing", "front: front+1:", "more shot(s) not taken"]);
+    assert_clean_failure(&out, &dir, &before, &["6 face(s) missing", "front: ", "% of the face unseen", "more shot(s) not taken"]);
     // An environment that fails to load, a bad face size, no trace.
     let out = previz(&dir, &["capture", "--env", "nope.hdr", "--trace", "still.csv", "-o", "out"]);
     assert_clean_failure(&out, &dir, &before, &["nope.hdr"]);
@@ -106,5 +108,27 @@ fn bad_traces_and_inputs_fail_cleanly() {
     assert_clean_failure(&out, &dir, &before, &["--face-size", "power of two"]);
     let out = previz(&dir, &["capture", "--env", &env, "-o", "out"]);
     assert_clean_failure(&out, &dir, &before, &["--trace", "--simulate"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Issue 12: the default command (`previz capture --env ENV --simulate -o DIR`, stitch mode,
+/// phone-grade noise, 50° lens) failed for seeds 0–3 in the quarry HDR with "5 face(s)
+/// missing". Every one of them must complete now (faces at 64 px to keep the test cheap; the
+/// face size does not change what is taken).
+#[test]
+fn default_command_completes_for_the_seeds_that_failed() {
+    let dir = tempdir("capture-cli", "seeds");
+    let env = data("hdri/polyhaven_1k/quarry_01_1k.hdr").to_string_lossy().into_owned();
+    for seed in ["0", "1", "2", "3"] {
+        let out_dir = format!("cap{seed}");
+        let out = previz(&dir, &["capture", "--env", &env, "--simulate", "--seed", seed, "--face-size", "64", "-o", &out_dir, "--json"]);
+        assert!(out.status.success(), "seed {seed}: {}", String::from_utf8_lossy(&out.stderr));
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        for f in json["faces"].as_array().unwrap() {
+            // Complete means every face seen but for a sliver (assistant::MAX_UNSEEN = 2 %).
+            assert!(f["coverage"].as_f64().unwrap() >= 0.98, "seed {seed}: {f}");
+        }
+        assert!(previz::capture::load_capture(&dir.join(&out_dir)).is_ok());
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -14,7 +14,7 @@ use previz::pose::{HeadingSource, Pose};
 use previz::render::{Rendered, Timings};
 use previz::scene::Rgba8Image;
 use previz::scene::environment::load_environment;
-use previz::ui::capture_overlay::{GYRO_ONLY_TEXT, draw_capture_overlay, thumbnail};
+use previz::ui::capture_overlay::{draw_capture_overlay, thumbnail};
 use previz::ui::headless::HeadlessUi;
 use std::sync::Arc;
 
@@ -108,8 +108,8 @@ fn capture_guidance_golden_images() {
     let next = g.next.as_ref().unwrap();
     assert_eq!(next.name, "back");
     assert!(next.on_screen.is_some_and(|n| n.x > 0.3 && n.x < 0.8), "{next:?}");
-    let r = s.draw(&mut ui, &p);
-    common::assert_golden("capture_overlay_in_view", &r);
+    let in_view = s.draw(&mut ui, &p);
+    common::assert_golden("capture_overlay_in_view", &in_view);
 
     // 2: after back, held still looking 40° down at 300°: the nearest target (down, 50° away) is
     // out of view; an arrow points down. Compass fine: no badge, no "Hold still".
@@ -127,5 +127,12 @@ fn capture_guidance_golden_images() {
     assert_eq!(g.message, "Turn to down");
     let r = s.draw(&mut ui, &p);
     common::assert_golden("capture_overlay_arrow", &r);
-    assert!(!GYRO_ONLY_TEXT.is_empty());
+    // The gyro-only badge (amber #FFBE28, top left at (14, 58)) is drawn while the compass is
+    // disturbed and only then: its left margin, before the text starts, is amber in the first
+    // image and not in the second.
+    let amber = |img: &Rendered| {
+        (17..21).all(|x| (62..70).all(|y| common::pixel(img, x, y)[..3].iter().zip([255u8, 190, 40]).all(|(a, b)| a.abs_diff(b) <= 6)))
+    };
+    assert!(amber(&in_view), "no gyro-only badge while the compass is disturbed: {:?}", common::pixel(&in_view, 18, 64));
+    assert!(!amber(&r), "a gyro-only badge with the compass fine");
 }

@@ -7,13 +7,13 @@
 mod common;
 
 use common::{assert_golden, data, gpu, mean_rgb, render, scene};
-use previz::cli::composite::{Inputs, exposure, prepare};
 use previz::colour::correction::{ColourCorrection, correct};
 use previz::colour::transfer::Method;
 use previz::colour::{linear_to_srgb, srgb_to_linear};
 use previz::priors::{environment_priors_scaled, model_priors};
 use previz::render::{ColourSettings, Layer};
 use previz::scene::{Material, Mesh, Model, Rgba8Image};
+use previz::setup::{Inputs, exposure, prepare};
 
 /// An 8×8 texture: a 4×4 block of `centre` in the middle, a ring of varied colours around it
 /// (so the texture's σ is not zero).

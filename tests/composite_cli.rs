@@ -100,6 +100,9 @@ fn layers_and_json() {
 #[test]
 fn bad_flags_are_named() {
     let dir = tempdir("cli", "flags");
+    // `--layers` creates a missing folder (tests/cli_errors.rs); a path through a file cannot be.
+    std::fs::write(dir.join("afile"), "not a folder").unwrap();
+    let before = files(&dir);
     for (args, needles) in [
         (vec!["composite", "--pitch", "NaN"], vec!["--pitch", "finite"]),
         (vec!["composite", "--vfov", "500"], vec!["--vfov", "out of range"]),
@@ -109,11 +112,11 @@ fn bad_flags_are_named() {
         (vec!["composite", "--set", "effects.ior=0.2"], vec!["effects.ior"]),
         (vec!["composite", "--set", "nonsense"], vec!["KEY=VALUE"]),
         (vec!["composite", "--method", "phong"], vec!["phong"]),
-        (vec!["composite", "--layers", "no-such-dir"], vec!["--layers", "no-such-dir"]),
+        (vec!["composite", "--layers", "afile/layers"], vec!["--layers", "afile/layers"]),
         (vec!["composite", "missing-scene.toml"], vec!["missing-scene.toml"]),
     ] {
         let out = previz(&dir, &args);
-        assert_clean_failure(&out, &dir, &[], &needles);
+        assert_clean_failure(&out, &dir, &before, &needles);
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -4,9 +4,9 @@
 mod common;
 
 use common::{mean_rgb, render_with, scene};
-use previz::cli::composite::Inputs;
 use previz::render::{Layer, Rendered};
 use previz::scene::{CubeMap, Material, Mesh, Model};
+use previz::setup::Inputs;
 
 /// Cube map whose faces are solid colours (linear), in wgpu order +X, −X, +Y, −Y, +Z, −Z.
 fn solid_cube(colours: [[f32; 3]; 6]) -> CubeMap {

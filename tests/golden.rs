@@ -4,9 +4,9 @@
 mod common;
 
 use common::{assert_golden, data, render, render_with, scene};
-use previz::cli::composite::Inputs;
 use previz::render::Layer;
 use previz::scene::Model;
+use previz::setup::Inputs;
 use std::sync::OnceLock;
 
 const SIZE: &str = "width = 480\nheight = 320\n";
@@ -131,6 +131,6 @@ fn demo_scene() {
     let args = previz::cli::composite::SceneArgs { width: Some(480), height: Some(320), ..Default::default() };
     let (s, demo) = previz::cli::composite::scene_from_args(&args, None).unwrap();
     assert!(demo);
-    let i = previz::cli::composite::load_inputs(&s, true).unwrap();
+    let i = previz::setup::load_inputs(&s, true).unwrap();
     assert_golden("demo", &render_with(&s, &i, Layer::Composite));
 }

@@ -8,10 +8,10 @@ use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::{data, gpu, scene};
 use previz::camera::exposure::ExposureMode;
 use previz::camera::sim::{SimSettings, VirtualPhone};
-use previz::cli::composite::{exposure, load_inputs};
 use previz::live::{LiveConfig, LiveSession, look_around_path};
 use previz::render::Layer;
 use previz::sensors::sim::NoiseLevel;
+use previz::setup::{exposure, load_inputs};
 use std::sync::Arc;
 
 const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
@@ -136,12 +136,14 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     }
 
     let bad = tempdir("live", "bad");
+    // -o creates a missing folder, but not over a file.
+    std::fs::write(bad.join("a_file"), b"not a folder").unwrap();
     let before = files(&bad);
     for (extra, needle) in [
         (vec!["--lat", "91", "--frames", "2", "-o", "."], "--lat"),
         (vec!["--time", "noon", "--frames", "2", "-o", "."], "--time"),
         (vec!["--fps", "0", "--frames", "2", "-o", "."], "--fps"),
-        (vec!["--frames", "2", "-o", "missing"], "missing"),
+        (vec!["--frames", "2", "-o", "a_file"], "a_file"),
         (vec!["--frames", "2"], "--out"),
     ] {
         let args: Vec<&str> = common_args.iter().copied().chain(extra).collect();
@@ -154,14 +156,24 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
 /// Xvfb (`.ci/run`).
 #[test]
 fn window_runs_a_session_under_xvfb() {
-    let display = format!(":{}", 90 + std::process::id() % 100);
+    // -displayfd: Xvfb picks a free display and writes its number once it accepts connections,
+    // so the test waits for exactly that (a generous deadline guards against a hung server).
     let mut xvfb = std::process::Command::new("Xvfb")
-        .args([display.as_str(), "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-        .stdout(std::process::Stdio::null())
+        .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+        .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
         .spawn()
         .expect("Xvfb (apt-get install xvfb; .ci/run installs it)");
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let stdout = xvfb.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line);
+        let _ = tx.send(line);
+    });
+    let number = rx.recv_timeout(std::time::Duration::from_secs(60)).expect("Xvfb did not report a display within 60 s");
+    let number: u32 = number.trim().parse().unwrap_or_else(|_| panic!("Xvfb exited before it was ready (it printed {number:?})"));
+    let display = format!(":{number}");
     let env = data("cubemaps/humus_Park2");
     let model = data("meshes/stanford-bunny.obj");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_previz"))

@@ -5,9 +5,9 @@ mod common;
 
 use common::{gpu, inputs, scene};
 use previz::bench::lod::{model_at_level, screen_level};
-use previz::cli::composite::{Inputs, prepare};
 use previz::render::Layer;
 use previz::scene::lod::LodChain;
+use previz::setup::{Inputs, prepare};
 
 fn rgb(rgba: &[u8]) -> Vec<u8> {
     rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect()

@@ -13,6 +13,7 @@ pub mod cli;
 pub mod colour;
 #[doc(hidden)]
 pub mod fuzzing;
+pub mod gpu;
 pub mod light;
 pub mod live;
 pub mod output;
@@ -21,5 +22,6 @@ pub mod priors;
 pub mod render;
 pub mod scene;
 pub mod sensors;
+pub mod setup;
 pub mod sun;
 pub mod ui;

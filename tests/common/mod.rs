@@ -4,9 +4,10 @@
 
 pub mod cli;
 
-use previz::cli::composite::{Inputs, load_inputs, prepare};
-use previz::render::{Layer, Rendered, gpu::Gpu};
+use previz::gpu::Gpu;
+use previz::render::{Layer, Rendered};
 use previz::scene::file::{Scene, SceneBuilder};
+use previz::setup::{Inputs, load_inputs, prepare};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

@@ -3,10 +3,11 @@
 //! only draws the background), in one run.
 
 use super::median;
-use crate::cli::composite::{Inputs, prepare};
 use crate::colour::transfer::Method as ColourMethod;
-use crate::render::{ColourSettings, FrameParams, Layer, Method, gpu::Gpu};
+use crate::gpu::Gpu;
+use crate::render::{ColourSettings, FrameParams, Layer, Method};
 use crate::scene::file::Scene;
+use crate::setup::{Inputs, prepare};
 use anyhow::Result;
 use serde::Serialize;
 

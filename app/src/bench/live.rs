@@ -2,11 +2,11 @@
 //! compositor — on the virtual phone and phone-grade simulated sensors.
 
 use super::{median, percentile};
-use crate::cli::composite::Inputs;
+use crate::gpu::Gpu;
 use crate::live::{LiveConfig, LiveSession};
-use crate::render::gpu::Gpu;
 use crate::scene::file::Scene;
 use crate::sensors::sim::NoiseLevel;
+use crate::setup::Inputs;
 use anyhow::{Result, anyhow};
 use std::sync::Arc;
 

@@ -4,11 +4,12 @@
 
 use super::median;
 use crate::capture::replay::mean_flip;
-use crate::cli::composite::{Inputs, compositor_for};
-use crate::render::{FrameParams, Layer, gpu::Gpu};
+use crate::gpu::Gpu;
+use crate::render::{FrameParams, Layer};
 use crate::scene::file::Scene;
 use crate::scene::lod::{self, LodChain, MAX_SCREEN_ERROR_PX};
 use crate::scene::{Mesh, Model};
+use crate::setup::{Inputs, compositor_for};
 use anyhow::Result;
 use glam::Vec3;
 use serde::Serialize;
@@ -26,6 +27,8 @@ pub struct LodRow {
     pub flip_mean: Option<f32>,
     /// Median GPU time of the frame, ms (NaN without timestamp queries).
     pub gpu_ms: f64,
+    /// gpu_ms over the background-only floor's, measured in the same run.
+    pub floor_ratio: f64,
     /// The level the half-pixel rule draws at this distance.
     pub selected: bool,
 }
@@ -57,37 +60,49 @@ pub fn screen_level(chain: &LodChain, bounds: (Vec3, Vec3), params: &FrameParams
     (lod::select_level(&world, distance, focal, MAX_SCREEN_ERROR_PX), distance, focal)
 }
 
-/// Build the chain of `inputs.model`, render every level `frames` times and compare each with
-/// the full-detail composite.
+/// Build the chain of `inputs.model`, render every level `frames` times, interleaved frame by
+/// frame with the background-only floor (so a slow spell of a shared machine lands on every
+/// level alike), and compare each level's composite with the full-detail one.
 pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &indicatif::ProgressBar) -> Result<Vec<LodRow>> {
     let chain = LodChain::build(&inputs.model);
-    progress.set_length((chain.len() * frames) as u64);
-    let mut reference: Option<Vec<u8>> = None;
-    let mut rows = Vec::new();
+    // Every level keeps the vertex list, so it has level 0's bounds and placement.
+    let bounds = inputs.model.bounds().ok_or_else(|| anyhow::anyhow!("the model has no vertices"))?;
+    let mut compositors = Vec::with_capacity(chain.len());
     for k in 0..chain.len() {
-        let model = model_at_level(&inputs.model, &chain, k);
-        let (mut compositor, params) = compositor_for(gpu, scene, &inputs.env, &model)?;
-        compositor.set_background(gpu, inputs.background.as_ref())?;
-        // Every level keeps the vertex list, so it has level 0's bounds and placement.
-        let bounds = inputs.model.bounds().ok_or_else(|| anyhow::anyhow!("the model has no vertices"))?;
-        let (chosen, distance, focal) = screen_level(&chain, bounds, &params, scene.height);
-        let mut gpu_ms = Vec::new();
-        let mut image = Vec::new();
-        for _ in 0..frames {
-            let r = compositor.render(gpu, &params, Layer::Composite)?;
-            gpu_ms.push(r.timings.gpu_ms.unwrap_or(f64::NAN));
-            image = r.rgba;
+        let (mut c, params) = compositor_for(gpu, scene, &inputs.env, &model_at_level(&inputs.model, &chain, k))?;
+        c.set_background(gpu, inputs.background.as_ref())?;
+        compositors.push((c, params));
+    }
+    let params = compositors[0].1;
+    let (chosen, distance, focal) = screen_level(&chain, bounds, &params, scene.height);
+    progress.set_length(((chain.len() + 1) * frames) as u64);
+    let mut gpu_ms = vec![Vec::new(); chain.len() + 1];
+    let mut images = vec![Vec::new(); chain.len()];
+    for _ in 0..frames {
+        let r = compositors[0].0.render(gpu, &params, Layer::Background)?;
+        gpu_ms[chain.len()].push(r.timings.gpu_ms.unwrap_or(f64::NAN));
+        progress.inc(1);
+        for (k, (c, p)) in compositors.iter_mut().enumerate() {
+            let r = c.render(gpu, p, Layer::Composite)?;
+            gpu_ms[k].push(r.timings.gpu_ms.unwrap_or(f64::NAN));
+            images[k] = r.rgba;
             progress.inc(1);
         }
-        let rgb: Vec<u8> = image.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-        let reference = reference.get_or_insert_with(|| rgb.clone());
+    }
+    let floor = median(&gpu_ms[chain.len()]);
+    let rgb = |rgba: &[u8]| -> Vec<u8> { rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect() };
+    let reference = rgb(&images[0]);
+    let mut rows = Vec::new();
+    for k in 0..chain.len() {
+        let level_ms = median(&gpu_ms[k]);
         rows.push(LodRow {
             level: k,
             triangles: chain.triangles[k],
             error: chain.errors[k],
             error_px: chain.errors[k] * params.placement.scale * focal / distance.max(f32::MIN_POSITIVE),
-            flip_mean: mean_flip(reference, &rgb, scene.width, scene.height),
-            gpu_ms: median(&gpu_ms),
+            flip_mean: mean_flip(&reference, &rgb(&images[k]), scene.width, scene.height),
+            gpu_ms: level_ms,
+            floor_ratio: level_ms / floor,
             selected: k == chosen,
         });
     }
@@ -97,18 +112,19 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &
 /// The rows as a markdown table.
 pub fn markdown(rows: &[LodRow]) -> String {
     let mut s = String::from(
-        "| level | triangles | error (model units) | error px | mean FLIP vs level 0 | GPU ms | drawn |\n|---:|---:|---:|---:|---:|---:|:---:|\n",
+        "| level | triangles | error (model units) | error px | mean FLIP vs level 0 | GPU ms | × floor (GPU) | drawn |\n|---:|---:|---:|---:|---:|---:|---:|:---:|\n",
     );
     for r in rows {
         let flip = r.flip_mean.map_or("-".into(), |f| format!("{f:.5}"));
         s += &format!(
-            "| {} | {} | {:.3e} | {:.3} | {} | {:.3} | {} |\n",
+            "| {} | {} | {:.3e} | {:.3} | {} | {:.3} | {:.2} | {} |\n",
             r.level,
             r.triangles,
             r.error,
             r.error_px,
             flip,
             r.gpu_ms,
+            r.floor_ratio,
             if r.selected { "yes" } else { "" }
         );
     }

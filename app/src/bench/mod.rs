@@ -1,5 +1,6 @@
 //! Measurements: speed side by side with accuracy, recorded in docs/PERFORMANCE.md.
 
+pub mod accuracy;
 pub mod frame;
 pub mod live;
 pub mod lod;

@@ -13,7 +13,7 @@
 //! Chroma is sampled nearest: pixel (x, y) takes the chroma sample (x/2, y/2) (odd sizes round
 //! the chroma plane up, as Android and CoreVideo do).
 
-use crate::render::gpu::Gpu;
+use crate::gpu::{Gpu, Readback};
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result, bail};
 use bytemuck::{Pod, Zeroable};
@@ -540,38 +540,13 @@ impl YuvConverter {
     pub fn read_back(&self, gpu: &Gpu) -> Result<Rgba8Image> {
         let planes = self.planes.as_ref().context("no YUV frame converted yet")?;
         let (w, h) = (planes.target.width(), planes.target.height());
-        let row = 4 * w;
-        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("yuv readback"),
-            size: u64::from(padded) * u64::from(h),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("yuv readback") });
-        encoder.copy_texture_to_buffer(
-            planes.target.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(h) },
-            },
-            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-        );
-        gpu.queue.submit([encoder.finish()]);
-        let slice = buffer.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU")?;
-        rx.recv().context("readback channel closed")?.context("cannot map the YUV readback buffer")?;
-        let data = slice.get_mapped_range().context("reading back the converted camera image failed")?;
-        let mut pixels = Vec::with_capacity((row * h) as usize);
-        for y in 0..h as usize {
-            pixels.extend_from_slice(&data[y * padded as usize..y * padded as usize + row as usize]);
-        }
-        drop(data);
-        buffer.unmap();
+        let pixels = gpu.checked("the YUV readback", || {
+            let readback = Readback::for_texture(&gpu.device, "yuv readback", &planes.target)?;
+            let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("yuv readback") });
+            readback.copy(&mut encoder, &planes.target);
+            gpu.queue.submit([encoder.finish()]);
+            readback.read(gpu)
+        })?;
         Ok(Rgba8Image { width: w, height: h, pixels })
     }
 }
@@ -620,14 +595,9 @@ mod tests {
     #[test]
     fn forward_and_inverse_matrices_are_inverses() {
         for matrix in [YuvMatrix::Bt601, YuvMatrix::Bt709] {
-            let f = rgb_to_ycbcr(matrix);
-            let i = ycbcr_to_rgb(matrix, YuvRange::Full).m;
-            for r in 0..3 {
-                for c in 0..3 {
-                    let v: f64 = (0..3).map(|k| i[r][k] * f[k][c]).sum();
-                    assert!(close(v, if r == c { 1.0 } else { 0.0 }, 1e-12), "{matrix:?} [{r}][{c}] = {v}");
-                }
-            }
+            let rows = |m: [[f64; 3]; 3]| glam::DMat3::from_cols_array_2d(&m).transpose();
+            let product = rows(ycbcr_to_rgb(matrix, YuvRange::Full).m) * rows(rgb_to_ycbcr(matrix));
+            assert!(product.abs_diff_eq(glam::DMat3::IDENTITY, 1e-12), "{matrix:?}: {product}");
         }
     }
 

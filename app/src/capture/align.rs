@@ -184,10 +184,8 @@ fn solve(n: usize, fixed: usize, pairs: &[PairMatch]) -> Vec<f64> {
         b[p.i] -= w * p.delta_deg;
     }
     // h[fixed] = 0.
-    for k in 0..n {
-        a[fixed][k] = 0.0;
-        a[k][fixed] = 0.0;
-    }
+    a[fixed].iter_mut().for_each(|v| *v = 0.0);
+    a.iter_mut().for_each(|row| row[fixed] = 0.0);
     a[fixed][fixed] = 1.0;
     b[fixed] = 0.0;
     // Gaussian elimination with partial pivoting (the matrix is symmetric positive definite).
@@ -199,13 +197,15 @@ fn solve(n: usize, fixed: usize, pairs: &[PairMatch]) -> Vec<f64> {
         if d.abs() < 1e-12 {
             continue;
         }
-        for r in c + 1..n {
-            let f = a[r][c] / d;
+        let (pivot_rows, rest) = a.split_at_mut(c + 1);
+        let pivot = &pivot_rows[c];
+        for (k, row) in rest.iter_mut().enumerate() {
+            let f = row[c] / d;
             if f != 0.0 {
-                for k in c..n {
-                    a[r][k] -= f * a[c][k];
+                for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                    *x -= f * p;
                 }
-                b[r] -= f * b[c];
+                b[c + 1 + k] -= f * b[c];
             }
         }
     }

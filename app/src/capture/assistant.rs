@@ -55,6 +55,9 @@ const COVER_SAMPLES: u32 = 16;
 /// [`MIN_NEW_SAMPLES`] of them, are not seen yet.
 pub const MIN_NEW_FRACTION: f64 = 0.25;
 pub const MIN_NEW_SAMPLES: usize = 8;
+/// A shot marks as seen the samples inside its frame shrunk by this much (degrees), so thin gaps
+/// between frames that fall between the samples (about 5° apart) are caught.
+const COVER_MARGIN_DEG: f64 = 2.0;
 /// `on_target` marker for a steady view on no target.
 const FREE_VIEW: usize = usize::MAX;
 /// Stitch mode: once every target is taken or seen by others, a face counts as complete with
@@ -286,7 +289,10 @@ impl Assistant {
     pub fn phase(&self) -> Phase {
         if self.reference_heading_deg.is_none() {
             Phase::WaitingForTap
-        } else if self.states.iter().all(TargetState::done) && Face::ALL.iter().all(|f| self.face_done(*f)) {
+        } else if match self.cfg.mode {
+            Mode::Stretch => self.states.iter().all(TargetState::done),
+            Mode::Stitch => Face::ALL.iter().all(|f| self.face_done(*f)),
+        } {
             Phase::Complete
         } else {
             Phase::Capturing
@@ -361,7 +367,7 @@ impl Assistant {
     /// and add a repair target when the plan is used up but samples are still unseen.
     fn update_coverage(&mut self, href: f64, q: Quat) {
         let local = world_to_local(href).as_quat() * q;
-        for i in seen_samples(&self.cfg.camera, &self.samples, local, 0.0) {
+        for i in seen_samples(&self.cfg.camera, &self.samples, local, COVER_MARGIN_DEG) {
             self.covered[i as usize] = true;
         }
         let covered = &self.covered;

@@ -17,15 +17,20 @@
 //! (`shaders/frame_fold.wgsl`) and the CPU reference ([`fold_uv`], [`fold_cpu`]) implement
 //! the same mapping; a test compares them.
 
-use crate::render::gpu::Gpu;
+use crate::gpu::{Gpu, Readback, build, wgsl};
 use crate::scene::cubemap::face_uv_to_cube_dir;
 use crate::scene::{CubeMap, Rgba8Image, cube_to_enu};
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 
-/// The WGSL of the fold pass.
+/// The fold pass's own WGSL; compiled after the full-screen triangle ([`fold_source`]).
 pub const FRAME_FOLD_WGSL: &str = include_str!("../../../shaders/frame_fold.wgsl");
+
+/// The complete WGSL of the fold pass.
+pub fn fold_source() -> String {
+    wgsl::with_full_screen(FRAME_FOLD_WGSL)
+}
 
 /// How much the projected box is enlarged about its centre (seed 004: "scale it up slightly").
 pub const BOX_SCALE: f32 = 1.2;
@@ -186,115 +191,53 @@ pub struct FrameFold {
     cube: wgpu::Texture,
     cube_view: wgpu::TextureView,
     layer_views: Vec<wgpu::TextureView>,
+    readback: Readback,
     size: u32,
 }
 
 impl FrameFold {
     /// A fold pass producing `size`×`size` faces.
     pub fn new(gpu: &Gpu, size: u32) -> Result<FrameFold> {
-        let max = gpu.device.limits().max_texture_dimension_2d;
-        if size == 0 || size > max {
-            bail!("frame-fold face size {size} is outside 1..={max}");
-        }
-        let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("frame fold"),
-            source: wgpu::ShaderSource::Wgsl(FRAME_FOLD_WGSL.into()),
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("frame fold"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<FoldUniforms>() as u64),
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("frame fold"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("frame fold"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState { format: CUBE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL })],
-            }),
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            multiview_mask: None,
-            cache: None,
-        });
-        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("frame fold"),
-            address_mode_u: wgpu::AddressMode::ClampToEdge,
-            address_mode_v: wgpu::AddressMode::ClampToEdge,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            ..Default::default()
-        });
-        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame fold uniforms"),
-            size: std::mem::size_of::<FoldUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let cube = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("frame fold cube"),
-            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 6 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: CUBE_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let cube_view =
-            cube.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() });
-        let layer_views = (0..6)
-            .map(|layer| {
-                cube.create_view(&wgpu::TextureViewDescriptor {
-                    dimension: Some(wgpu::TextureViewDimension::D2),
-                    base_array_layer: layer,
-                    array_layer_count: Some(1),
-                    ..Default::default()
+        gpu.check_size("frame-fold face", size, size)?;
+        gpu.checked("the frame-fold pass", || {
+            let device = &gpu.device;
+            let module = build::shader(device, "frame fold", fold_source());
+            let fs = wgpu::ShaderStages::FRAGMENT;
+            let layout = build::layout(
+                device,
+                "frame fold",
+                &[
+                    build::uniform(0, fs),
+                    build::texture_entry(1, fs, wgpu::TextureViewDimension::D2, true),
+                    build::sampler_entry(2, fs, wgpu::SamplerBindingType::Filtering),
+                ],
+            );
+            let pipeline = build::render_pipeline(device, build::PipelineSpec::full_screen("frame fold", &module, &[&layout], CUBE_FORMAT));
+            let sampler = build::linear_sampler(device, "frame fold", wgpu::AddressMode::ClampToEdge);
+            let uniforms = build::uniform_buffer::<FoldUniforms>(device, "frame fold uniforms");
+            use wgpu::TextureUsages as U;
+            let cube = build::texture(
+                device,
+                "frame fold cube",
+                (size, size, 6),
+                CUBE_FORMAT,
+                1,
+                U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC,
+            );
+            let cube_view = build::cube_view(&cube);
+            let layer_views = (0..6)
+                .map(|layer| {
+                    cube.create_view(&wgpu::TextureViewDescriptor {
+                        dimension: Some(wgpu::TextureViewDimension::D2),
+                        base_array_layer: layer,
+                        array_layer_count: Some(1),
+                        ..Default::default()
+                    })
                 })
-            })
-            .collect();
-        Ok(FrameFold { pipeline, layout, sampler, uniforms, frame: None, cube, cube_view, layer_views, size })
+                .collect();
+            let readback = Readback::for_texture(device, "frame fold readback", &cube)?;
+            Ok(FrameFold { pipeline, layout, sampler, uniforms, frame: None, cube, cube_view, layer_views, readback, size })
+        })
     }
 
     pub fn size(&self) -> u32 {
@@ -319,104 +262,74 @@ impl FrameFold {
         if !pose.is_finite() || (pose.length() - 1.0).abs() > 1e-3 {
             bail!("frame-fold pose {pose:?} is not a unit quaternion");
         }
-        let device = &gpu.device;
-        let stale = self.frame.as_ref().is_none_or(|(t, _)| (t.width(), t.height()) != (frame.width, frame.height));
-        if stale {
-            let texture = device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("frame fold input"),
-                size: wgpu::Extent3d { width: frame.width, height: frame.height, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba8UnormSrgb,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            });
-            let view = texture.create_view(&Default::default());
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("frame fold"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: self.uniforms.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&view) },
-                    wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&self.sampler) },
-                ],
-            });
-            self.frame = Some((texture, bind));
-        }
-        let Some((texture, bind)) = &self.frame else { bail!("frame-fold input texture missing") };
-        gpu.queue.write_texture(
-            texture.as_image_copy(),
-            &frame.pixels,
-            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * frame.width), rows_per_image: None },
-            wgpu::Extent3d { width: frame.width, height: frame.height, depth_or_array_layers: 1 },
-        );
-        gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&FoldUniforms::new(pose.normalize(), bbox, self.size)));
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold") });
-        for (layer, view) in self.layer_views.iter().enumerate() {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("frame fold face"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, bind, &[]);
-            let l = layer as u32;
-            pass.draw(0..3, l..l + 1);
-        }
-        gpu.queue.submit([encoder.finish()]);
-        Ok(())
+        gpu.checked("the frame fold", || {
+            let device = &gpu.device;
+            let stale = self.frame.as_ref().is_none_or(|(t, _)| (t.width(), t.height()) != (frame.width, frame.height));
+            if stale {
+                let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+                let texture = build::texture(
+                    device,
+                    "frame fold input",
+                    (frame.width, frame.height, 1),
+                    wgpu::TextureFormat::Rgba8UnormSrgb,
+                    1,
+                    usage,
+                );
+                let view = texture.create_view(&Default::default());
+                let resources = [
+                    self.uniforms.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&view),
+                    wgpu::BindingResource::Sampler(&self.sampler),
+                ];
+                let bind = build::bind_group(device, "frame fold", &self.layout, &resources);
+                self.frame = Some((texture, bind));
+            }
+            let Some((texture, bind)) = &self.frame else { bail!("frame-fold input texture missing") };
+            build::write_layer(&gpu.queue, texture, 0, &frame.pixels);
+            gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&FoldUniforms::new(pose.normalize(), bbox, self.size)));
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold") });
+            for (layer, view) in self.layer_views.iter().enumerate() {
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("frame fold face"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, bind, &[]);
+                let l = layer as u32;
+                pass.draw(0..3, l..l + 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
     }
 
     /// Read the cube texture back (for tests and CPU consumers), linear RGB.
     pub fn read_back(&self, gpu: &Gpu) -> Result<CubeMap> {
-        let size = self.size;
-        let row = 8 * size;
-        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame fold readback"),
-            size: u64::from(padded) * u64::from(size) * 6,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold readback") });
-        encoder.copy_texture_to_buffer(
-            self.cube.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(size) },
-            },
-            wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 6 },
-        );
-        gpu.queue.submit([encoder.finish()]);
-        let slice = buffer.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU")?;
-        rx.recv().context("readback channel closed")?.context("cannot map the readback buffer")?;
-        let data = slice.get_mapped_range().context("reading back the folded cube map failed")?;
+        let texels = gpu.checked("the frame-fold readback", || {
+            let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold readback") });
+            self.readback.copy(&mut encoder, &self.cube);
+            gpu.queue.submit([encoder.finish()]);
+            self.readback.read(gpu)
+        })?;
+        // Rgba16Float texels, faces in wgpu layer order; alpha dropped.
+        let face_bytes = (self.size * self.size * 8) as usize;
+        let channel = |b: &[u8]| half::f16::from_le_bytes([b[0], b[1]]).to_f32();
         let faces = std::array::from_fn(|layer| {
-            let mut texels = Vec::with_capacity((size * size) as usize);
-            for y in 0..size as usize {
-                let start = (layer * size as usize + y) * padded as usize;
-                let halfs: &[half::f16] = bytemuck::cast_slice(&data[start..start + row as usize]);
-                texels.extend(halfs.chunks_exact(4).map(|p| [p[0].to_f32(), p[1].to_f32(), p[2].to_f32()]));
-            }
-            texels
+            texels[layer * face_bytes..(layer + 1) * face_bytes]
+                .chunks_exact(8)
+                .map(|p| [channel(&p[0..]), channel(&p[2..]), channel(&p[4..])])
+                .collect()
         });
-        drop(data);
-        buffer.unmap();
-        Ok(CubeMap { size, faces })
+        Ok(CubeMap { size: self.size, faces })
     }
 }
 
@@ -517,34 +430,8 @@ mod tests {
 
     #[test]
     fn shader_validates_and_uniforms_match_naga() {
-        let module = naga::front::wgsl::parse_str(FRAME_FOLD_WGSL).unwrap_or_else(|e| panic!("{}", e.emit_to_string(FRAME_FOLD_WGSL)));
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-            .validate(&module)
-            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(FRAME_FOLD_WGSL)));
-        let mut layouter = naga::proc::Layouter::default();
-        layouter.update(module.to_ctx()).unwrap();
-        let (span, offsets) = module
-            .types
-            .iter()
-            .find_map(|(_, ty)| match (&ty.name, &ty.inner) {
-                (Some(n), naga::TypeInner::Struct { members, span }) if n == "FoldUniforms" => {
-                    Some((*span, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect::<Vec<_>>()))
-                }
-                _ => None,
-            })
-            .unwrap();
-        assert_eq!(span as usize, std::mem::size_of::<FoldUniforms>());
-        let u = FoldUniforms::zeroed();
-        let base = &u as *const _ as usize;
-        let rust = [
-            ("world_to_camera", &u.world_to_camera as *const _ as usize - base),
-            ("inner", &u.inner as *const _ as usize - base),
-            ("outer", &u.outer as *const _ as usize - base),
-            ("params", &u.params as *const _ as usize - base),
-        ];
-        for ((name, off), (n, o)) in offsets.iter().zip(rust) {
-            assert_eq!((name.as_str(), *off as usize), (n, o));
-        }
+        let module = crate::gpu::wgsl::validate(&fold_source()).unwrap();
+        crate::assert_wgsl_layout!(module, FoldUniforms, "FoldUniforms", [world_to_camera, inner, outer, params]);
     }
 
     /// A frame whose regions have distinct colours: box red, side quads green/blue/yellow/
@@ -591,17 +478,15 @@ mod tests {
 
     #[test]
     fn gpu_fold_matches_the_cpu_reference_and_the_regions() {
-        let Ok(gpu) = Gpu::headless() else {
-            panic!("{}", crate::render::gpu::NO_ADAPTER_HELP);
-        };
+        let gpu = crate::gpu::tests::gpu();
         // Camera looking North, level: camera +x = East (cube +X), +y = Up (+Y), −z = North (+Z).
         let pose = crate::render::view::camera_pose(0.0, 0.0, 0.0);
         let bbox = ScreenBox { u0: 0.4, v0: 0.35, u1: 0.6, v1: 0.7 };
         let (inner, outer) = (bbox.corrected(), bbox.corrected().midpoints());
         let frame = region_frame(160, 120, inner, outer);
-        let mut fold = FrameFold::new(&gpu, 32).unwrap();
-        fold.render(&gpu, &frame, pose, bbox).unwrap();
-        let gpu_cube = fold.read_back(&gpu).unwrap();
+        let mut fold = FrameFold::new(gpu, 32).unwrap();
+        fold.render(gpu, &frame, pose, bbox).unwrap();
+        let gpu_cube = fold.read_back(gpu).unwrap();
         let cpu_cube = fold_cpu(&frame, pose, bbox, 32);
         // Same mapping: texels agree except where a texel straddles a colour boundary.
         let mut differing = 0;
@@ -632,7 +517,7 @@ mod tests {
         let north = gpu_cube.sample_enu(Vec3::Y);
         assert!(north[0] > 0.95 && north[1] < 0.05, "{north:?}");
         // Bad input.
-        assert!(fold.render(&gpu, &Rgba8Image { width: 2, height: 2, pixels: vec![0; 3] }, pose, bbox).is_err());
-        assert!(fold.render(&gpu, &frame, Quat::from_xyzw(0.0, 0.0, 0.0, 3.0), bbox).is_err());
+        assert!(fold.render(gpu, &Rgba8Image { width: 2, height: 2, pixels: vec![0; 3] }, pose, bbox).is_err());
+        assert!(fold.render(gpu, &frame, Quat::from_xyzw(0.0, 0.0, 0.0, 3.0), bbox).is_err());
     }
 }

@@ -2,14 +2,15 @@
 //!
 //! The user taps on the front view: its heading becomes the capture's *reference heading*.
 //! Up, down, right, back and left follow in any order; each is taken automatically when the
-//! estimated camera pose is within tolerance of that face's target and held steady
-//! ([`assistant`]). Faces are re-projected from the frames by pose ([`reproject`]): per face
+//! estimated camera pose is on that target — judged with the pose's own uncertainty — and held
+//! steady ([`assistant`]). Faces are re-projected from the frames by pose ([`reproject`]): per face
 //! pixel, direction → camera → frame pixel. Two modes:
 //!
 //! - [`Mode::Stretch`]: the seed's cheapest — one shot per face, its centred square stretched
 //!   over the whole 90° face (the lens sees less than 90°, so the face is magnified);
-//! - [`Mode::Stitch`]: extra targets, as many as the lens's field of view needs
-//!   ([`targets::plan_targets`]), stitched by pose so every face is fully covered.
+//! - [`Mode::Stitch`]: the fewest views that cover the sphere for the lens's field of view
+//!   ([`targets::plan_targets`]), stitched by pose; complete when every face has been seen,
+//!   whichever shots saw it. [`align`] can correct the shots' headings from their overlaps.
 //!
 //! A capture saves and loads as a folder of six PNG faces and a metadata JSON ([`folder`]).
 //! Without a capture, [`frame_fold`] folds the live frame into an approximate cube map (seed
@@ -43,7 +44,7 @@ pub use targets::{Face, Target};
 pub enum Mode {
     /// One shot per face, its centred square stretched over the face (seed 000).
     Stretch,
-    /// Extra shots as the lens needs, stitched by pose: every face fully observed.
+    /// The views the lens needs, stitched by pose: every face observed.
     Stitch,
 }
 

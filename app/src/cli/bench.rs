@@ -1,8 +1,9 @@
 //! `previz bench …`: measurements recorded in docs/PERFORMANCE.md.
 
 use crate::bench::{frame, live, lod};
-use crate::cli::composite::{SceneArgs, load_inputs, scene_from_args};
-use crate::render::gpu::Gpu;
+use crate::cli::composite::{SceneArgs, scene_from_args};
+use crate::gpu::Gpu;
+use crate::setup::load_inputs;
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 
@@ -21,10 +22,41 @@ pub enum What {
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
     /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames.
     Live(LiveArgs),
+    /// Accuracy against path-traced references: every method on every scene of --scenes with a
+    /// reference in --references (mean FLIP over the frame and the model + shadow, model
+    /// luminance, time), and the path tracer's own 1/4/16/64-spp ladder. `--export-reference DIR
+    /// SCENE` instead writes SCENE as previz draws it for tests/reference/render_reference.py.
+    Accuracy(AccuracyArgs),
     /// The model's level-of-detail chain in the scene: per level the triangles, the
     /// simplification error (model units and pixels at the model's distance), mean FLIP against
-    /// the full-detail composite, GPU time, and the level the half-pixel rule draws.
+    /// the full-detail composite, GPU time and its ratio to the background-only floor (interleaved
+    /// in one run), and the level the half-pixel rule draws.
     Lod(LodArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct AccuracyArgs {
+    /// The scene (same flags as `previz composite`).
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Write frame.json, the placed meshes (PLY) and textures into DIR for the reference renderer.
+    #[arg(long, value_name = "DIR")]
+    pub export_reference: Option<PathBuf>,
+    /// Folder of scene files (NAME.toml) to measure.
+    #[arg(long, value_name = "DIR", default_value = "tests/reference/scenes")]
+    pub scenes: PathBuf,
+    /// Folder of references: NAME.png, NAME_roi.png, NAME_alpha.png, NAME_sppN.png/.json.
+    #[arg(long, value_name = "DIR", default_value = "tests/reference/images")]
+    pub references: PathBuf,
+    /// Also draw the error-vs-cost chart (PNG).
+    #[arg(long, value_name = "PNG")]
+    pub chart: Option<PathBuf>,
+    /// Also write the rows as CSV.
+    #[arg(long, value_name = "CSV")]
+    pub csv: Option<PathBuf>,
+    /// Print the rows as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -76,6 +108,7 @@ pub fn run(args: Args) -> Result<()> {
     match args.what {
         What::Frame(a) => run_frame(a),
         What::Live(a) => run_live(a),
+        What::Accuracy(a) => run_accuracy(a),
         What::Lod(a) => run_lod(a),
     }
 }
@@ -166,5 +199,57 @@ fn run_live(a: LiveArgs) -> Result<()> {
         a.warmup
     );
     print!("{}", live::markdown(&rows));
+    Ok(())
+}
+
+fn run_accuracy(a: AccuracyArgs) -> Result<()> {
+    use crate::bench::accuracy;
+    if let Some(dir) = &a.export_reference {
+        let (scene, demo) = scene_from_args(&a.scene, None)?;
+        let inputs = load_inputs(&scene, demo)?;
+        let frame = accuracy::export_reference_scene(&scene, &inputs, dir)?;
+        println!("{}", serde_json::to_string_pretty(&frame)?);
+        return Ok(());
+    }
+    let entries = std::fs::read_dir(&a.scenes).map_err(|e| anyhow::anyhow!("--scenes {}: {e}", a.scenes.display()))?;
+    let mut names: Vec<String> = entries
+        .filter_map(|e| e.ok())
+        .filter_map(|e| e.path().file_name().and_then(|n| n.to_str()).and_then(|n| n.strip_suffix(".toml")).map(String::from))
+        .filter(|n| a.references.join(format!("{n}.png")).exists())
+        .collect();
+    names.sort();
+    if names.is_empty() {
+        bail!("no scene in {} has a reference NAME.png in {}", a.scenes.display(), a.references.display());
+    }
+    let gpu = Gpu::headless()?;
+    let bar = indicatif::ProgressBar::new(names.len() as u64);
+    let mut rows = Vec::new();
+    for name in &names {
+        bar.set_message(name.clone());
+        let reference = accuracy::load_reference(&a.references, name)?;
+        let args = SceneArgs { scene: Some(a.scenes.join(format!("{name}.toml"))), ..Default::default() };
+        let (scene, demo) = scene_from_args(&args, None)?;
+        let inputs = load_inputs(&scene, demo)?;
+        rows.extend(accuracy::score_methods(&gpu, name, &scene, &inputs, &reference)?);
+        rows.extend(accuracy::score_ladder(&a.references, name, &reference)?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(path) = &a.chart {
+        accuracy::write_chart(&rows, path)?;
+    }
+    if let Some(path) = &a.csv {
+        let mut s = String::from("scene,method,flip_frame,flip_roi,model_luminance_ratio,ms\n");
+        for r in &rows {
+            s += &format!("{},{},{},{},{},{}\n", r.scene, r.method, r.flip_frame, r.flip_roi, r.model_luminance_ratio, r.ms);
+        }
+        crate::output::write_atomic(path, s.as_bytes())?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        println!("{} scenes on {}; references in {}\n", names.len(), gpu.describe(), a.references.display());
+        print!("{}", accuracy::markdown(&rows));
+    }
     Ok(())
 }

@@ -15,7 +15,7 @@ use crate::pose::user_path::UserPathParams;
 use crate::scene::environment::load_environment;
 use crate::sensors::sim::NoiseLevel;
 use anyhow::{Context, Result, bail};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The virtual phone's frame (landscape 4:3).
@@ -93,9 +93,10 @@ pub struct RunArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct StabilityArgs {
-    /// Environment to capture (default: the bundled test data's quarry_01_1k.hdr)
+    /// Environment to capture: .hdr/.exr or a folder of six faces (the recorded study used the
+    /// shared data's hdri/polyhaven_1k/quarry_01_1k.hdr)
     #[arg(long, value_name = "ENV")]
-    pub env: Option<PathBuf>,
+    pub env: PathBuf,
     /// Random-heading runs per noise level and mode
     #[arg(long, default_value_t = 50)]
     pub runs: usize,
@@ -212,11 +213,6 @@ fn run_capture(a: RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// The default study environment (real HDR from the shared test data).
-fn default_study_env() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/hdri/polyhaven_1k/quarry_01_1k.hdr")
-}
-
 fn run_stability(a: StabilityArgs) -> Result<()> {
     if a.runs == 0 {
         bail!("--runs must be at least 1");
@@ -224,7 +220,7 @@ fn run_stability(a: StabilityArgs) -> Result<()> {
     if !a.out.is_dir() {
         bail!("output folder {} does not exist", a.out.display());
     }
-    let env_path = a.env.clone().unwrap_or_else(default_study_env);
+    let env_path = a.env.clone();
     let env = Arc::new(load_environment(&env_path).with_context(|| format!("cannot load the environment {}", env_path.display()))?);
     let mut cfg = StudyConfig { runs: a.runs, case_runs: a.case_runs, ..StudyConfig::default() };
     if let Some(t) = a.threads {

@@ -58,8 +58,9 @@ pub enum Sub {
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// The shared data folder with the photos, cube maps and textures.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"))]
+    /// The shared data folder with the photos, cube maps and textures (`../shared/data` beside
+    /// a Previz checkout).
+    #[arg(long, value_name = "DIR")]
     pub data: PathBuf,
     /// Folder for colour-bench.json, colour-bench.md, colour-speed-accuracy.png and the
     /// single-colour figures (created if missing).
@@ -179,7 +180,7 @@ pub fn run(args: Args) -> Result<()> {
 fn run_bench(args: BenchArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out_dir).with_context(|| format!("cannot create {}", args.out_dir.display()))?;
     let pairs = bench::default_pairs(&args.data);
-    let gpu = if args.no_gpu { None } else { Some(crate::render::gpu::Gpu::headless()?) };
+    let gpu = if args.no_gpu { None } else { Some(crate::gpu::Gpu::headless()?) };
     let steps = (pairs.len() * bench::METHODS.len()) as u64;
     let bar = indicatif::ProgressBar::new(steps).with_style(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),

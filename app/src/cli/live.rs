@@ -1,10 +1,11 @@
 //! `previz live`: the live frame loop (virtual phone + simulated sensors + pose fusion + sun +
 //! compositor) in a window, or headless for N frames written as PNG.
 
-use super::composite::{SceneArgs, load_inputs, scene_from_args};
+use super::composite::{SceneArgs, scene_from_args};
+use crate::gpu::Gpu;
 use crate::live::{LiveConfig, LiveFrame, LiveSession};
-use crate::render::gpu::Gpu;
 use crate::sensors::sim::NoiseLevel;
+use crate::setup::load_inputs;
 use anyhow::{Context, Result, bail};
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -43,8 +43,9 @@ pub enum Sub {
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// The shared data folder (uses cubemaps/pisa_hdr and photos/colour_transfer/astronaut.png).
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data"))]
+    /// The shared data folder, `../shared/data` beside a Previz checkout (uses cubemaps/pisa_hdr
+    /// and photos/colour_transfer/astronaut.png).
+    #[arg(long, value_name = "DIR")]
     pub data: PathBuf,
     /// Timed runs per path (the median is reported).
     #[arg(long, default_value_t = 9)]
@@ -75,8 +76,8 @@ pub fn run(args: Args) -> Result<()> {
         _ => "model priors".to_string(),
     };
     let (env, model_priors) = if args.gpu {
-        let gpu = crate::render::gpu::Gpu::headless()?;
-        let mut reducer = crate::priors::gpu::PriorsReducer::new(&gpu);
+        let gpu = crate::gpu::Gpu::headless()?;
+        let mut reducer = crate::priors::gpu::PriorsReducer::new(&gpu)?;
         let env = reducer.environment(&gpu, &cube).context("environment priors")?;
         let m = match &model {
             Some(m) => Some(reducer.model(&gpu, m).context(model_what.clone())?),
@@ -132,7 +133,7 @@ fn print_table(env: &EnvironmentPriors, model: Option<&ModelPriors>) {
 }
 
 fn run_bench(args: BenchArgs) -> Result<()> {
-    let gpu = crate::render::gpu::Gpu::headless()?;
+    let gpu = crate::gpu::Gpu::headless()?;
     let (cube, frame) = crate::priors::bench::default_inputs(&args.data)?;
     let rows = crate::priors::bench::run(&gpu, &cube, &frame, args.repeats)?;
     let md = crate::priors::bench::markdown(&rows, &gpu.describe(), args.repeats);

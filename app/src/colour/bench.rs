@@ -12,7 +12,7 @@ use super::report::{Raster, SpeedPoint, montage, speed_accuracy_chart};
 use super::stats::ColourStats;
 use super::transfer::Method;
 use crate::bench::median;
-use crate::render::gpu::Gpu;
+use crate::gpu::Gpu;
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
@@ -117,7 +117,7 @@ pub fn to_frame(image: &Rgba8Image) -> Result<Rgba8Image> {
 /// Run every method on every pair. `gpu` None: CPU only. `tick` is called after each method.
 pub fn run(pairs: &[PairSpec], gpu: Option<&Gpu>, repeats: u32, mut tick: impl FnMut(&str)) -> Result<BenchReport> {
     let repeats = repeats.max(1);
-    let pass = gpu.map(CorrectPass::new);
+    let pass = gpu.map(CorrectPass::new).transpose()?;
     let mut rows = Vec::new();
     for pair in pairs {
         let source = super::images::load_rgba8(&pair.source).with_context(|| format!("source of pair {}", pair.name))?;

@@ -114,25 +114,13 @@ mod tests {
 
     #[test]
     fn wgsl_validates_and_layout_matches_naga() {
-        let module = naga::front::wgsl::parse_str(COLOUR_CORRECT_WGSL).unwrap();
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all()).validate(&module).unwrap();
-        let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("ColourCorrection")).unwrap();
-        let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("not a struct") };
-        assert_eq!(*span as usize, std::mem::size_of::<ColourCorrection>());
-        let expect = [
-            ("transfer", std::mem::offset_of!(ColourCorrection, transfer)),
-            ("offset", std::mem::offset_of!(ColourCorrection, offset)),
-            ("method", std::mem::offset_of!(ColourCorrection, method)),
-            ("strength", std::mem::offset_of!(ColourCorrection, strength)),
-            ("lum_low", std::mem::offset_of!(ColourCorrection, lum_low)),
-            ("lum_mean", std::mem::offset_of!(ColourCorrection, lum_mean)),
-            ("lum_high", std::mem::offset_of!(ColourCorrection, lum_high)),
-        ];
-        assert_eq!(members.len(), expect.len());
-        for (m, (name, offset)) in members.iter().zip(expect) {
-            assert_eq!(m.name.as_deref(), Some(name));
-            assert_eq!(m.offset as usize, offset, "{name}");
-        }
+        let module = crate::gpu::wgsl::validate(COLOUR_CORRECT_WGSL).unwrap();
+        crate::assert_wgsl_layout!(
+            module,
+            ColourCorrection,
+            "ColourCorrection",
+            [transfer, offset, method, strength, lum_low, lum_mean, lum_high]
+        );
     }
 
     #[test]

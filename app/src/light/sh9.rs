@@ -46,8 +46,8 @@ impl Sh9 {
             let y = basis(s.dir);
             for (c, &yc) in acc.iter_mut().zip(&y) {
                 let w = f64::from(yc * s.solid_angle);
-                for k in 0..3 {
-                    c[k] += w * f64::from(s.radiance[k]);
+                for (ck, rk) in c.iter_mut().zip(s.radiance) {
+                    *ck += w * f64::from(rk);
                 }
             }
         }
@@ -88,8 +88,8 @@ pub fn brute_force_irradiance(samples: &[DirSample], n: Vec3) -> [f32; 3] {
     let mut e = [0.0f64; 3];
     for s in samples {
         let w = f64::from(n.dot(s.dir).max(0.0) * s.solid_angle);
-        for k in 0..3 {
-            e[k] += w * f64::from(s.radiance[k]);
+        for (ek, rk) in e.iter_mut().zip(s.radiance) {
+            *ek += w * f64::from(rk);
         }
     }
     e.map(|v| v as f32)
@@ -161,9 +161,9 @@ mod tests {
             std::array::from_fn(|k| (0..9).map(|i| truth[i][k] * y[i]).sum())
         });
         let sh = Sh9::project(&from_cube(&cube));
-        for i in 0..9 {
-            for k in 0..3 {
-                assert!((sh.coeffs[i][k] - truth[i][k]).abs() < 2e-3, "L[{i}][{k}] {} vs {}", sh.coeffs[i][k], truth[i][k]);
+        for (i, (got, want)) in sh.coeffs.iter().zip(&truth).enumerate() {
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                assert!((g - w).abs() < 2e-3, "L[{i}][{k}] {g} vs {w}");
             }
         }
         // A directional source adds E·Y(dir); its irradiance on a surface facing it is about

@@ -7,10 +7,9 @@
 //! `recomposite.png`. The place (latitude, longitude) is written, as a comment, only when asked.
 
 use super::LiveSession;
+use crate::gpu::Gpu;
 use crate::pose::frames::heading_pitch_roll;
 use crate::render::Layer;
-use crate::render::gpu::Gpu;
-use crate::scene::file::Scene;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use toml::Value;
@@ -18,10 +17,11 @@ use toml::Value;
 /// The files of one export, in the order written.
 pub const FILES: [&str; 5] = ["composite.png", "model_rgba.png", "background.png", "camera.png", "scene.toml"];
 
-/// The scene of the session's current frame (`base` is the scene the session was made from:
-/// model, environment, size and what the frame does not change). Paths: the camera image is
+/// The scene of the session's current frame (model, environment, size and what the frame does
+/// not change come from the scene the session was made from). Paths: the camera image is
 /// `camera.png` beside the scene file, the output `recomposite.png`.
-pub fn scene_toml(session: &LiveSession, base: &Scene, location: Option<(f64, f64)>) -> Result<String> {
+pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result<String> {
+    let base = session.scene();
     let p = session.params();
     let hpr = heading_pitch_roll(p.camera.pose.as_dquat());
     let l = &p.lighting;
@@ -96,7 +96,7 @@ pub fn scene_toml(session: &LiveSession, base: &Scene, location: Option<(f64, f6
 
 /// Export the current frame into `dir` (an existing folder): the files of [`FILES`]. Nothing is
 /// left behind when a write fails.
-pub fn export(session: &mut LiveSession, gpu: &Gpu, base: &Scene, dir: &Path, location: Option<(f64, f64)>) -> Result<Vec<PathBuf>> {
+pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option<(f64, f64)>) -> Result<Vec<PathBuf>> {
     if !dir.is_dir() {
         bail!("export folder {}: not an existing directory", dir.display());
     }
@@ -104,7 +104,7 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, base: &Scene, dir: &Path, lo
     let composite = session.render_layer(gpu, Layer::Composite)?;
     let model = session.render_layer(gpu, Layer::Model)?;
     let background = session.render_layer(gpu, Layer::Background)?;
-    let toml = scene_toml(session, base, location)?;
+    let toml = scene_toml(session, location)?;
     let mut written = Vec::new();
     let result = (|| -> Result<()> {
         for (name, w, h, rgba) in [

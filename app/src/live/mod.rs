@@ -35,16 +35,17 @@ mod tests {
 use crate::camera::FrameSource;
 use crate::camera::exposure::ExposureMode;
 use crate::camera::sim::{SimSequence, SimSettings, VirtualPhone};
-use crate::cli::composite::{compositor_for, exposure};
+use crate::gpu::Gpu;
 use crate::pose::frames::{angle_between, from_heading_pitch_roll};
 use crate::pose::trace::{TruthSample, TruthTrace};
 use crate::pose::user_path::{HandShake, UserPathParams};
 use crate::pose::{DisplayRotation, FusionConfig, OrientationEstimator, OrientationFilter, Pose};
-use crate::render::{Compositor, FrameParams, Layer, Rendered, gpu::Gpu};
+use crate::render::{Compositor, FrameParams, Layer, Rendered};
 use crate::scene::file::Scene;
 use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
+use crate::setup::{compositor_for, exposure};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
 use crate::ui::controls::Controls;
 use anyhow::{Result, bail};
@@ -192,6 +193,8 @@ pub struct LiveSession {
     sun_intensity: f32,
     /// The current camera image (the background of the frame).
     camera_image: Option<crate::scene::Rgba8Image>,
+    /// The scene the session was made from (model, environment, size), for the export.
+    scene: Scene,
 }
 
 impl LiveSession {
@@ -218,6 +221,7 @@ impl LiveSession {
             controls: None,
             sun_intensity: scene.sun.sunlight as f32,
             camera_image: None,
+            scene: scene.clone(),
         })
     }
 
@@ -306,6 +310,11 @@ impl LiveSession {
     pub fn set_controls(&mut self, c: Controls) {
         c.apply(&mut self.params, self.sun_intensity);
         self.controls = Some(c);
+    }
+
+    /// The scene the session was made from.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
     }
 
     /// The camera image of the current frame (None before the first).

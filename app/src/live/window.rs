@@ -9,8 +9,8 @@
 //! surface for the window and carries on with the same session (GPU device, scene, filter).
 
 use super::{LiveFrame, LiveSession};
+use crate::gpu::Gpu;
 use crate::render::Placement;
-use crate::render::gpu::Gpu;
 use crate::ui::controls::{Controls, apply_gesture, drag_on_ground, pinch_twist};
 use anyhow::{Context, Result, anyhow};
 use std::sync::Arc;
@@ -27,13 +27,13 @@ pub type MakeSession = Box<dyn FnOnce(&Gpu) -> Result<LiveSession>>;
 pub fn run(title: &str, size: (u32, u32), make: MakeSession) -> Result<()> {
     let event_loop = EventLoop::new()
         .map_err(|e| anyhow!("cannot open a window ({e}); on a machine without a display run under Xvfb, or use --frames N -o DIR"))?;
-    run_on(event_loop, title, size, make)
+    run_on(event_loop, title, size, std::env::current_dir().unwrap_or_default(), make)
 }
 
 /// Run the session in a window of `event_loop` (the platform shells build their own loop: the
-/// Android one needs the `AndroidApp`).
-pub fn run_on(event_loop: EventLoop<()>, title: &str, size: (u32, u32), make: MakeSession) -> Result<()> {
-    let mut app = App { title: title.to_string(), size, make: Some(make), state: None, error: None };
+/// Android one needs the `AndroidApp`); the shutter saves into `export_dir`.
+pub fn run_on(event_loop: EventLoop<()>, title: &str, size: (u32, u32), export_dir: std::path::PathBuf, make: MakeSession) -> Result<()> {
+    let mut app = App { title: title.to_string(), size, make: Some(make), state: None, error: None, export_dir };
     event_loop.run_app(&mut app).context("the window's event loop failed")?;
     app.error.map_or(Ok(()), Err)
 }
@@ -44,6 +44,7 @@ struct App {
     make: Option<MakeSession>,
     state: Option<State>,
     error: Option<anyhow::Error>,
+    export_dir: std::path::PathBuf,
 }
 
 struct State {
@@ -66,6 +67,9 @@ struct State {
     touches: Vec<(u64, glam::Vec2)>,
     mouse: Option<glam::Vec2>,
     cursor: glam::Vec2,
+    /// Where the shutter saves, and what the last press did.
+    export_dir: std::path::PathBuf,
+    status: String,
 }
 
 impl App {
@@ -122,6 +126,8 @@ impl App {
             touches: Vec::new(),
             mouse: None,
             cursor: glam::Vec2::ZERO,
+            export_dir: self.export_dir.clone(),
+            status: String::new(),
         })
     }
 }
@@ -230,6 +236,15 @@ impl State {
         }
     }
 
+    /// The shutter: export the current frame into a new folder `previz-export-<time>` in the
+    /// export folder (the working directory on the desktop).
+    fn export(&mut self) -> Result<std::path::PathBuf> {
+        let dir = self.export_dir.join(format!("previz-export-{}", chrono::Utc::now().format("%Y%m%d-%H%M%S%.3f")));
+        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        super::export::export(&mut self.session, &self.gpu, &dir, None)?;
+        Ok(dir)
+    }
+
     /// A new surface for the window after a suspension (the session is kept).
     fn resume(&mut self) -> Result<()> {
         if self.surface.is_none() {
@@ -275,11 +290,19 @@ impl State {
         let ctx = self.egui.egui_ctx().clone();
         let (texture, last, encode_ms, sensors) = (self.frame_texture, self.last, self.encode_ms, self.session.sensors());
         let mut controls = self.controls;
-        let mut reset = false;
+        let (mut reset, mut shutter) = (false, false);
+        let status = self.status.clone();
         let mut output = ctx.run_pass(input, |ctx| {
             overlay(ctx, texture, last.as_ref(), encode_ms, fps, &sensors);
             reset = controls.show(ctx);
+            shutter = shutter_button(ctx, &status);
         });
+        if shutter {
+            self.status = match self.export() {
+                Ok(dir) => format!("saved {}", dir.display()),
+                Err(e) => format!("export failed: {e:#}"),
+            };
+        }
         if reset {
             controls = Controls { open: controls.open, ..self.initial.0 };
             self.session.params_mut().placement = self.initial.1;
@@ -307,6 +330,21 @@ fn overlay(ctx: &egui::Context, frame: egui::TextureId, last: Option<&LiveFrame>
             ui.label(line);
         }
     });
+}
+
+/// The shutter button at the bottom centre, and the last export's message beside it; true when
+/// pressed.
+fn shutter_button(ctx: &egui::Context, status: &str) -> bool {
+    let mut pressed = false;
+    egui::Area::new(egui::Id::unique("shutter")).anchor(egui::Align2::CENTER_BOTTOM, egui::vec2(0.0, -12.0)).show(ctx, |ui| {
+        ui.horizontal(|ui| {
+            pressed = ui.button("shutter").clicked();
+            if !status.is_empty() {
+                ui.label(status);
+            }
+        });
+    });
+    pressed
 }
 
 /// The overlay's text (pure, so it is tested without a window).

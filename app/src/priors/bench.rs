@@ -5,7 +5,7 @@ use super::gpu::PriorsReducer;
 use crate::bench::median;
 use crate::colour::images::{counted_linear, load_rgba8};
 use crate::colour::stats::ColourStats;
-use crate::render::gpu::Gpu;
+use crate::gpu::Gpu;
 use crate::scene::{CubeMap, Rgba8Image};
 use anyhow::{Context, Result, bail};
 use std::path::Path;
@@ -69,7 +69,7 @@ fn time_ms<T>(repeats: u32, mut f: impl FnMut() -> Result<T>) -> Result<(Vec<f64
 
 /// Run the comparison on `cube` and `frame`.
 pub fn run(gpu: &Gpu, cube: &CubeMap, frame: &Rgba8Image, repeats: u32) -> Result<Vec<PriorsRow>> {
-    let mut reducer = PriorsReducer::new(gpu);
+    let mut reducer = PriorsReducer::new(gpu)?;
     let mut rows = Vec::new();
     // Cube map.
     let (cpu_t, cpu) = time_ms(repeats, || super::environment_priors(cube))?;

@@ -9,9 +9,8 @@
 
 use super::{EnvironmentPriors, ModelPriorSource, ModelPriors, TexelCounts};
 use crate::colour::correction::COLOUR_CORRECT_WGSL;
-use crate::colour::gpu::{GpuTimer, read_buffer};
 use crate::colour::stats::{ColourStats, LuminanceStats, PERCENTILE_HI, PERCENTILE_LO, percentile_rank};
-use crate::render::gpu::Gpu;
+use crate::gpu::{Gpu, GpuTimer, build, read_buffer};
 use crate::scene::{CubeMap, Model, Rgba8Image};
 use anyhow::{Result, bail};
 
@@ -151,74 +150,51 @@ pub fn reduce_source() -> String {
 }
 
 impl PriorsReducer {
-    pub fn new(gpu: &Gpu) -> PriorsReducer {
-        let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("priors_reduce.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(reduce_source().into()),
-        });
-        let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("priors reduce"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage(1, true),
-                storage(2, false),
-                storage(3, false),
-                storage(4, false),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("priors reduce"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipelines = ENTRY_POINTS
-            .iter()
-            .map(|e| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(e),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(e),
-                    compilation_options: Default::default(),
-                    cache: None,
+    pub fn new(gpu: &Gpu) -> Result<PriorsReducer> {
+        gpu.checked("the priors reduction pipelines", || {
+            let device = &gpu.device;
+            let module = build::shader(device, "priors_reduce.wgsl", reduce_source());
+            let cs = wgpu::ShaderStages::COMPUTE;
+            let entries = [
+                build::uniform(0, cs),
+                build::storage(1, cs, true),
+                build::storage(2, cs, false),
+                build::storage(3, cs, false),
+                build::storage(4, cs, false),
+            ];
+            let layout = build::layout(device, "priors reduce", &entries);
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("priors reduce"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipelines = ENTRY_POINTS
+                .iter()
+                .map(|e| {
+                    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(e),
+                        layout: Some(&pipeline_layout),
+                        module: &module,
+                        entry_point: Some(e),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
                 })
+                .collect();
+            use wgpu::BufferUsages as U;
+            let limits = device.limits();
+            Ok(PriorsReducer {
+                layout,
+                pipelines,
+                result: build::buffer(device, "reduce result", RESULT_LEN * 4, U::STORAGE | U::COPY_SRC),
+                hist: build::buffer(device, "reduce histogram", HIST_WORDS * 4, U::STORAGE | U::COPY_DST | U::COPY_SRC),
+                readback: build::buffer(device, "reduce readback", (RESULT_LEN + HIST_WORDS) * 4, U::MAP_READ | U::COPY_DST),
+                chunks: Vec::new(),
+                partials: None,
+                timer: GpuTimer::new(gpu, 1),
+                max_chunk_bytes: limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) & !15,
             })
-            .collect();
-        let buffer = |label, size, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
-        };
-        use wgpu::BufferUsages as U;
-        PriorsReducer {
-            layout,
-            pipelines,
-            result: buffer("reduce result", RESULT_LEN * 4, U::STORAGE | U::COPY_SRC),
-            hist: buffer("reduce histogram", HIST_WORDS * 4, U::STORAGE | U::COPY_DST | U::COPY_SRC),
-            readback: buffer("reduce readback", (RESULT_LEN + HIST_WORDS) * 4, U::MAP_READ | U::COPY_DST),
-            chunks: Vec::new(),
-            partials: None,
-            timer: GpuTimer::new(gpu, 1),
-            max_chunk_bytes: gpu.device.limits().max_storage_buffer_binding_size.min(gpu.device.limits().max_buffer_size) & !15,
-        }
+        })
     }
 
     /// Limit the chunk size (bytes, at least one pixel); for tests of the chunked path.
@@ -231,6 +207,10 @@ impl PriorsReducer {
         if input.main_count == 0 {
             bail!("no pixels to take statistics of");
         }
+        gpu.checked("the priors reduction", || self.reduce_unchecked(gpu, input))
+    }
+
+    fn reduce_unchecked(&mut self, gpu: &Gpu, input: &GpuInput) -> Result<GpuReduction> {
         let device = &gpu.device;
         let words_per_pixel: usize = if input.format == 0 { 4 } else { 1 };
         let pixels = input.words.len() / words_per_pixel;
@@ -238,12 +218,7 @@ impl PriorsReducer {
         let n_chunks = pixels.div_ceil(chunk_pixels).max(1);
         let rows = GROUPS * n_chunks as u64;
         if self.partials.as_ref().is_none_or(|(_, r)| *r < rows) {
-            let buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("reduce partials"),
-                size: rows * ACC * 4,
-                usage: wgpu::BufferUsages::STORAGE,
-                mapped_at_creation: false,
-            });
+            let buf = build::buffer(device, "reduce partials", rows * ACC * 4, wgpu::BufferUsages::STORAGE);
             self.partials = Some((buf, rows));
         }
         let mut binds = Vec::with_capacity(n_chunks);
@@ -252,12 +227,7 @@ impl PriorsReducer {
             let words = &input.words[p0 * words_per_pixel..p1 * words_per_pixel];
             let bytes = (words.len() as u64 * 4).max(16);
             if self.chunks.len() <= c {
-                let params = device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("reduce params"),
-                    size: std::mem::size_of::<ReduceParams>() as u64,
-                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
+                let params = build::uniform_buffer::<ReduceParams>(device, "reduce params");
                 self.chunks.push((pixel_buffer(device, bytes), bytes, params));
             } else if self.chunks[c].1 < bytes {
                 self.chunks[c].0 = pixel_buffer(device, bytes);
@@ -290,32 +260,23 @@ impl PriorsReducer {
         }
         let Some((partials, _)) = &self.partials else { bail!("internal: no partials buffer") };
         for (pixel_buf, _, params_buf) in &self.chunks[..n_chunks] {
-            binds.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("priors reduce"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: params_buf.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: pixel_buf.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 2, resource: partials.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 3, resource: self.result.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 4, resource: self.hist.as_entire_binding() },
-                ],
-            }));
+            // Only the rows this input uses: the buffer may have grown for a larger input.
+            let used_partials = wgpu::BufferBinding { buffer: partials, offset: 0, size: wgpu::BufferSize::new(rows * ACC * 4) };
+            let resources = [
+                params_buf.as_entire_binding(),
+                pixel_buf.as_entire_binding(),
+                wgpu::BindingResource::Buffer(used_partials),
+                self.result.as_entire_binding(),
+                self.hist.as_entire_binding(),
+            ];
+            binds.push(build::bind_group(device, "priors reduce", &self.layout, &resources));
         }
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.hist, 0, None);
         let last = self.pipelines.len() - 1;
         for (i, pipeline) in self.pipelines.iter().enumerate() {
             // One GPU time for the whole reduction: begin of the first pass, end of the last.
-            let timestamp_writes = self.timer.as_ref().and_then(|t| t.compute_writes(0)).and_then(|mut w| {
-                if i != 0 {
-                    w.beginning_of_pass_write_index = None;
-                }
-                if i != last {
-                    w.end_of_pass_write_index = None;
-                }
-                (i == 0 || i == last).then_some(w)
-            });
+            let timestamp_writes = self.timer.as_ref().and_then(|t| t.compute_pass(0, i == 0, i == last));
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(ENTRY_POINTS[i]), timestamp_writes });
             pass.set_pipeline(pipeline);
             if i % 2 == 0 {
@@ -387,17 +348,12 @@ impl PriorsReducer {
 }
 
 fn pixel_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("reduce pixels"),
-        size: bytes,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
+    build::buffer(device, "reduce pixels", bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST)
 }
 
 /// Environment priors on the GPU, convenience for one-off use (makes the pipelines each call).
 pub fn environment_priors(gpu: &Gpu, cube: &CubeMap) -> Result<EnvironmentPriors> {
-    PriorsReducer::new(gpu).environment(gpu, cube)
+    PriorsReducer::new(gpu)?.environment(gpu, cube)
 }
 
 fn triple(r: &[f32], at: usize) -> [f64; 3] {
@@ -431,37 +387,19 @@ mod tests {
     use super::*;
     use crate::priors::tests::{half_quad_model, solid_cube};
 
-    fn gpu() -> Gpu {
-        std::fs::create_dir_all("/tmp/xdg").ok();
-        Gpu::headless().unwrap()
+    fn gpu() -> &'static Gpu {
+        crate::gpu::tests::gpu()
     }
 
     #[test]
     fn wgsl_validates_and_params_layout_matches_naga() {
-        let module = naga::front::wgsl::parse_str(&reduce_source()).unwrap();
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all()).validate(&module).unwrap();
-        let (_, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("ReduceParams")).unwrap();
-        let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("not a struct") };
-        assert_eq!(*span as usize, std::mem::size_of::<ReduceParams>());
-        let names = [
-            "main_begin",
-            "main_end",
-            "up_begin",
-            "up_end",
-            "down_begin",
-            "down_end",
-            "format",
-            "k_lo",
-            "k_hi",
-            "lum_floor",
-            "partial_base",
-            "partial_rows",
-        ];
-        assert_eq!(members.len(), names.len());
-        for (i, (m, name)) in members.iter().zip(names).enumerate() {
-            assert_eq!(m.name.as_deref(), Some(name));
-            assert_eq!(m.offset as usize, 4 * i, "{name}");
-        }
+        let module = crate::gpu::wgsl::validate(&reduce_source()).unwrap();
+        crate::assert_wgsl_layout!(
+            module,
+            ReduceParams,
+            "ReduceParams",
+            [main_begin, main_end, up_begin, up_end, down_begin, down_end, format, k_lo, k_hi, lum_floor, partial_base, partial_rows]
+        );
     }
 
     /// |a − b| ≤ 1e-3 · max(1, |b|).
@@ -513,15 +451,15 @@ mod tests {
         let gpu = gpu();
         let cube = synthetic_cube(48);
         let cpu = crate::priors::environment_priors(&cube).unwrap();
-        let g = environment_priors(&gpu, &cube).unwrap();
+        let g = environment_priors(gpu, &cube).unwrap();
         assert_stats_agree(&g.horizontal, &cpu.horizontal);
         for i in 0..3 {
             assert!(close(g.up_mean[i], cpu.up_mean[i]) && close(g.down_mean[i], cpu.down_mean[i]));
         }
         // The same input split into 19984-byte chunks (1249 pixels: not aligned with the faces).
-        let mut chunked = PriorsReducer::new(&gpu);
+        let mut chunked = PriorsReducer::new(gpu).unwrap();
         chunked.set_max_chunk_bytes(20_000);
-        let c = chunked.environment(&gpu, &cube).unwrap();
+        let c = chunked.environment(gpu, &cube).unwrap();
         assert_stats_agree(&c.horizontal, &cpu.horizontal);
         for i in 0..3 {
             assert!(close(c.up_mean[i], cpu.up_mean[i]) && close(c.down_mean[i], cpu.down_mean[i]));
@@ -531,7 +469,7 @@ mod tests {
     #[test]
     fn gpu_model_and_frame_priors_agree_with_cpu() {
         let gpu = gpu();
-        let mut reducer = PriorsReducer::new(&gpu);
+        let mut reducer = PriorsReducer::new(gpu).unwrap();
         let (w, h) = (40u32, 30u32);
         let pixels: Vec<u8> = (0..w * h)
             .flat_map(|i| {
@@ -546,7 +484,7 @@ mod tests {
         let tex = Rgba8Image { width: w, height: h, pixels };
         let model = half_quad_model(tex.clone());
         let cpu = crate::priors::model_priors(&model).unwrap();
-        let g = reducer.model(&gpu, &model).unwrap();
+        let g = reducer.model(gpu, &model).unwrap();
         assert_eq!(g.texels, cpu.texels);
         assert_stats_agree(&g.stats, &cpu.stats);
         // A frame: all pixels with alpha > 0, green included.
@@ -554,11 +492,11 @@ mod tests {
         let lin: Vec<[f32; 3]> =
             tex.pixels.chunks(4).filter(|p| p[3] > 0).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect();
         let cpu = ColourStats::from_linear(&lin).unwrap();
-        let g = reducer.frame(&gpu, &tex).unwrap();
+        let g = reducer.frame(gpu, &tex).unwrap();
         assert_stats_agree(&g.main, &cpu);
         // Chunked: 1000 pixels of 1200 per chunk.
         reducer.set_max_chunk_bytes(4000);
-        let g = reducer.frame(&gpu, &tex).unwrap();
+        let g = reducer.frame(gpu, &tex).unwrap();
         assert_stats_agree(&g.main, &cpu);
     }
 
@@ -566,22 +504,22 @@ mod tests {
     fn gpu_flat_input_and_errors() {
         let gpu = gpu();
         let cube = solid_cube(8, [[0.3, 0.3, 0.3]; 6]);
-        let g = environment_priors(&gpu, &cube).unwrap();
+        let g = environment_priors(gpu, &cube).unwrap();
         let cpu = crate::priors::environment_priors(&cube).unwrap();
         assert_stats_agree(&g.horizontal, &cpu.horizontal);
-        let mut reducer = PriorsReducer::new(&gpu);
+        let mut reducer = PriorsReducer::new(gpu).unwrap();
         let transparent = Rgba8Image { width: 2, height: 2, pixels: vec![0; 16] };
-        assert!(reducer.frame(&gpu, &transparent).is_err());
+        assert!(reducer.frame(gpu, &transparent).is_err());
         let empty = Rgba8Image { width: 0, height: 0, pixels: vec![] };
-        assert!(reducer.frame(&gpu, &empty).is_err());
+        assert!(reducer.frame(gpu, &empty).is_err());
     }
 
     #[test]
     fn gpu_priors_of_a_real_model_and_cube_map_agree_with_cpu() {
         let gpu = gpu();
-        let mut reducer = PriorsReducer::new(&gpu);
+        let mut reducer = PriorsReducer::new(gpu).unwrap();
         let spot = crate::priors::tests::spot();
-        let (g, c) = (reducer.model(&gpu, &spot).unwrap(), crate::priors::model_priors(&spot).unwrap());
+        let (g, c) = (reducer.model(gpu, &spot).unwrap(), crate::priors::model_priors(&spot).unwrap());
         assert_eq!(g.texels, c.texels);
         assert_stats_agree(&g.stats, &c.stats);
         let env = crate::scene::environment::load_environment(std::path::Path::new(concat!(
@@ -589,7 +527,7 @@ mod tests {
             "/../shared/data/cubemaps/pisa_hdr"
         )))
         .unwrap();
-        let (g, c) = (reducer.environment(&gpu, &env).unwrap(), crate::priors::environment_priors(&env).unwrap());
+        let (g, c) = (reducer.environment(gpu, &env).unwrap(), crate::priors::environment_priors(&env).unwrap());
         assert_stats_agree(&g.horizontal, &c.horizontal);
         for i in 0..3 {
             assert!(close(g.up_mean[i], c.up_mean[i]) && close(g.down_mean[i], c.down_mean[i]));

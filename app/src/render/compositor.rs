@@ -11,8 +11,8 @@ use super::view::{self, Placement};
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::colour::transfer::Method as ColourMethod;
+use crate::gpu::{Gpu, GpuTimer, Readback, build};
 use crate::priors::{self, EnvironmentPriors};
-use crate::render::gpu::Gpu;
 use crate::scene::{CubeMap, Model, Rgba8Image};
 use anyhow::{Context, Result, anyhow, bail};
 use glam::{Mat4, Quat, Vec3};
@@ -178,13 +178,6 @@ struct EnvGpu {
     heading: f32,
 }
 
-struct Timestamps {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    read: wgpu::Buffer,
-    period_ns: f32,
-}
-
 /// GPU state for compositing at one output size.
 pub struct Compositor {
     pipelines: std::sync::Arc<Pipelines>,
@@ -195,13 +188,13 @@ pub struct Compositor {
     ground_buf: wgpu::Buffer,
     colour_buf: wgpu::Buffer,
     shadow_view: wgpu::TextureView,
+    shadow_size: u32,
     msaa_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
     resolve: wgpu::Texture,
     resolve_view: wgpu::TextureView,
     encoded_view: wgpu::TextureView,
-    readback: wgpu::Buffer,
-    padded_row: u32,
+    readback: Readback,
     background: wgpu::Texture,
     background_view: wgpu::TextureView,
     background_from_env: bool,
@@ -213,82 +206,41 @@ pub struct Compositor {
     shadow_bg: wgpu::BindGroup,
     ground_bg: wgpu::BindGroup,
     model_bg: Option<wgpu::BindGroup>,
-    timestamps: Option<Timestamps>,
-}
-
-fn target(
-    device: &wgpu::Device,
-    label: &str,
-    w: u32,
-    h: u32,
-    format: wgpu::TextureFormat,
-    samples: u32,
-    usage: wgpu::TextureUsages,
-) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: samples,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
-}
-
-fn uniform_buffer(device: &wgpu::Device, label: &str, size: usize) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: size as u64,
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
+    /// Slot 0: from the first pass's start to the composite pass's end.
+    timer: Option<GpuTimer>,
 }
 
 /// Upload an sRGB RGBA8 image as a sampled texture.
 fn upload_rgba8(gpu: &Gpu, label: &str, image: &Rgba8Image) -> wgpu::TextureView {
-    let texture = target(
-        &gpu.device,
-        label,
-        image.width,
-        image.height,
-        COLOR_FORMAT,
-        1,
-        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-    );
-    write_rgba8(gpu, &texture, image);
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+    let texture = build::texture(&gpu.device, label, (image.width, image.height, 1), COLOR_FORMAT, 1, usage);
+    build::write_layer(&gpu.queue, &texture, 0, &image.pixels);
     texture.create_view(&Default::default())
-}
-
-fn write_rgba8(gpu: &Gpu, texture: &wgpu::Texture, image: &Rgba8Image) {
-    gpu.queue.write_texture(
-        texture.as_image_copy(),
-        &image.pixels,
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * image.width), rows_per_image: None },
-        wgpu::Extent3d { width: image.width, height: image.height, depth_or_array_layers: 1 },
-    );
-}
-
-fn check_size(width: u32, height: u32, gpu: &Gpu) -> Result<()> {
-    let max = gpu.device.limits().max_texture_dimension_2d;
-    if width == 0 || height == 0 || width > max || height > max {
-        bail!("image size {width}x{height} is outside 1..={max} pixels per side (this GPU's limit)");
-    }
-    Ok(())
 }
 
 impl Compositor {
     /// Pipelines and targets for `width`×`height` output.
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
-        check_size(width, height, gpu)?;
+        gpu.check_size("output", width, height)?;
+        gpu.checked("the compositor's render targets", || Self::create(gpu, width, height))
+    }
+
+    fn create(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
         let device = &gpu.device;
-        let pipelines = gpu.pipelines();
+        let pipelines = Pipelines::shared(gpu)?;
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
-        let shadow =
-            target(device, "shadow map", SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::TEXTURE_BINDING);
-        let msaa = target(device, "msaa colour", width, height, COLOR_FORMAT, SAMPLES, attach);
-        let depth = target(device, "depth", width, height, DEPTH_FORMAT, SAMPLES, attach);
+        // The shadow map's side: SHADOW_MAP_SIZE where the device allows it.
+        let shadow_size = SHADOW_MAP_SIZE.min(device.limits().max_texture_dimension_2d);
+        let shadow = build::texture(
+            device,
+            "shadow map",
+            (shadow_size, shadow_size, 1),
+            DEPTH_FORMAT,
+            1,
+            attach | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let msaa = build::texture(device, "msaa colour", (width, height, 1), COLOR_FORMAT, SAMPLES, attach);
+        let depth = build::texture(device, "depth", (width, height, 1), DEPTH_FORMAT, SAMPLES, attach);
         // The resolved frame: read back (headless) or sampled by the window's UI pass (live),
         // which blends in gamma space and so samples the sRGB-encoded bytes as they are.
         let resolve = device.create_texture(&wgpu::TextureDescriptor {
@@ -301,26 +253,19 @@ impl Compositor {
             usage: attach | wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[COLOR_FORMAT.remove_srgb_suffix()],
         });
-        let background = target(
+        let background = build::texture(
             device,
             "background",
-            width,
-            height,
+            (width, height, 1),
             COLOR_FORMAT,
             1,
             attach | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         );
-        let padded_row = (4 * width).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: u64::from(padded_row) * u64::from(height),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let frame_buf = uniform_buffer(device, "frame", std::mem::size_of::<FrameUniforms>());
-        let instance_buf = uniform_buffer(device, "instance", std::mem::size_of::<InstanceUniforms>());
-        let ground_buf = uniform_buffer(device, "ground plane", std::mem::size_of::<InstanceUniforms>());
-        let colour_buf = uniform_buffer(device, "colour correction", std::mem::size_of::<ColourCorrection>());
+        let readback = Readback::for_texture(device, "readback", &resolve)?;
+        let frame_buf = build::uniform_buffer::<FrameUniforms>(device, "frame");
+        let instance_buf = build::uniform_buffer::<InstanceUniforms>(device, "instance");
+        let ground_buf = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
+        let colour_buf = build::uniform_buffer::<ColourCorrection>(device, "colour correction");
         let shadow_view = shadow.create_view(&Default::default());
         let background_view = background.create_view(&Default::default());
         let white = upload_rgba8(gpu, "white", &Rgba8Image { width: 1, height: 1, pixels: vec![255; 4] });
@@ -350,23 +295,7 @@ impl Compositor {
                 wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&pipelines.shadow_sampler) },
             ],
         });
-        let timestamps = gpu.timestamps.then(|| {
-            let set =
-                device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("timestamps"), ty: wgpu::QueryType::Timestamp, count: 2 });
-            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamp resolve"),
-                size: 16,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            let read = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamp read"),
-                size: 16,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            Timestamps { set, resolve, read, period_ns: gpu.queue.get_timestamp_period() }
-        });
+        let timer = GpuTimer::new(gpu, 1);
         Ok(Compositor {
             pipelines,
             width,
@@ -376,6 +305,7 @@ impl Compositor {
             ground_buf,
             colour_buf,
             shadow_view,
+            shadow_size,
             msaa_view: msaa.create_view(&Default::default()),
             depth_view: depth.create_view(&Default::default()),
             resolve_view: resolve.create_view(&Default::default()),
@@ -383,7 +313,6 @@ impl Compositor {
                 .create_view(&wgpu::TextureViewDescriptor { format: Some(COLOR_FORMAT.remove_srgb_suffix()), ..Default::default() }),
             resolve,
             readback,
-            padded_row,
             background,
             background_view,
             background_from_env: true,
@@ -395,7 +324,7 @@ impl Compositor {
             shadow_bg,
             ground_bg,
             model_bg: None,
-            timestamps,
+            timer,
         })
     }
 
@@ -407,6 +336,10 @@ impl Compositor {
     /// `heading` (radians, clockwise from North) is the world direction of the map's front (+Z)
     /// face: 0 for maps already aligned with North, a capture's reference heading otherwise.
     pub fn set_environment(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
+        gpu.checked("the environment cube map", || self.set_environment_unchecked(gpu, cube, exposure, heading))
+    }
+
+    fn set_environment_unchecked(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
         if !(exposure.is_finite() && exposure > 0.0) {
             bail!("environment exposure must be a positive number, got {exposure}");
         }
@@ -414,37 +347,17 @@ impl Compositor {
             bail!("environment heading must be a finite angle");
         }
         let size = cube.size;
-        check_size(size, size, gpu)?;
-        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("environment"),
-            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 6 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba16Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
+        let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+        let texture = build::texture(&gpu.device, "environment", (size, size, 6), wgpu::TextureFormat::Rgba16Float, 1, usage);
         for (layer, face) in cube.faces.iter().enumerate() {
             if face.len() != (size * size) as usize {
                 bail!("cube-map face {} has {} pixels, expected {size}x{size}", crate::scene::FACE_NAMES[layer], face.len());
             }
             let halfs: Vec<half::f16> =
                 face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect();
-            gpu.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                bytemuck::cast_slice(&halfs),
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(8 * size), rows_per_image: Some(size) },
-                wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 1 },
-            );
+            build::write_layer(&gpu.queue, &texture, layer as u32, bytemuck::cast_slice(&halfs));
         }
-        let view =
-            texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() });
+        let view = build::cube_view(&texture);
         let env_priors = priors::environment_priors_scaled(cube, exposure).context("environment colour priors")?;
         self.env_view_bg = Some(gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("env view"),
@@ -482,6 +395,10 @@ impl Compositor {
 
     /// Upload a model: one vertex/index buffer and material bind group per mesh.
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
+        gpu.checked("the model's buffers and textures", || self.set_model_unchecked(gpu, model))
+    }
+
+    fn set_model_unchecked(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
         let bounds = model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
         if !(bounds.0.is_finite() && bounds.1.is_finite()) {
             bail!("the model has non-finite vertex positions");
@@ -577,7 +494,10 @@ impl Compositor {
                 if img.pixels.len() != (4 * img.width * img.height) as usize {
                     bail!("background pixel buffer has the wrong length");
                 }
-                write_rgba8(gpu, &self.background, img);
+                gpu.checked("the background image", || {
+                    build::write_layer(&gpu.queue, &self.background, 0, &img.pixels);
+                    Ok(())
+                })?;
                 self.background_from_env = false;
             }
         }
@@ -589,7 +509,8 @@ impl Compositor {
     pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        let (frame, instance, ground) = frame_uniforms(p, model.bounds, &env.priors, env.exposure, env.heading, self.width, self.height);
+        let (frame, instance, ground) =
+            frame_uniforms(p, model.bounds, &env.priors, env.exposure, env.heading, (self.width, self.height), self.shadow_size);
         let colour = match (p.colour.method, &model.colour) {
             (ColourMethod::None, _) => ColourCorrection::identity(),
             (m, Ok(target)) => ColourCorrection::new(m, p.colour.strength, &env.colour, target),
@@ -600,13 +521,13 @@ impl Compositor {
 
     /// Render one image of `layer` and read it back.
     pub fn render(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
-        checked(gpu, || self.render_unchecked(gpu, p, layer))
+        gpu.checked("the frame", || self.render_unchecked(gpu, p, layer))
     }
 
     /// Render one image of `layer` into [`Compositor::target_view`] without reading it back:
     /// the live view samples it in its UI pass. Returns the CPU encode time in ms.
     pub fn draw(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<f64> {
-        checked(gpu, || {
+        gpu.checked("the frame", || {
             let t0 = Instant::now();
             let encoder = self.prepare_frame(gpu, p, layer)?;
             let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -624,23 +545,18 @@ impl Compositor {
     fn render_unchecked(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
         let t0 = Instant::now();
         let mut encoder = self.prepare_frame(gpu, p, layer)?;
-        encoder.copy_texture_to_buffer(
-            self.resolve.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &self.readback,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(self.padded_row), rows_per_image: None },
-            },
-            wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
-        );
-        if let Some(ts) = &self.timestamps {
-            encoder.resolve_query_set(&ts.set, 0..2, &ts.resolve, 0);
-            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &ts.read, 0, 16);
+        self.readback.copy(&mut encoder, &self.resolve);
+        if let Some(timer) = &self.timer {
+            timer.resolve(&mut encoder, 1);
         }
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();
         gpu.queue.submit([encoder.finish()]);
-        let rgba = self.read_pixels(gpu)?;
-        let gpu_ms = self.read_timestamps(gpu)?;
+        let rgba = self.readback.read(gpu)?;
+        let gpu_ms = match &self.timer {
+            Some(timer) => timer.read_ms(gpu, 1)?.first().copied(),
+            None => None,
+        };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
         Ok(Rendered { width: self.width, height: self.height, rgba, timings: Timings { encode_ms, gpu_ms, readback_ms } })
     }
@@ -674,16 +590,9 @@ impl Compositor {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let model_bg = self.model_bg.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let env_view_bg = self.env_view_bg.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        let ts = self.timestamps.as_ref();
         // The first pass recorded writes the start timestamp, the composite pass the end.
         let shadows = layer != Layer::Background;
-        let stamp = |begin: bool, end: bool| {
-            ts.filter(|_| begin || end).map(|t| wgpu::RenderPassTimestampWrites {
-                query_set: &t.set,
-                beginning_of_pass_write_index: begin.then_some(0),
-                end_of_pass_write_index: end.then_some(1),
-            })
-        };
+        let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(0, begin, end));
 
         // 2. Shadow pass: the model's depth seen from the sun (not needed for the background alone).
         if shadows {
@@ -772,52 +681,6 @@ impl Compositor {
         }
         Ok(())
     }
-
-    fn read_pixels(&self, gpu: &Gpu) -> Result<Vec<u8>> {
-        let slice = self.readback.slice(..);
-        map_blocking(gpu, slice)?;
-        let data = slice.get_mapped_range().context("reading back the image failed")?;
-        let row = (4 * self.width) as usize;
-        let mut out = Vec::with_capacity(row * self.height as usize);
-        for chunk in data.chunks(self.padded_row as usize).take(self.height as usize) {
-            out.extend_from_slice(&chunk[..row]);
-        }
-        drop(data);
-        self.readback.unmap();
-        Ok(out)
-    }
-
-    fn read_timestamps(&self, gpu: &Gpu) -> Result<Option<f64>> {
-        let Some(ts) = &self.timestamps else { return Ok(None) };
-        let slice = ts.read.slice(..);
-        map_blocking(gpu, slice)?;
-        let data = slice.get_mapped_range().context("reading back the timestamps failed")?;
-        let t: &[u64] = bytemuck::cast_slice(&data);
-        let ms = t[1].saturating_sub(t[0]) as f64 * f64::from(ts.period_ns) / 1e6;
-        drop(data);
-        ts.read.unmap();
-        Ok(Some(ms))
-    }
-}
-
-/// Run `f` inside a validation error scope: a frame the GPU rejects is an error, not a panic
-/// or a log line.
-fn checked<T>(gpu: &Gpu, f: impl FnOnce() -> Result<T>) -> Result<T> {
-    let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let result = f();
-    if let Some(e) = pollster::block_on(scope.pop()) {
-        bail!("the GPU rejected the frame: {e}");
-    }
-    result
-}
-
-fn map_blocking(gpu: &Gpu, slice: wgpu::BufferSlice<'_>) -> Result<()> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    gpu.device.poll(wgpu::PollType::wait_indefinitely()).context("waiting for the GPU failed")?;
-    rx.recv().context("the GPU readback was dropped")?.context("mapping the readback buffer failed")
 }
 
 fn mat(m: Mat4) -> [[f32; 4]; 4] {
@@ -831,8 +694,8 @@ pub fn frame_uniforms(
     priors: &HemispherePriors,
     exposure: f32,
     env_heading: f32,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
+    shadow_size: u32,
 ) -> (FrameUniforms, InstanceUniforms, InstanceUniforms) {
     let aspect = width as f32 / height as f32;
     let model = view::model_matrix(bounds, &p.placement);
@@ -854,15 +717,25 @@ pub fn frame_uniforms(
         view_proj: mat(proj * view_m),
         view: mat(view_m),
         light_view_proj: mat(light),
-        camera_pos: p.camera.position.extend(1.0).to_array(),
-        sun: sun.extend(p.lighting.sunlight).to_array(),
-        up: [0.0, 0.0, 1.0, p.lighting.daylight],
-        sky: [priors.sky[0], priors.sky[1], priors.sky[2], priors.light],
-        ground: [priors.ground[0], priors.ground[1], priors.ground[2], priors.shadow],
-        env: [hc, hs, exposure, 0.0],
-        params: [p.lighting.reflection, 1.0 / p.lighting.ior, p.lighting.shadow_opacity, p.lighting.live_depth],
-        viewport: [width as f32, height as f32, (0.5 * p.camera.vfov).tan(), aspect],
-        mode: [p.method.shader_id(), SHADOW_MAP_SIZE, 0, 0],
+        camera_pos: p.camera.position.to_array(),
+        daylight: p.lighting.daylight,
+        sun_dir: sun.to_array(),
+        sunlight: p.lighting.sunlight,
+        sky: priors.sky,
+        occlusion_light: priors.light,
+        ground: priors.ground,
+        occlusion_shadow: priors.shadow,
+        env_rotation: [hc, hs],
+        env_exposure: exposure,
+        reflection: p.lighting.reflection,
+        eta: 1.0 / p.lighting.ior,
+        shadow_opacity: p.lighting.shadow_opacity,
+        live_depth: p.lighting.live_depth,
+        tan_half_vfov: (0.5 * p.camera.vfov).tan(),
+        aspect,
+        method: p.method.shader_id(),
+        shadow_map_size: shadow_size,
+        _padding: 0,
     };
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };

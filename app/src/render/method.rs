@@ -1,5 +1,6 @@
 //! The lighting method: a run-time choice, so new methods slot in and the benchmark iterates
-//! over all of them. The numbers are the `frame.mode.x` values the model shader switches on.
+//! over all of them. The numbers are the `frame.method` values the model shader switches on; the
+//! shader knows them by name through [`Method::wgsl_consts`].
 
 use serde::{Deserialize, Serialize};
 
@@ -35,9 +36,20 @@ impl Method {
         Method::LiveRefraction,
     ];
 
-    /// The value of `frame.mode.x` in shaders/model.wgsl.
+    /// The value of `frame.method` in shaders/model.wgsl.
     pub fn shader_id(self) -> u32 {
         self as u32
+    }
+
+    /// The name of the method's WGSL constant, e.g. `METHOD_CUBE_REFLECTION`.
+    pub fn wgsl_const(self) -> String {
+        format!("METHOD_{}", self.name().replace('-', "_").to_ascii_uppercase())
+    }
+
+    /// `const METHOD_…: u32 = id;` for every method: the WGSL side of the ids, generated here
+    /// so that they are declared once.
+    pub fn wgsl_consts() -> String {
+        Method::ALL.iter().map(|m| format!("const {}: u32 = {}u;\n", m.wgsl_const(), m.shader_id())).collect()
     }
 
     /// The name used on the command line and in scene files.
@@ -59,14 +71,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn shader_ids_match_the_model_shader_table() {
-        // The table at the top of shaders/model.wgsl lists "<id> <name>" for every method.
+    fn the_model_shader_names_every_method_and_no_id() {
         let wgsl = include_str!("../../../shaders/model.wgsl");
+        assert!(Method::wgsl_consts().contains("const METHOD_HEMISPHERE_OCCLUSION: u32 = 2u;\n"));
         for m in Method::ALL {
-            let row = format!("//   {} {}", m.shader_id(), m.name());
-            assert!(wgsl.contains(&row), "model.wgsl does not document {row:?}");
+            // Every method but the default Blinn-Phong path is branched on by name...
+            assert!(wgsl.contains(&m.wgsl_const()), "model.wgsl never uses {}", m.wgsl_const());
             let parsed: Method = clap::ValueEnum::from_str(m.name(), false).unwrap();
             assert_eq!(parsed, m);
+        }
+        // ...and never by number.
+        for id in 0..Method::ALL.len() {
+            assert!(!wgsl.contains(&format!("method == {id}u")), "model.wgsl compares the method with the literal {id}u");
         }
     }
 }

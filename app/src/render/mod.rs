@@ -1,7 +1,6 @@
-//! The renderer: wgpu device, pipelines and the passes of one frame.
+//! The renderer: pipelines and the passes of one frame (the device is `crate::gpu`).
 
 pub mod compositor;
-pub mod gpu;
 pub mod method;
 pub mod pipelines;
 pub mod shaders;

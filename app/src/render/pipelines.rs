@@ -2,7 +2,11 @@
 //! format, then reused by every frame and every composite in the process.
 
 use super::shaders::{Technique, source};
-use wgpu::{BindingType, ShaderStages};
+use crate::gpu::Gpu;
+use crate::gpu::build::{self, depth_texture_entry, layout, sampler_entry, texture_entry, uniform};
+use anyhow::Result;
+use std::sync::Arc;
+use wgpu::ShaderStages;
 
 /// Colour format of every render target: sRGB storage, linear shading.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -38,89 +42,32 @@ pub struct Pipelines {
     pub shadow_sampler: wgpu::Sampler,
 }
 
-fn uniform(binding: u32, visibility: ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-        count: None,
-    }
-}
-
-fn texture(binding: u32, view_dimension: wgpu::TextureViewDimension) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: ShaderStages::FRAGMENT,
-        ty: BindingType::Texture { sample_type: wgpu::TextureSampleType::Float { filterable: true }, view_dimension, multisampled: false },
-        count: None,
-    }
-}
-
-fn depth_texture(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: ShaderStages::FRAGMENT,
-        ty: BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Depth,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
+fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
+    let label = format!("{:?}", spec.technique);
+    let module = build::shader(device, &label, source(spec.technique));
+    build::render_pipeline(
+        device,
+        build::PipelineSpec {
+            label: &label,
+            module: &module,
+            layouts: spec.layouts,
+            vertex_buffers: spec.vertex_buffers,
+            colour: spec.blend.map(|blend| wgpu::ColorTargetState { format: COLOR_FORMAT, blend, write_mask: wgpu::ColorWrites::ALL }),
+            depth: spec.depth,
+            samples: spec.samples,
+            constants: &[],
         },
-        count: None,
-    }
-}
-
-fn sampler(binding: u32, ty: wgpu::SamplerBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry { binding, visibility: ShaderStages::FRAGMENT, ty: BindingType::Sampler(ty), count: None }
-}
-
-fn layout(device: &wgpu::Device, label: &str, entries: &[wgpu::BindGroupLayoutEntry]) -> wgpu::BindGroupLayout {
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
+    )
 }
 
 struct PipelineSpec<'a> {
     technique: Technique,
-    layouts: &'a [Option<&'a wgpu::BindGroupLayout>],
+    layouts: &'a [&'a wgpu::BindGroupLayout],
     vertex_buffers: &'a [Option<wgpu::VertexBufferLayout<'a>>],
     depth: Option<wgpu::DepthStencilState>,
     samples: u32,
     /// None: depth-only pipeline.
     blend: Option<Option<wgpu::BlendState>>,
-}
-
-fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
-    let label = format!("{:?}", spec.technique);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(&label),
-        source: wgpu::ShaderSource::Wgsl(source(spec.technique).into()),
-    });
-    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(&label),
-        bind_group_layouts: spec.layouts,
-        immediate_size: 0,
-    });
-    let targets =
-        spec.blend.map(|blend| [Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend, write_mask: wgpu::ColorWrites::ALL })]);
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some(&label),
-        layout: Some(&layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: spec.vertex_buffers,
-        },
-        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-        depth_stencil: spec.depth,
-        multisample: wgpu::MultisampleState { count: spec.samples, ..Default::default() },
-        fragment: targets.as_ref().map(|targets| wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_main"),
-            compilation_options: Default::default(),
-            targets,
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
 }
 
 fn depth_state(write: bool, bias: wgpu::DepthBiasState) -> Option<wgpu::DepthStencilState> {
@@ -134,30 +81,40 @@ fn depth_state(write: bool, bias: wgpu::DepthBiasState) -> Option<wgpu::DepthSte
 }
 
 impl Pipelines {
-    pub fn new(device: &wgpu::Device) -> Pipelines {
+    /// The pipelines of `gpu`'s device: built once, inside a validation scope, and shared by
+    /// every compositor on it (a second composite in the same process compiles no shaders).
+    pub fn shared(gpu: &Gpu) -> Result<Arc<Pipelines>> {
+        gpu.shared("the render pipelines", |gpu| Ok(Pipelines::new(&gpu.device)))
+    }
+
+    fn new(device: &wgpu::Device) -> Pipelines {
         use wgpu::SamplerBindingType::{Comparison, Filtering};
         use wgpu::TextureViewDimension::{Cube, D2};
+        const FS: ShaderStages = ShaderStages::FRAGMENT;
         let vs_fs = ShaderStages::VERTEX | ShaderStages::FRAGMENT;
-        let env_view_layout = layout(device, "env_view", &[uniform(0, vs_fs), texture(1, Cube), sampler(2, Filtering)]);
-        let background_layout = layout(device, "background", &[texture(0, D2), sampler(1, Filtering)]);
+        let env_view_layout =
+            layout(device, "env_view", &[uniform(0, vs_fs), texture_entry(1, FS, Cube, true), sampler_entry(2, FS, Filtering)]);
+        let background_layout = layout(device, "background", &[texture_entry(0, FS, D2, true), sampler_entry(1, FS, Filtering)]);
         let shadow_layout = layout(device, "shadow", &[uniform(0, ShaderStages::VERTEX), uniform(1, ShaderStages::VERTEX)]);
-        let ground_layout = layout(device, "ground", &[uniform(0, vs_fs), uniform(1, vs_fs), depth_texture(2), sampler(3, Comparison)]);
+        let ground_layout =
+            layout(device, "ground", &[uniform(0, vs_fs), uniform(1, vs_fs), depth_texture_entry(2, FS), sampler_entry(3, FS, Comparison)]);
         let model_layout = layout(
             device,
             "model",
             &[
                 uniform(0, vs_fs),
                 uniform(1, vs_fs),
-                texture(2, Cube),
-                sampler(3, Filtering),
-                texture(4, D2),
-                sampler(5, Filtering),
-                depth_texture(6),
-                sampler(7, Comparison),
-                uniform(8, ShaderStages::FRAGMENT),
+                texture_entry(2, FS, Cube, true),
+                sampler_entry(3, FS, Filtering),
+                texture_entry(4, FS, D2, true),
+                sampler_entry(5, FS, Filtering),
+                depth_texture_entry(6, FS),
+                sampler_entry(7, FS, Comparison),
+                uniform(8, FS),
             ],
         );
-        let material_layout = layout(device, "material", &[uniform(0, ShaderStages::FRAGMENT), texture(1, D2), sampler(2, Filtering)]);
+        let material_layout =
+            layout(device, "material", &[uniform(0, FS), texture_entry(1, FS, D2, true), sampler_entry(2, FS, Filtering)]);
 
         let vertex_layout = wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<Vertex>() as u64,
@@ -176,7 +133,7 @@ impl Pipelines {
             device,
             PipelineSpec {
                 technique: Technique::EnvView,
-                layouts: &[Some(&env_view_layout)],
+                layouts: &[&env_view_layout],
                 vertex_buffers: &[],
                 depth: None,
                 samples: 1,
@@ -187,7 +144,7 @@ impl Pipelines {
             device,
             PipelineSpec {
                 technique: Technique::Background,
-                layouts: &[Some(&background_layout)],
+                layouts: &[&background_layout],
                 vertex_buffers: &[],
                 depth: depth_state(false, no_bias),
                 samples: SAMPLES,
@@ -198,7 +155,7 @@ impl Pipelines {
             device,
             PipelineSpec {
                 technique: Technique::Shadow,
-                layouts: &[Some(&shadow_layout)],
+                layouts: &[&shadow_layout],
                 vertex_buffers: &[Some(position_only)],
                 depth: depth_state(true, wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 }),
                 samples: 1,
@@ -209,7 +166,7 @@ impl Pipelines {
             device,
             PipelineSpec {
                 technique: Technique::Ground,
-                layouts: &[Some(&ground_layout)],
+                layouts: &[&ground_layout],
                 vertex_buffers: &[],
                 depth: depth_state(false, no_bias),
                 samples: SAMPLES,
@@ -220,7 +177,7 @@ impl Pipelines {
             device,
             PipelineSpec {
                 technique: Technique::Model,
-                layouts: &[Some(&model_layout), Some(&material_layout)],
+                layouts: &[&model_layout, &material_layout],
                 vertex_buffers: &[Some(vertex_layout)],
                 depth: depth_state(true, no_bias),
                 samples: SAMPLES,
@@ -228,17 +185,8 @@ impl Pipelines {
             },
         );
 
-        let linear = |address: wgpu::AddressMode| wgpu::SamplerDescriptor {
-            address_mode_u: address,
-            address_mode_v: address,
-            address_mode_w: address,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            ..Default::default()
-        };
-        let linear_sampler = device.create_sampler(&linear(wgpu::AddressMode::ClampToEdge));
-        let repeat_sampler = device.create_sampler(&linear(wgpu::AddressMode::Repeat));
+        let linear_sampler = build::linear_sampler(device, "clamp", wgpu::AddressMode::ClampToEdge);
+        let repeat_sampler = build::linear_sampler(device, "repeat", wgpu::AddressMode::Repeat);
         let shadow_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             compare: Some(wgpu::CompareFunction::LessEqual),
             mag_filter: wgpu::FilterMode::Linear,

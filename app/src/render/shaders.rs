@@ -1,4 +1,5 @@
-//! The WGSL sources, one file per technique, each appended to the shared `frame.wgsl`.
+//! The WGSL sources, one file per technique, each appended to the full-screen triangle and the
+//! shared `frame.wgsl`.
 
 /// A render technique with its own shader file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -30,10 +31,13 @@ pub const FRAME_WGSL: &str = include_str!("../../../shaders/frame.wgsl");
 /// The complete WGSL module for a technique. The model shader also gets the colour-correction
 /// functions (`colour_correct.wgsl`, shared with the priors compute shader).
 pub fn source(t: Technique) -> String {
-    match t {
-        Technique::Model => format!("{FRAME_WGSL}\n{}\n{}", crate::colour::correction::COLOUR_CORRECT_WGSL, t.file()),
+    let own = match t {
+        Technique::Model => {
+            format!("{FRAME_WGSL}\n{}\n{}\n{}", super::Method::wgsl_consts(), crate::colour::correction::COLOUR_CORRECT_WGSL, t.file())
+        }
         _ => format!("{FRAME_WGSL}\n{}", t.file()),
-    }
+    };
+    crate::gpu::wgsl::with_full_screen(&own)
 }
 
 #[cfg(test)]
@@ -43,11 +47,7 @@ mod tests {
     #[test]
     fn every_shader_parses_and_validates() {
         for t in Technique::ALL {
-            let src = source(t);
-            let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{t:?}: {}", e.emit_to_string(&src)));
-            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-                .validate(&module)
-                .unwrap_or_else(|e| panic!("{t:?}: {}", e.emit_to_string(&src)));
+            crate::gpu::wgsl::validate(&source(t)).unwrap_or_else(|e| panic!("{t:?}: {e}"));
         }
     }
 }

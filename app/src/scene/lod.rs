@@ -412,7 +412,9 @@ impl Simplifier {
                 (None, None) => {}
             }
         }
-        cands.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+        // Ties broken by vertex ids: the edge map's iteration order differs from run to run, the
+        // result must not.
+        cands.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
         let goal = (tri_count - target).div_ceil(2);
         let pass_limit = if goal < cands.len() { 1.5 * cands[goal].0 } else { f64::INFINITY };
 
@@ -701,13 +703,14 @@ mod tests {
                 .map(|q| 1.0 - q.length())
                 .fold(0.0f32, f32::max);
             // The reported error is an RMS distance to the original planes: the worst sampled
-            // deviation lies between it and twice it (measured 1.45-1.62x at these targets).
+            // deviation lies between it and twice it (measured 1.33-1.53x at these targets).
             assert!(err > 0.0 && deviation >= err && deviation <= 2.0 * err, "{n} triangles: error {err}, deviation {deviation}");
             // Against the best case, N equilateral triangles of equal area on the unit sphere:
-            // side s = sqrt(16π / (√3 N)), circumradius s/√3, centroid depth 1 - sqrt(1 - s²/3).
+            // side s = sqrt(16π / (√3 N)), circumradius s/√3, centroid depth 1 - sqrt(1 - s²/3)
+            // (measured 2.2-2.9x it).
             let s2 = 16.0 * std::f32::consts::PI / (3f32.sqrt() * n as f32);
             let ideal = 1.0 - (1.0 - s2 / 3.0).sqrt();
-            assert!(deviation <= 4.0 * ideal, "{n} triangles: deviation {deviation} vs ideal {ideal} (measured 2.3-3.0x)");
+            assert!(deviation <= 4.0 * ideal, "{n} triangles: deviation {deviation} vs ideal {ideal} (measured 2.2-2.9x)");
         }
     }
 

@@ -1,7 +1,7 @@
 //! Painting one egui pass with egui-wgpu into a texture view: shared by the headless renderer
 //! and the live window.
 
-use crate::render::gpu::Gpu;
+use crate::gpu::Gpu;
 
 /// An encoded UI pass, ready to submit: the caller may add work (a readback) to `encoder`.
 pub struct UiPaint {

@@ -1,0 +1,444 @@
+//! `previz bench accuracy`: previz against path-traced references.
+//!
+//! The reference renderer (tests/reference/render_reference.py, Mitsuba 3) does not re-derive
+//! previz's conventions: [`export_reference_scene`] writes the scene exactly as previz will draw
+//! it — the placed model's triangles in world (ENU) coordinates, the camera's eye/target/up,
+//! the field of view, the environment file with its heading and exposure, the ground height —
+//! and the reference reads that.
+
+use crate::render::view;
+use crate::scene::file::Scene;
+use crate::setup::{Inputs, exposure, frame_params};
+use anyhow::{Context, Result, anyhow, bail};
+use glam::{Mat3, Vec3};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// One mesh of the exported scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct ExportedMesh {
+    /// PLY file (binary little-endian; x y z nx ny nz u v per vertex, world coordinates).
+    pub ply: String,
+    /// Diffuse albedo, linear RGB (multiplies the texture).
+    pub albedo: [f32; 3],
+    /// sRGB-encoded PNG texture (v = 0 is the image's top row, as previz samples it).
+    pub texture: Option<String>,
+}
+
+/// What the reference renderer needs to draw a scene as previz does (frame.json).
+#[derive(Clone, Debug, Serialize)]
+pub struct ExportedFrame {
+    pub width: u32,
+    pub height: u32,
+    /// Vertical field of view, degrees.
+    pub vfov_deg: f32,
+    /// Camera position, the point it looks at (one metre ahead) and its up vector, ENU.
+    pub eye: [f32; 3],
+    pub target: [f32; 3],
+    pub up: [f32; 3],
+    /// Environment file (equirectangular .hdr/.exr) and the azimuth (degrees clockwise from
+    /// North) its centre column faces.
+    pub environment: String,
+    pub env_heading_deg: f32,
+    /// Linear scale applied to all radiance before sRGB encoding.
+    pub exposure: f32,
+    /// Height (ENU z) of the ground plane the model stands on.
+    pub ground_z: f32,
+    /// Radius of the model's bounding sphere in the world, metres.
+    pub model_radius: f32,
+    pub meshes: Vec<ExportedMesh>,
+}
+
+/// Write `frame.json`, one PLY per mesh and the textures into `dir` (created if missing).
+/// The environment must be an equirectangular file (Mitsuba's `envmap` needs one).
+pub fn export_reference_scene(scene: &Scene, inputs: &Inputs, dir: &Path) -> Result<ExportedFrame> {
+    let env_path =
+        scene.environment.as_ref().ok_or_else(|| anyhow!("the reference needs an environment file (the scene has the demo's)"))?;
+    if env_path.is_dir() {
+        bail!("{}: the reference renderer needs an equirectangular .hdr/.exr, not a cube-face folder", env_path.display());
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let bounds = inputs.model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
+    let params = frame_params(scene, bounds);
+    let model = view::model_matrix(bounds, &params.placement);
+    let normal = Mat3::from_mat4(model).inverse().transpose();
+    let mut meshes = Vec::new();
+    for (i, mesh) in inputs.model.meshes.iter().enumerate() {
+        let material = inputs.model.materials.get(mesh.material).cloned().unwrap_or_default();
+        let ply = format!("mesh_{i}.ply");
+        let positions: Vec<Vec3> = mesh.positions.iter().map(|p| model.transform_point3(Vec3::from(*p))).collect();
+        let normals: Vec<Vec3> = mesh.normals.iter().map(|n| (normal * Vec3::from(*n)).normalize_or_zero()).collect();
+        write_ply(&dir.join(&ply), &positions, &normals, &mesh.uvs, &mesh.indices)?;
+        let texture = match &material.texture {
+            Some(t) => {
+                let name = format!("texture_{i}.png");
+                crate::output::write_png_rgba8(&dir.join(&name), t.width, t.height, &t.pixels)?;
+                Some(name)
+            }
+            None => None,
+        };
+        meshes.push(ExportedMesh { ply, albedo: material.diffuse, texture });
+    }
+    let cam = &params.camera;
+    let forward = cam.pose * -Vec3::Z;
+    let radius = 0.5 * (bounds.1 - bounds.0).length() * params.placement.scale;
+    let frame = ExportedFrame {
+        width: scene.width,
+        height: scene.height,
+        vfov_deg: cam.vfov.to_degrees(),
+        eye: cam.position.to_array(),
+        target: (cam.position + forward).to_array(),
+        up: (cam.pose * Vec3::Y).to_array(),
+        environment: std::path::absolute(env_path).unwrap_or_else(|_| PathBuf::from(env_path)).display().to_string(),
+        env_heading_deg: scene.env.heading as f32,
+        exposure: exposure(scene, &inputs.env),
+        ground_z: params.placement.position.z,
+        model_radius: radius,
+        meshes,
+    };
+    let json = serde_json::to_string_pretty(&frame)?;
+    std::fs::write(dir.join("frame.json"), json).with_context(|| format!("cannot write {}", dir.join("frame.json").display()))?;
+    Ok(frame)
+}
+
+/// Binary little-endian PLY with float x y z nx ny nz u v and int triangle lists.
+fn write_ply(path: &Path, positions: &[Vec3], normals: &[Vec3], uvs: &[[f32; 2]], indices: &[u32]) -> Result<()> {
+    let n = positions.len();
+    let mut out = Vec::with_capacity(n * 32 + indices.len() * 5);
+    write!(
+        out,
+        "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\nproperty float u\nproperty float v\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        indices.len() / 3
+    )?;
+    for (i, p) in positions.iter().enumerate() {
+        let nrm = normals.get(i).copied().unwrap_or(Vec3::Z);
+        let uv = uvs.get(i).copied().unwrap_or([0.0; 2]);
+        for v in [p.x, p.y, p.z, nrm.x, nrm.y, nrm.z, uv[0], uv[1]] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for t in indices.chunks_exact(3) {
+        out.push(3);
+        for &i in t {
+            out.extend_from_slice(&(i as i32).to_le_bytes());
+        }
+    }
+    std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// One lighting method (or the path tracer at a sample count) on one scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct AccuracyRow {
+    pub scene: String,
+    pub method: String,
+    /// Mean FLIP against the reference over the whole frame and over the region of interest
+    /// (the model plus its shadow).
+    pub flip_frame: f32,
+    pub flip_roi: f32,
+    /// Mean linear luminance over the reference's model pixels, this image / the reference.
+    pub model_luminance_ratio: f32,
+    /// Time to make the image, ms (previz: fastest of the timed frames, wall clock including
+    /// readback; path tracer: the reference script's wall time).
+    pub ms: f64,
+}
+
+/// A reference: the composite (RGB8) with its region of interest and model mask.
+pub struct Reference {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<u8>,
+    pub roi: Vec<bool>,
+    pub model: Vec<bool>,
+}
+
+fn read_rgb8(path: &Path) -> Result<image::RgbImage> {
+    Ok(image::open(path).with_context(|| format!("cannot read reference image {}", path.display()))?.to_rgb8())
+}
+
+fn read_mask(path: &Path, w: u32, h: u32) -> Result<Vec<bool>> {
+    let m = image::open(path).with_context(|| format!("cannot read mask {}", path.display()))?.to_luma8();
+    if (m.width(), m.height()) != (w, h) {
+        bail!("{} is {}x{}, the reference is {w}x{h}", path.display(), m.width(), m.height());
+    }
+    Ok(m.pixels().map(|p| p.0[0] > 127).collect())
+}
+
+/// Load `NAME.png` with `NAME_roi.png` and `NAME_alpha.png` from `dir`.
+pub fn load_reference(dir: &Path, name: &str) -> Result<Reference> {
+    let img = read_rgb8(&dir.join(format!("{name}.png")))?;
+    let (w, h) = img.dimensions();
+    Ok(Reference {
+        width: w,
+        height: h,
+        rgb: img.into_raw(),
+        roi: read_mask(&dir.join(format!("{name}_roi.png")), w, h)?,
+        model: read_mask(&dir.join(format!("{name}_alpha.png")), w, h)?,
+    })
+}
+
+/// Per-pixel FLIP error of `test` against `reference` (RGB8, default 67 pixels per degree);
+/// None where FLIP is not linked (mobile builds).
+pub fn flip_map(reference: &[u8], test: &[u8], width: u32, height: u32) -> Option<Vec<f32>> {
+    #[cfg(not(any(target_os = "android", target_os = "ios")))]
+    {
+        let error = nv_flip::flip(
+            nv_flip::FlipImageRgb8::with_data(width, height, reference),
+            nv_flip::FlipImageRgb8::with_data(width, height, test),
+            nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+        );
+        Some(error.to_vec())
+    }
+    #[cfg(any(target_os = "android", target_os = "ios"))]
+    {
+        let _ = (reference, test, width, height);
+        None
+    }
+}
+
+/// Mean of `values` where `mask` is set (NaN for an empty mask).
+pub fn masked_mean(values: &[f32], mask: &[bool]) -> f32 {
+    let (sum, n) = values.iter().zip(mask).filter(|(_, m)| **m).fold((0.0f64, 0usize), |(s, n), (v, _)| (s + f64::from(*v), n + 1));
+    if n == 0 { f32::NAN } else { (sum / n as f64) as f32 }
+}
+
+/// Mean linear (sRGB-decoded) BT.709 luminance of RGB8 pixels where `mask` is set.
+pub fn masked_luminance(rgb: &[u8], mask: &[bool]) -> f32 {
+    let lum: Vec<f32> = rgb
+        .chunks_exact(3)
+        .map(|p| crate::colour::luminance_bt709([0, 1, 2].map(|k| crate::colour::srgb_to_linear(f32::from(p[k]) / 255.0))))
+        .collect();
+    masked_mean(&lum, mask)
+}
+
+/// Compare one RGB8 image with a reference.
+pub fn score(reference: &Reference, test: &[u8]) -> Result<(f32, f32, f32)> {
+    if test.len() != reference.rgb.len() {
+        bail!("image is {} bytes, the reference {}x{} RGB is {}", test.len(), reference.width, reference.height, reference.rgb.len());
+    }
+    let map = flip_map(&reference.rgb, test, reference.width, reference.height)
+        .ok_or_else(|| anyhow!("FLIP is not available on this platform"))?;
+    let all = vec![true; map.len()];
+    let lum_ratio = masked_luminance(test, &reference.model) / masked_luminance(&reference.rgb, &reference.model);
+    Ok((masked_mean(&map, &all), masked_mean(&map, &reference.roi), lum_ratio))
+}
+
+/// Render every lighting method for `scene` and score each against `reference`.
+pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &Inputs, reference: &Reference) -> Result<Vec<AccuracyRow>> {
+    if (scene.width, scene.height) != (reference.width, reference.height) {
+        bail!("scene {name} renders {}x{} but its reference is {}x{}", scene.width, scene.height, reference.width, reference.height);
+    }
+    let mut rows = Vec::new();
+    for method in crate::render::Method::ALL {
+        let mut s = scene.clone();
+        s.method = method;
+        let (mut compositor, params) = crate::setup::prepare(gpu, &s, inputs)?;
+        let mut best = f64::INFINITY;
+        let mut image = None;
+        for _ in 0..3 {
+            let t = std::time::Instant::now();
+            let r = compositor.render(gpu, &params, crate::render::Layer::Composite)?;
+            best = best.min(t.elapsed().as_secs_f64() * 1e3);
+            image = Some(r);
+        }
+        let r = image.ok_or_else(|| anyhow!("no frame rendered"))?;
+        let rgb: Vec<u8> = r.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let (flip_frame, flip_roi, model_luminance_ratio) = score(reference, &rgb)?;
+        rows.push(AccuracyRow { scene: name.into(), method: method.name().into(), flip_frame, flip_roi, model_luminance_ratio, ms: best });
+    }
+    Ok(rows)
+}
+
+/// Score the path tracer's own ladder: `NAME_sppN.png` (with `NAME_sppN.json` holding
+/// `seconds`) in `dir` for every N found, against the high-sample reference.
+pub fn score_ladder(dir: &Path, name: &str, reference: &Reference) -> Result<Vec<AccuracyRow>> {
+    let mut rows = Vec::new();
+    for spp in [1u32, 4, 16, 64] {
+        let png = dir.join(format!("{name}_spp{spp}.png"));
+        if !png.exists() {
+            continue;
+        }
+        let json = dir.join(format!("{name}_spp{spp}.json"));
+        let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", json.display()))?;
+        let seconds = v["seconds"].as_f64().ok_or_else(|| anyhow!("{}: no \"seconds\"", json.display()))?;
+        let (flip_frame, flip_roi, model_luminance_ratio) = score(reference, read_rgb8(&png)?.as_raw())?;
+        rows.push(AccuracyRow {
+            scene: name.into(),
+            method: format!("path tracer {spp} spp"),
+            flip_frame,
+            flip_roi,
+            model_luminance_ratio,
+            ms: seconds * 1e3,
+        });
+    }
+    Ok(rows)
+}
+
+/// Markdown table of rows.
+pub fn markdown(rows: &[AccuracyRow]) -> String {
+    let mut s = String::from("| scene | method | FLIP frame | FLIP ROI | model luminance / ref | ms |\n|---|---|---|---|---|---|\n");
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.1} |\n",
+            r.scene, r.method, r.flip_frame, r.flip_roi, r.model_luminance_ratio, r.ms
+        );
+    }
+    s
+}
+
+/// Chart size, pixels.
+const CHART_W: u32 = 1200;
+const CHART_H: u32 = 800;
+
+/// Mean over scenes of (ms, FLIP ROI) per method, in the order methods first appear.
+pub fn per_method_means(rows: &[AccuracyRow]) -> Vec<(String, f64, f64)> {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.method.as_str()) {
+            names.push(&r.method);
+        }
+    }
+    names
+        .iter()
+        .map(|n| {
+            let sel: Vec<&AccuracyRow> = rows.iter().filter(|r| r.method == *n).collect();
+            let k = sel.len() as f64;
+            (n.to_string(), sel.iter().map(|r| r.ms).sum::<f64>() / k, sel.iter().map(|r| f64::from(r.flip_roi)).sum::<f64>() / k)
+        })
+        .collect()
+}
+
+/// Error against cost: one point per previz method, the path tracer's ladder as a line (means
+/// over the scenes), x = time per image (ms, log), y = mean FLIP in the model + shadow (log),
+/// with the issue's goal (0.06) as a dashed line. RGB8.
+pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
+    use plotters::prelude::*;
+    let err = |e: &dyn std::fmt::Display| anyhow!("drawing the accuracy chart: {e}");
+    crate::chart::register_font();
+    let means = per_method_means(rows);
+    if means.is_empty() {
+        bail!("no rows to chart");
+    }
+    let x_min = means.iter().map(|m| m.1).fold(f64::INFINITY, f64::min).max(1e-3) / 2.0;
+    let x_max = means.iter().map(|m| m.1).fold(0.0, f64::max) * 2.0;
+    let y_min = means.iter().map(|m| m.2).fold(0.06, f64::min) / 1.5;
+    let y_max = means.iter().map(|m| m.2).fold(0.0, f64::max) * 1.5;
+    let mut buf = vec![0u8; (CHART_W * CHART_H * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (CHART_W, CHART_H)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let mut c = ChartBuilder::on(&root)
+            .caption("Lighting accuracy vs cost (mean over the reference scenes)", ("sans-serif", 26))
+            .margin(20)
+            .x_label_area_size(60)
+            .y_label_area_size(80)
+            .build_cartesian_2d((x_min..x_max).log_scale(), (y_min..y_max).log_scale())
+            .map_err(|e| err(&e))?;
+        c.configure_mesh()
+            .x_desc("time per image, ms (log scale)")
+            .y_desc("mean FLIP in model + shadow (log scale)")
+            .label_style(("sans-serif", 16))
+            .axis_desc_style(("sans-serif", 18))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.2}"))
+            .draw()
+            .map_err(|e| err(&e))?;
+        let goal = RGBColor(44, 160, 44);
+        c.draw_series(DashedLineSeries::new(vec![(x_min, 0.06), (x_max, 0.06)], 8, 6, goal.stroke_width(2)))
+            .map_err(|e| err(&e))?
+            .label("goal: FLIP 0.06")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], goal.stroke_width(2)));
+        let tracer: Vec<(f64, f64)> = means.iter().filter(|m| m.0.starts_with("path tracer")).map(|m| (m.1, m.2)).collect();
+        let black = RGBColor(0, 0, 0);
+        c.draw_series(LineSeries::new(tracer.clone(), black.stroke_width(2)))
+            .map_err(|e| err(&e))?
+            .label("path tracer 1/4/16/64 spp vs 256 spp")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], black.stroke_width(2)));
+        c.draw_series(tracer.iter().map(|p| Circle::new(*p, 5, black.filled()))).map_err(|e| err(&e))?;
+        let palette = [
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+            RGBColor(140, 86, 75),
+            RGBColor(227, 119, 194),
+            RGBColor(23, 190, 207),
+            RGBColor(188, 189, 34),
+        ];
+        for (i, m) in means.iter().filter(|m| !m.0.starts_with("path tracer")).enumerate() {
+            let col = palette[i % palette.len()];
+            c.draw_series(std::iter::once(TriangleMarker::new((m.1, m.2), 9, col.filled())))
+                .map_err(|e| err(&e))?
+                .label(m.0.clone())
+                .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
+        }
+        c.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", 16))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+    }
+    Ok(buf)
+}
+
+/// Draw [`chart`] into a PNG.
+pub fn write_chart(rows: &[AccuracyRow], path: &Path) -> Result<()> {
+    let rgb = chart(rows)?;
+    crate::output::write_png_rgb8(path, CHART_W, CHART_H, &rgb)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chart_means_per_method_and_draws() {
+        let row = |scene: &str, method: &str, roi: f32, ms: f64| AccuracyRow {
+            scene: scene.into(),
+            method: method.into(),
+            flip_frame: 0.0,
+            flip_roi: roi,
+            model_luminance_ratio: 1.0,
+            ms,
+        };
+        let rows = [row("a", "hemisphere", 0.2, 10.0), row("b", "hemisphere", 0.4, 30.0), row("a", "path tracer 1 spp", 0.1, 1000.0)];
+        let m = per_method_means(&rows);
+        assert_eq!(m.len(), 2);
+        assert_eq!(m[0].0, "hemisphere");
+        assert!((m[0].1 - 20.0).abs() < 1e-9 && (m[0].2 - 0.3).abs() < 1e-6);
+        let img = chart(&rows).unwrap();
+        assert_eq!(img.len(), (CHART_W * CHART_H * 3) as usize);
+        // Something other than white was drawn.
+        assert!(img.iter().any(|&v| v < 128));
+        assert!(chart(&[]).is_err());
+    }
+
+    #[test]
+    fn masked_statistics_by_hand() {
+        assert_eq!(masked_mean(&[1.0, 2.0, 3.0, 4.0], &[true, false, true, false]), 2.0);
+        assert!(masked_mean(&[1.0], &[false]).is_nan());
+        // sRGB 255 is linear 1, sRGB 0 is 0: luminance of white and black pixels.
+        let rgb = [255, 255, 255, 0, 0, 0];
+        assert!((masked_luminance(&rgb, &[true, false]) - 1.0).abs() < 1e-6);
+        assert!((masked_luminance(&rgb, &[true, true]) - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn flip_of_identical_images_is_zero_and_grows_with_difference() {
+        let (w, h) = (32, 32);
+        let a: Vec<u8> = (0..w * h * 3).map(|i| (i % 251) as u8).collect();
+        let same = flip_map(&a, &a, w, h).unwrap();
+        assert!(same.iter().all(|v| *v == 0.0));
+        let darker: Vec<u8> = a.iter().map(|v| v / 2).collect();
+        let black = vec![0u8; a.len()];
+        let m1 = masked_mean(&flip_map(&a, &darker, w, h).unwrap(), &vec![true; (w * h) as usize]);
+        let m2 = masked_mean(&flip_map(&a, &black, w, h).unwrap(), &vec![true; (w * h) as usize]);
+        assert!(0.0 < m1 && m1 < m2, "{m1} {m2}");
+    }
+}

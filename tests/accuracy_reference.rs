@@ -1,0 +1,34 @@
+//! The default lighting method against committed path-traced references (issue 9):
+//! tests/reference/images/NAME.png were rendered by tests/reference/render_reference.py (Mitsuba
+//! 3, 256 spp; command in tests/reference/README.md) from the scenes in tests/reference/scenes.
+//! A change that makes the default method's mean FLIP in the region of interest (model + its
+//! shadow) worse than measured turns this red. The bounds are today's measurements plus 0.01
+//! (docs/accuracy.md), NOT the issue's goal of 0.06: the default method does not reach it yet.
+
+mod common;
+
+use previz::bench::accuracy::{load_reference, score};
+use previz::cli::composite::{SceneArgs, scene_from_args};
+use previz::render::Layer;
+use previz::setup::load_inputs;
+use std::path::Path;
+
+/// (scene, largest allowed mean FLIP over the region of interest).
+/// Measured 2026-11-30 with the default `hemisphere` method: 0.469, 0.209, 0.264, 0.361.
+const BOUNDS: [(&str, f32); 4] = [("quarry_bunny", 0.48), ("blouberg_teapot", 0.22), ("courtyard_dragon", 0.28), ("city_spot", 0.38)];
+
+#[test]
+fn default_method_against_path_traced_references() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference");
+    for (name, bound) in BOUNDS {
+        let reference = load_reference(&root.join("images"), name).unwrap();
+        let args = SceneArgs { scene: Some(root.join("scenes").join(format!("{name}.toml"))), ..Default::default() };
+        let (scene, demo) = scene_from_args(&args, None).unwrap();
+        let inputs = load_inputs(&scene, demo).unwrap();
+        let image = common::render_with(&scene, &inputs, Layer::Composite);
+        let rgb: Vec<u8> = image.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let (frame, roi, luminance) = score(&reference, &rgb).unwrap();
+        eprintln!("{name}: {}: FLIP frame {frame:.3}, ROI {roi:.3}, model luminance / reference {luminance:.2}", scene.method.name());
+        assert!(roi <= bound, "{name}: mean FLIP in the model + shadow {roi:.3} > {bound}");
+    }
+}

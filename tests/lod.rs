@@ -16,7 +16,7 @@ fn rgb(rgba: &[u8]) -> Vec<u8> {
 #[test]
 fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let s = scene(
-        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\n[placement]\nfill = 0.25\n",
+        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.25\n",
     );
     let full = inputs(&s);
     let chain = LodChain::build(&full.model);

@@ -4,6 +4,7 @@ pub mod compositor;
 pub mod method;
 pub mod pipelines;
 pub mod shaders;
+pub mod shadow_fit;
 pub mod uniforms;
 pub mod view;
 

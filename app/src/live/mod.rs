@@ -15,8 +15,10 @@
 //! The simulated user stands still and looks at the model, panning slowly left and right and
 //! up and down with a hand-held shake ([`look_around_path`]).
 
+#[cfg(target_os = "android")]
+pub mod android;
 pub mod export;
-#[cfg(not(any(target_os = "android", target_os = "ios")))]
+#[cfg(not(target_os = "ios"))]
 pub mod window;
 
 #[cfg(test)]

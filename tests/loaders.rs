@@ -718,11 +718,7 @@ fn hostile_gltf_documents_are_errors_naming_what_is_wrong() {
     assert_eq!(loaded.triangle_count(), 1);
     type Break = fn(&mut serde_json::Value);
     let cases: Vec<(&str, Break, &str)> = vec![
-        (
-            "attribute accessor out of range",
-            |d| d["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 99.into(),
-            "attributes[\"NORMAL\"]",
-        ),
+        ("attribute accessor out of range", |d| d["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 99.into(), "accessor 99"),
         ("image bufferView without mimeType", |d| d["images"] = serde_json::json!([{"bufferView": 0}]), "mimeType"),
         ("index count 2^40", |d| d["accessors"][2]["count"] = (1u64 << 40).into(), "do not fit"),
         (
@@ -756,6 +752,22 @@ fn hostile_gltf_documents_are_errors_naming_what_is_wrong() {
         ("buffer shorter than byteLength", |d| d["buffers"][0]["byteLength"] = 4000.into(), "holds 80 bytes"),
         ("material out of range", |d| d["meshes"][0]["primitives"][0]["material"] = 5.into(), "primitives[0].material"),
     ];
+    let extra: Vec<(&str, Break, &str)> = vec![
+        ("POSITION accessor out of range", |d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 7.into(), "accessor 7"),
+        ("accessor count 0", |d| d["accessors"][0]["count"] = 0.into(), "count 0"),
+        (
+            "TEXCOORD_0 of SHORT",
+            |d| {
+                d["accessors"]
+                    .as_array_mut()
+                    .unwrap()
+                    .push(serde_json::json!({"bufferView": 0, "componentType": 5122, "count": 3, "type": "VEC2"}));
+                d["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 3.into();
+            },
+            "TEXCOORD_0 is Vec2 of I16",
+        ),
+    ];
+    let cases: Vec<(&str, Break, &str)> = cases.into_iter().chain(extra).collect();
     let mut wrong = Vec::new();
     for (what, break_it, needle) in cases {
         let mut doc = ok.clone();
@@ -766,6 +778,9 @@ fn hostile_gltf_documents_are_errors_naming_what_is_wrong() {
         }
     }
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    // GLB containers the gltf crate panicked on (found by the corpus mutation run).
+    let err = err_text(previz::scene::model::load_glb_bytes(b"glTF\x02\0\0\0\x04\0\0\0"));
+    assert!(err.contains("GLB header says 4 bytes"), "{err}");
     // NaN and infinite normals in the binary data.
     for bad in [f32::NAN, f32::INFINITY] {
         let mut doc = ok.clone();

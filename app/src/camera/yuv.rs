@@ -13,7 +13,7 @@
 //! Chroma is sampled nearest: pixel (x, y) takes the chroma sample (x/2, y/2) (odd sizes round
 //! the chroma plane up, as Android and CoreVideo do).
 
-use crate::gpu::{Gpu, Readback};
+use crate::gpu::{Gpu, Readback, build};
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result, bail};
 use bytemuck::{Pod, Zeroable};
@@ -471,19 +471,7 @@ impl YuvConverter {
         gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&YuvUniforms::new(frame)));
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("yuv") });
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("yuv"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &planes.target_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = build::clear_pass(&mut encoder, "yuv", &planes.target_view, None);
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &planes.bind, &[]);
             pass.draw(0..3, 0..1);

@@ -288,14 +288,7 @@ mod tests {
     }
 
     fn render(camera: &Pinhole, pose: Quat) -> Rgba8Image {
-        let mut pixels = Vec::with_capacity((camera.width * camera.height * 4) as usize);
-        for y in 0..camera.height {
-            for x in 0..camera.width {
-                let c = world((pose * camera.pixel_to_dir(x as f32 + 0.5, y as f32 + 0.5)).normalize());
-                pixels.extend_from_slice(&[c[0], c[1], c[2], 255]);
-            }
-        }
-        Rgba8Image { width: camera.width, height: camera.height, pixels }
+        super::super::reproject::render_synthetic(camera, pose, &world)
     }
 
     #[test]

@@ -289,19 +289,7 @@ impl FrameFold {
             gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&FoldUniforms::new(pose.normalize(), bbox, self.size)));
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold") });
             for (layer, view) in self.layer_views.iter().enumerate() {
-                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("frame fold face"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let mut pass = build::clear_pass(&mut encoder, "frame fold face", view, None);
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, bind, &[]);
                 let l = layer as u32;

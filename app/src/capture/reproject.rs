@@ -155,24 +155,26 @@ fn nearest_edge(shots: &[Shot], inverse: &[Quat], camera: &Pinhole, dir: Vec3) -
     sample_linear(&shot.image, camera.ndc_to_pixel(n))
 }
 
+/// A synthetic "frame" for the capture tests: what a camera at `pose` sees of a world whose
+/// colour is a function of direction, rendered exactly (no environment needed).
+#[cfg(test)]
+pub(super) fn render_synthetic(camera: &Pinhole, pose: Quat, f: &impl Fn(Vec3) -> [u8; 3]) -> Rgba8Image {
+    let mut pixels = Vec::with_capacity((camera.width * camera.height * 4) as usize);
+    for y in 0..camera.height {
+        for x in 0..camera.width {
+            let c = f((pose * camera.pixel_to_dir(x as f32 + 0.5, y as f32 + 0.5)).normalize());
+            pixels.extend_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+    }
+    Rgba8Image { width: camera.width, height: camera.height, pixels }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::render_synthetic as render;
     use super::*;
     use crate::capture::targets::Target;
     use crate::pose::frames::from_heading_pitch_roll;
-
-    /// A synthetic "frame": what a camera at `pose` sees of a world whose colour is a smooth
-    /// function of direction, rendered exactly (no environment needed).
-    fn render(camera: &Pinhole, pose: Quat, f: &impl Fn(Vec3) -> [u8; 3]) -> Rgba8Image {
-        let mut pixels = Vec::with_capacity((camera.width * camera.height * 4) as usize);
-        for y in 0..camera.height {
-            for x in 0..camera.width {
-                let c = f((pose * camera.pixel_to_dir(x as f32 + 0.5, y as f32 + 0.5)).normalize());
-                pixels.extend_from_slice(&[c[0], c[1], c[2], 255]);
-            }
-        }
-        Rgba8Image { width: camera.width, height: camera.height, pixels }
-    }
 
     /// Colour encodes the direction: an ideal face can be computed per pixel.
     fn world(d: Vec3) -> [u8; 3] {

@@ -97,18 +97,9 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     };
     let sky = Sh9::project(&sun_finder::without_sun(samples, &sun));
     let radius = sun.angular_radius().max(SUN_ANGULAR_RADIUS);
-    if !sun.saturated {
-        return MeasuredLight {
-            sun_dir: Some(sun.dir),
-            sun_irradiance: sun.irradiance,
-            sun_angular_radius: radius,
-            sky,
-            source: SunSource::Measured,
-            found,
-        };
-    }
-    if !options.restore_clipped {
-        // A clipped sun taken as it is: what energy the map holds, white.
+    // An unclipped sun is measured; a clipped one, unless asked to restore it, is taken as it
+    // is: what energy the map holds, white.
+    if !sun.saturated || !options.restore_clipped {
         return MeasuredLight {
             sun_dir: Some(sun.dir),
             sun_irradiance: sun.irradiance,

@@ -619,19 +619,7 @@ impl Compositor {
 
         // 3a. The environment seen by the camera becomes the background when there is no photo.
         if self.background_from_env {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("environment view"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.background_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: stamp(!shadows, false),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = build::clear_pass(encoder, "environment view", &self.background_view, stamp(!shadows, false));
             pass.set_pipeline(&self.pipelines.env_view);
             pass.set_bind_group(0, env_view_bg, &[]);
             pass.draw(0..3, 0..1);

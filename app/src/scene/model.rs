@@ -106,8 +106,13 @@ fn finish_mesh(mesh: &mut Mesh, crease_deg: f32, what: &str) -> Result<Option<St
 /// Normalise a mesh's own normals; a zero or non-finite one becomes the area-weighted mean of
 /// the triangles using that vertex (or +y if they are all degenerate). Returns how many.
 fn repair_normals(mesh: &mut Mesh) -> usize {
-    let bad: Vec<bool> =
-        mesh.normals.iter().map(|n| !(n.iter().all(|c| c.is_finite()) && Vec3::from_array(*n).length_squared() > 0.0)).collect();
+    // Scaled by the largest component first: (1e24, 0, −1) has a length that overflows f32.
+    let scaled = |n: &[f32; 3]| {
+        let v = Vec3::from_array(*n);
+        let m = v.abs().max_element();
+        if m.is_finite() && m > 0.0 { v / m } else { Vec3::ZERO }
+    };
+    let bad: Vec<bool> = mesh.normals.iter().map(|n| scaled(n) == Vec3::ZERO).collect();
     let count = bad.iter().filter(|b| **b).count();
     if count > 0 {
         let mut sums = vec![Vec3::ZERO; mesh.positions.len()];
@@ -127,7 +132,7 @@ fn repair_normals(mesh: &mut Mesh) -> usize {
         }
     }
     for n in &mut mesh.normals {
-        *n = Vec3::from_array(*n).normalize().to_array();
+        *n = scaled(n).normalize().to_array();
     }
     count
 }

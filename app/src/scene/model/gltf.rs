@@ -41,7 +41,7 @@ pub fn load_glb_bytes(bytes: &[u8]) -> Result<Model> {
 /// Parse, read the buffers, validate, and build. `base` is the folder external files are
 /// relative to (None: external files are refused).
 fn import(bytes: &[u8], base: Option<&Path>, what: &str) -> Result<LoadedModel> {
-    let ::gltf::Gltf { document, mut blob } = ::gltf::Gltf::from_slice(bytes).with_context(|| format!("cannot load glTF {what}"))?;
+    let (document, mut blob) = parse_document(bytes).with_context(|| format!("cannot load glTF {what}"))?;
     let mut buffers = Vec::new();
     for (i, buffer) in document.as_json().buffers.iter().enumerate() {
         let data = match &buffer.uri {
@@ -60,6 +60,54 @@ fn import(bytes: &[u8], base: Option<&Path>, what: &str) -> Result<LoadedModel> 
     }
     validate(document.as_json(), &buffers).with_context(|| format!("invalid glTF {what}"))?;
     build(&document, &buffers, base, what)
+}
+
+/// The document and the GLB binary chunk. The container is split here (glTF 2.0 §4.4) and the
+/// JSON parsed without the gltf crate's checks first, because those panic on a GLB length
+/// below 12 and on a POSITION accessor index out of range (found by the corpus mutation run).
+fn parse_document(bytes: &[u8]) -> Result<(::gltf::Document, Option<Vec<u8>>)> {
+    let (json_bytes, blob) = if bytes.starts_with(b"glTF") { split_glb(bytes)? } else { (bytes, None) };
+    let root: json::Root = json::deserialize::from_slice(json_bytes).context("not valid glTF JSON")?;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = prim.attributes.values().find(|i| i.value() >= root.accessors.len()) {
+                bail!("mesh {m} primitive {p}: accessor {} does not exist ({} accessors)", index.value(), root.accessors.len());
+            }
+        }
+    }
+    let document = ::gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {e}"))?;
+    Ok((document, blob.map(<[u8]>::to_vec)))
+}
+
+/// GLB: a 12-byte header (magic, version 2, total length), a JSON chunk, an optional BIN chunk;
+/// each chunk is a length, a type and the data.
+fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
+    let word = |at: usize| -> Result<u32> {
+        let b = bytes.get(at..at + 4).ok_or_else(|| anyhow!("GLB truncated at byte {at}"))?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let (version, length) = (word(4)?, word(8)? as usize);
+    if version != 2 {
+        bail!("GLB version {version} (only 2 is supported)");
+    }
+    if length < 12 || length > bytes.len() {
+        bail!("GLB header says {length} bytes, the file has {}", bytes.len());
+    }
+    let chunk = |at: usize, ty: &[u8; 4]| -> Result<Option<(&[u8], usize)>> {
+        if at >= length {
+            return Ok(None);
+        }
+        let len = word(at)? as usize;
+        let kind = bytes.get(at + 4..at + 8).ok_or_else(|| anyhow!("GLB truncated at byte {at}"))?;
+        if kind != ty {
+            bail!("GLB chunk at byte {at} is {:?}, expected {:?}", String::from_utf8_lossy(kind), String::from_utf8_lossy(ty));
+        }
+        let end = (at + 8).checked_add(len).filter(|&e| e <= length).ok_or_else(|| anyhow!("GLB chunk at byte {at} runs past the end"))?;
+        Ok(Some((&bytes[at + 8..end], end)))
+    };
+    let (json, next) = chunk(12, b"JSON")?.ok_or_else(|| anyhow!("GLB without a JSON chunk"))?;
+    let bin = chunk(next, b"BIN\0")?.map(|(b, _)| b);
+    Ok((json, bin))
 }
 
 /// The bytes a URI names: a base64 `data:` URI, or a file relative to `base`.
@@ -173,6 +221,9 @@ pub(crate) fn validate(root: &json::Root, buffers: &[Vec<u8>]) -> Result<()> {
         let what = format!("accessor {i}");
         let (Valid(ty), Valid(comp)) = (&a.type_, &a.component_type) else { bail!("{what}: unknown type or componentType") };
         let elem = (comp.0.size() * ty.multiplicity()) as u64;
+        if a.count.0 == 0 {
+            bail!("{what}: count 0 (glTF 2.0 requires at least 1)");
+        }
         let offset = a.byte_offset.map_or(0, |o| o.0);
         match a.buffer_view {
             Some(view) => view_fits(&what, view.value(), offset, None, a.count.0, elem)?,
@@ -221,14 +272,13 @@ pub(crate) fn validate(root: &json::Root, buffers: &[Vec<u8>]) -> Result<()> {
                     Valid(json::mesh::Semantic::TexCoords(0)) => Some((Type::Vec2, "TEXCOORD_0", false)),
                     _ => None,
                 };
-                if let Some((want, name, float_only)) = expected
-                    && (*ty != want || (float_only && comp.0 != ComponentType::F32))
-                {
-                    bail!(
-                        "{what}: {name} is {ty:?} of {:?}; glTF 2.0 requires {want:?}{}",
-                        comp.0,
-                        if float_only { " of FLOAT" } else { "" }
-                    );
+                if let Some((want, name, float_only)) = expected {
+                    // Component types glTF 2.0 §3.7.2.1 allows (and the gltf crate's readers expect).
+                    let comp_ok = comp.0 == ComponentType::F32 || (!float_only && matches!(comp.0, ComponentType::U8 | ComponentType::U16));
+                    if *ty != want || !comp_ok {
+                        let kinds = if float_only { " of FLOAT" } else { " of FLOAT, UNSIGNED_BYTE or UNSIGNED_SHORT" };
+                        bail!("{what}: {name} is {ty:?} of {:?}; glTF 2.0 requires {want:?}{kinds}", comp.0);
+                    }
                 }
             }
             if let Some(index) = prim.indices {

@@ -92,16 +92,46 @@ pub fn load_obj_bytes(obj: &[u8]) -> Result<Model> {
     Ok(model)
 }
 
-/// Lines of an OBJ that tobj would silently drop or misread: a face (`f`) with fewer than
-/// three vertices (a truncated line). Errors name the line.
+/// Lines of an OBJ that tobj would silently drop, misread or panic on: a face (`f`) with fewer
+/// than three vertices (a truncated line); a face or line (`l`) index that is 0, points before
+/// the first element (a relative `-12` with fewer than 12 defined) or past the last one (tobj
+/// overflows on such indices; found by the corpus mutation run). Errors name the line.
 fn check_obj(text: &[u8]) -> Result<()> {
-    for (n, line) in text.split(|&b| b == b'\n').enumerate() {
-        let line = String::from_utf8_lossy(line);
+    let lines = || text.split(|&b| b == b'\n').map(String::from_utf8_lossy);
+    let kind = |key: &str| ["v", "vt", "vn"].iter().position(|k| *k == key);
+    let mut total = [0usize; 3];
+    for line in lines() {
+        if let Some(k) = line.split_whitespace().next().and_then(kind) {
+            total[k] += 1;
+        }
+    }
+    let mut seen = [0usize; 3];
+    for (n, line) in lines().enumerate() {
         let mut words = line.split_whitespace();
-        if words.next() == Some("f") {
-            let count = words.count();
-            if count < 3 {
-                bail!("line {}: a face with {count} vertices (at least 3; a truncated line?)", n + 1);
+        let key = words.next();
+        if let Some(k) = key.and_then(kind) {
+            seen[k] += 1;
+            continue;
+        }
+        if !matches!(key, Some("f" | "l")) {
+            continue;
+        }
+        let refs: Vec<&str> = words.collect();
+        if key == Some("f") && refs.len() < 3 {
+            bail!("line {}: a face with {} vertices (at least 3; a truncated line?)", n + 1, refs.len());
+        }
+        for r in refs {
+            for (k, part) in r.split('/').enumerate().filter(|(_, p)| !p.is_empty()) {
+                let Ok(i) = part.parse::<i64>() else { continue };
+                let ok = match k {
+                    0..=2 if i > 0 => i as u64 <= total[k] as u64,
+                    0..=2 if i < 0 => i.unsigned_abs() <= seen[k] as u64,
+                    _ => false,
+                };
+                if !ok {
+                    let name = ["vertex", "texture coordinate", "normal"].get(k).copied().unwrap_or("index");
+                    bail!("line {}: {name} index {i} in '{r}' does not exist ({} defined)", n + 1, total.get(k).copied().unwrap_or(0));
+                }
             }
         }
     }
@@ -365,9 +395,13 @@ mod tests {
     #[test]
     fn bad_obj_and_mtl_lines_are_errors_naming_the_line() {
         let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-        let cases: [(String, &str); 5] = [
+        let cases: [(String, &str); 9] = [
             (format!("{tri}f 1 2\n"), "line 4"),
             (format!("{tri}f\n"), "line 4"),
+            (format!("{tri}vt 0 0\nf 1/1 2/-12 3/1\n"), "texture coordinate index -12"),
+            (format!("{tri}f 1 2 0\n"), "vertex index 0"),
+            (format!("{tri}f 1 2 9223372036854775807\n"), "vertex index 9223372036854775807"),
+            (format!("{tri}vn 0 0 1\nf 1//1 2//1 3//2\n"), "normal index 2"),
             (format!("{tri}vn nan 0 1\nf 1//1 2//1 3//1\n"), "non-finite normal"),
             (format!("{tri}vt inf 0\nf 1/1 2/1 3/1\n"), "non-finite texture coordinate"),
             (format!("{tri}vn 1e39 0 0\nf 1//1 2//1 3//1\n"), "non-finite normal"),

@@ -3,16 +3,20 @@
 //! [`android_main`] on its own thread; it runs the live window ([`super::window`]) in the
 //! activity's native window.
 //!
-//! Today the session is the built-in demo scene on the virtual phone with simulated sensors,
-//! as `previz live` runs on the desktop: the Camera2 camera backend and the Android sensors are
-//! not plugged in yet (docs/mobile.md says what is missing).
+//! At start it asks for the camera and location permissions (one system dialog,
+//! [`crate::sensors::permissions`]). The session is still the built-in demo scene on the virtual
+//! phone with simulated sensors, as `previz live` runs on the desktop: the Camera2 camera
+//! backend and the Android sensors are not plugged in yet (docs/mobile.md says what is missing).
 
 use super::window;
 use super::{LiveConfig, LiveSession};
 use crate::scene::demo;
 use crate::scene::file::SceneBuilder;
+use crate::sensors::permissions::PermissionFlow;
 use crate::sensors::sim::NoiseLevel;
 use anyhow::{Context, Result};
+use jni::objects::JObject;
+use jni::vm::JavaVM;
 use std::sync::Arc;
 use winit::event_loop::EventLoop;
 use winit::platform::android::EventLoopBuilderExtAndroid;
@@ -27,6 +31,11 @@ fn android_main(app: AndroidApp) {
 }
 
 fn run(app: AndroidApp) -> Result<()> {
+    // The first-start system dialog for the camera and location permissions. The answers are
+    // not used yet: the session below still runs on the virtual phone (docs/mobile.md).
+    if let Err(e) = ask_permissions() {
+        log(&format!("previz: cannot ask for permissions: {e:#}"));
+    }
     // The shutter saves into the app's private files folder.
     let export_dir = app.internal_data_path().unwrap_or_default();
     let event_loop = EventLoop::builder().with_android_app(app).build().context("cannot start the Android event loop")?;
@@ -44,6 +53,23 @@ fn run(app: AndroidApp) -> Result<()> {
     };
     let size = (scene.width, scene.height);
     window::run_on(event_loop, "Previz", size, export_dir, Box::new(move |gpu| LiveSession::simulated(gpu, env, &model, &scene, cfg)))
+}
+
+/// Ask for the camera and location permissions through JNI on the activity (ndk-context holds
+/// it, filled by android-activity before `android_main`).
+fn ask_permissions() -> Result<PermissionFlow> {
+    let ctx = ndk_context::android_context();
+    // SAFETY: android-activity stores the process's JavaVM pointer in ndk-context before
+    // android_main runs; it stays valid for the life of the process.
+    let vm = unsafe { JavaVM::from_raw(ctx.vm().cast()) };
+    vm.attach_current_thread(|env| -> Result<PermissionFlow> {
+        // SAFETY: ndk-context holds a global reference to the activity for the life of the
+        // process; it is only borrowed here.
+        let activity = unsafe { JObject::from_raw(env, ctx.context().cast()) };
+        let mut flow = PermissionFlow::default();
+        flow.start(env, &activity)?;
+        Ok(flow)
+    })
 }
 
 /// One line to logcat (tag "previz").

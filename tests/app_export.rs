@@ -12,7 +12,7 @@ use previz::sensors::sim::NoiseLevel;
 use previz::ui::controls::{Controls, apply_gesture};
 use std::sync::Arc;
 
-const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
+const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
 [camera]\nheading = 90.0\npitch = -5.0\n";
 
 fn rgb(rgba: &[u8]) -> Vec<u8> {

@@ -8,7 +8,7 @@ use previz::render::Layer;
 use previz::setup::prepare;
 use previz::ui::controls::Controls;
 
-const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
+const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
 [camera]\nheading = 90.0\npitch = -10.0\n[sun]\ndirection = [0.0, 0.9, 0.35]\n";
 
 /// Run one egui pass over the panel with `events`, at 800×600 points.

@@ -23,11 +23,11 @@ fn a_90_degree_square_view_reproduces_each_cube_face() {
     // on the face's texel centres, so the frame is the face itself, exposed and tone-mapped.
     // The image right/up per face follow the Vulkan face table (scene::cubemap) through
     // enu_to_cube: e.g. +X (East) has −z_cube (South) to the right and +y_cube (up) up.
-    let cube = Arc::new(load_environment(&data("cubemaps/pisa_hdr")).unwrap());
+    let cube = Arc::new(load_environment(&data("cubemaps/humus_Park2_512")).unwrap());
     let (e, s, u) = (Vec3::X, Vec3::Y, Vec3::Z); // East, North, Up
     let views = [(-s, u), (s, u), (e, -s), (e, s), (e, u), (-e, u)];
     let exposure = 0.6;
-    let settings = SimSettings { width: 256, height: 256, vfov_deg: 90.0, exposure: ExposureMode::Fixed(exposure) };
+    let settings = SimSettings { width: 512, height: 512, vfov_deg: 90.0, exposure: ExposureMode::Fixed(exposure) };
     let phone = VirtualPhone::new(cube.clone(), &settings).unwrap();
     for (face, (right, up)) in views.into_iter().enumerate() {
         let img = phone.render_with_exposure(pose(right, up), exposure).unwrap();
@@ -58,14 +58,14 @@ fn auto_exposed_outdoor_view_is_well_exposed() {
 
 #[test]
 fn photo_folder_as_a_sequence() {
-    // Natural order puts 87_OSError.jpg (1488x2240) first; the 640x480 DSCN photos that follow
-    // do not match its size, which is reported with the file's name.
+    // Natural order puts 87_OSError.jpg (1488x2240) first; the 160x120 arezzo_*.jpg photos that
+    // follow do not match its size, which is reported with the file's name.
     let mut seq = ImageFiles::open(&data("photos/exif_gps"), 30.0).unwrap();
     assert_eq!(seq.len(), 10);
     let first = seq.next_frame().unwrap().unwrap();
     assert_eq!((first.image.width, first.image.height), (1488, 2240));
     let err = seq.next_frame().unwrap_err().to_string();
-    assert!(err.contains("DSCN0010.jpg") && err.contains("1488x2240"), "{err}");
+    assert!(err.contains("arezzo_0010.jpg") && err.contains("1488x2240"), "{err}");
 }
 
 /// Frames per second of the virtual phone at 960x640, with the alternatives side by side.

@@ -8,7 +8,7 @@ use common::data;
 
 /// A small environment: the Pisa cube faces (256 px PNG).
 fn env_dir() -> String {
-    data("cubemaps/pisa_ldr_png").to_string_lossy().into_owned()
+    data("cubemaps/humus_Park2_512").to_string_lossy().into_owned()
 }
 
 #[test]

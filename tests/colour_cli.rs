@@ -200,7 +200,7 @@ fn bad_input_fails_cleanly() {
 #[test]
 fn priors_of_an_environment_and_a_model() {
     let dir = tempdir("colour-cli", "priors");
-    let env = data("cubemaps/pisa_ldr_png");
+    let env = data("cubemaps/humus_Park2_512");
     let obj = data("textured_models/spot/spot_triangulated.obj");
     let tex = data("textured_models/spot/spot_texture.png");
     let out = previz(
@@ -210,7 +210,7 @@ fn priors_of_an_environment_and_a_model() {
     let v = json(&out);
     assert!(v["encoding"].as_str().unwrap().contains("linear"));
     let h = &v["environment"]["horizontal"];
-    assert_eq!(h["count"], 4 * 256 * 256);
+    assert_eq!(h["count"], 4 * 512 * 512); // four 512 px side faces
     let l = &h["luminance"];
     let f = |k: &str| l[k].as_f64().unwrap();
     assert!(f("min") <= f("p_lo") && f("p_lo") <= f("mean") && f("mean") <= f("p_hi") && f("p_hi") <= f("max"));

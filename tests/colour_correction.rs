@@ -60,7 +60,7 @@ fn shader_applies_the_correction_built_from_the_priors() {
     let model = quad(texture(centre));
     let texel = glam::Vec3::from_array(centre.map(|c| srgb_to_linear(f32::from(c) / 255.0)));
     let target = model_priors(&model).unwrap().stats;
-    for env_dir in ["cubemaps/humus_Park2", "hdri/polyhaven_1k/venice_sunset_1k.hdr"] {
+    for env_dir in ["cubemaps/humus_Park2_512", "hdri/polyhaven_1k/venice_sunset_1k.hdr"] {
         let env = previz::scene::environment::load_environment(&data(env_dir)).unwrap();
         let inputs = Inputs { model: model.clone(), env, background: None };
         // One compositor per environment; the correction is a per-frame setting.
@@ -105,12 +105,12 @@ fn a_correction_needs_model_statistics() {
             p.copy_from_slice(&[0, 255, 0, 255]);
         }
     }
-    let env = previz::scene::environment::load_environment(&data("cubemaps/humus_Park2")).unwrap();
+    let env = previz::scene::environment::load_environment(&data("cubemaps/humus_Park2_512")).unwrap();
     let inputs = Inputs { model, env, background: None };
-    let plain = scene(&flat("cubemaps/humus_Park2", Method::None, 1.0));
+    let plain = scene(&flat("cubemaps/humus_Park2_512", Method::None, 1.0));
     let (mut compositor, params) = prepare(gpu(), &plain, &inputs).unwrap();
     assert!(compositor.render(gpu(), &params, Layer::Model).is_ok());
-    let corrected = scene(&flat("cubemaps/humus_Park2", Method::Reinhard, 1.0));
+    let corrected = scene(&flat("cubemaps/humus_Park2_512", Method::Reinhard, 1.0));
     let (mut compositor, params) = prepare(gpu(), &corrected, &inputs).unwrap();
     let err = compositor.render(gpu(), &params, Layer::Model).err().map(|e| format!("{e:#}")).unwrap_or_default();
     assert!(err.contains("reinhard") && err.contains("green"), "{err}");
@@ -120,7 +120,7 @@ fn a_correction_needs_model_statistics() {
 /// and after Reinhard colour transfer, against a green park and a warm sunset.
 #[test]
 fn textured_model_before_and_after_in_two_environments() {
-    for (env, tag) in [("cubemaps/humus_Park2", "park"), ("hdri/polyhaven_1k/venice_sunset_1k.hdr", "sunset")] {
+    for (env, tag) in [("cubemaps/humus_Park2_512", "park"), ("hdri/polyhaven_1k/venice_sunset_1k.hdr", "sunset")] {
         for (correction, state) in [("none", "before"), ("reinhard", "after")] {
             let t = format!(
                 "width = 480\nheight = 320\nmodel = \"textured_models/cesium_milk_truck_gltf/CesiumMilkTruck.glb\"\nenvironment = \"{env}\"\n\

@@ -33,7 +33,7 @@ fn layers_and_json() {
     let layers = dir.join("layers");
     std::fs::create_dir(&layers).unwrap();
     let bunny = data("meshes/stanford-bunny.obj");
-    let env = data("cubemaps/pisa_ldr_png");
+    let env = data("cubemaps/humus_Park2_512");
     let out = previz(
         &dir,
         &[
@@ -145,7 +145,7 @@ fn bad_files_are_named() {
     // An unreadable image.
     std::fs::write(dir.join("broken.jpg"), b"this is not a jpeg").unwrap();
     let before = files(&dir);
-    let env = data("cubemaps/pisa_ldr_png");
+    let env = data("cubemaps/humus_Park2_512");
     let env = env.to_str().unwrap();
     let bunny = data("meshes/stanford-bunny.obj");
     let bunny = bunny.to_str().unwrap();

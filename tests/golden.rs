@@ -35,13 +35,13 @@ pub fn uv_sphere(stacks: u32, slices: u32) -> Model {
     Model { meshes: vec![mesh], materials: vec![previz::scene::Material { diffuse: [0.8, 0.8, 0.8], ..Default::default() }] }
 }
 
-fn pisa() -> &'static previz::scene::CubeMap {
+fn park() -> &'static previz::scene::CubeMap {
     static ENV: OnceLock<previz::scene::CubeMap> = OnceLock::new();
-    ENV.get_or_init(|| previz::scene::environment::load_environment(&data("cubemaps/pisa_ldr_png")).unwrap())
+    ENV.get_or_init(|| previz::scene::environment::load_environment(&data("cubemaps/humus_Park2_512")).unwrap())
 }
 
 fn sphere_inputs() -> Inputs {
-    Inputs { model: uv_sphere(48, 96), env: pisa().clone(), background: None }
+    Inputs { model: uv_sphere(48, 96), env: park().clone(), background: None }
 }
 
 fn sphere_under_sun(name: &str, sun: &str) {
@@ -69,7 +69,7 @@ fn sphere_sun_from_behind_the_camera() {
 
 fn bunny(method: &str, pitch: f64, name: &str) {
     let t = format!(
-        "{SIZE}model = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\nmethod = \"{method}\"\n[camera]\npitch = {pitch}\n"
+        "{SIZE}model = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\nmethod = \"{method}\"\n[camera]\npitch = {pitch}\n"
     );
     assert_golden(name, &render(&t));
 }
@@ -101,7 +101,7 @@ fn bunny_cube_reflection_and_refraction() {
 fn live_feed_refraction_and_reflection() {
     for (method, name) in [("live-refraction", "bunny_live_refraction"), ("live-reflection", "bunny_live_reflection")] {
         let t = format!(
-            "{SIZE}model = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\nbackground = \"photos/colour_transfer/coffee.png\"\nmethod = \"{method}\"\n"
+            "{SIZE}model = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\nbackground = \"photos/colour_transfer/coffee.png\"\nmethod = \"{method}\"\n"
         );
         assert_golden(name, &render(&t));
     }

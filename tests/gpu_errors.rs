@@ -7,8 +7,10 @@ use previz::colour::correction::ColourCorrection;
 use previz::colour::gpu::CorrectPass;
 use previz::gpu::Gpu;
 use previz::priors::gpu::PriorsReducer;
-use previz::render::Compositor;
+use previz::render::{Compositor, Layer};
+use previz::scene::file::SceneBuilder;
 use previz::scene::{CubeMap, Material, Mesh, Model, Rgba8Image};
+use previz::setup::{Inputs, prepare};
 use previz::ui::headless::HeadlessUi;
 
 /// A device whose 2D textures may be at most 256 texels per side, with `adjust`'s changes and
@@ -89,5 +91,35 @@ fn pipeline_creation_and_the_priors_reduction_return_gpu_errors() {
     assert_rejected(reducer.frame(&gpu, &frame), "the GPU rejected the priors reduction");
     // A frame that fits one chunk still reduces.
     assert!(reducer.frame(&gpu, &grey(64, 64)).is_ok());
+    assert_eq!(gpu.uncaptured_errors(), 0, "GPU errors escaped to stderr");
+}
+
+#[test]
+fn a_rejected_model_or_environment_leaves_the_current_one() {
+    let gpu = small_gpu(|_| {});
+    let scene = SceneBuilder::from_toml("width = 64\nheight = 48\n", std::path::Path::new(".")).unwrap().build().unwrap();
+    let inputs = Inputs { model: model(grey(8, 8)), env: cube(8), background: None };
+    let (mut compositor, params) = prepare(&gpu, &scene, &inputs).unwrap();
+    let before = compositor.render(&gpu, &params, Layer::Composite).unwrap().rgba;
+    let background = compositor.render(&gpu, &params, Layer::Background).unwrap().rgba;
+    assert_ne!(before, background, "the model is not in the frame, so the test could not see it change");
+    let bounds = compositor.model_bounds();
+
+    // A larger model whose texture is beyond the device's limits: rejected, the old one stays.
+    let mut big = model(grey(300, 300));
+    big.meshes[0].positions.iter_mut().flatten().for_each(|c| *c *= 10.0);
+    assert_rejected(compositor.set_model(&gpu, &big), "the GPU rejected the model's buffers and textures");
+    assert_eq!(compositor.model_bounds(), bounds);
+    // A model with a bad index is rejected before any GPU work.
+    let mut broken = model(grey(8, 8));
+    broken.meshes[0].indices[2] = 7;
+    assert!(compositor.set_model(&gpu, &broken).is_err());
+    // A brighter environment too large for the device: rejected, the old one stays.
+    let mut bright = cube(300);
+    bright.faces.iter_mut().flatten().for_each(|p| *p = [4.0; 3]);
+    assert_rejected(compositor.set_environment(&gpu, &bright, 1.0, 0.0), "the GPU rejected the environment cube map");
+
+    let after = compositor.render(&gpu, &params, Layer::Composite).unwrap().rgba;
+    assert!(before == after, "the frame changed after rejected uploads");
     assert_eq!(gpu.uncaptured_errors(), 0, "GPU errors escaped to stderr");
 }

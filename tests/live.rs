@@ -14,7 +14,7 @@ use previz::sensors::sim::NoiseLevel;
 use previz::setup::{exposure, load_inputs};
 use std::sync::Arc;
 
-const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
+const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
 [camera]\nheading = 90.0\npitch = -5.0\n";
 
 fn config(time: &str, noise: NoiseLevel) -> LiveConfig {
@@ -110,7 +110,7 @@ fn no_sunlight_at_night_and_noisy_sensors_stay_within_a_few_degrees() {
 #[test]
 fn headless_cli_writes_frames_and_rejects_bad_flags() {
     let dir = tempdir("live", "ok");
-    let env = data("cubemaps/humus_Park2");
+    let env = data("cubemaps/humus_Park2_512");
     let model = data("meshes/stanford-bunny.obj");
     let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
     let common_args = ["live", "--env", env, "--model", model, "--width", "160", "--height", "120", "--noise", "none"];
@@ -174,7 +174,7 @@ fn window_runs_a_session_under_xvfb() {
     let number = rx.recv_timeout(std::time::Duration::from_secs(60)).expect("Xvfb did not report a display within 60 s");
     let number: u32 = number.trim().parse().unwrap_or_else(|_| panic!("Xvfb exited before it was ready (it printed {number:?})"));
     let display = format!(":{number}");
-    let env = data("cubemaps/humus_Park2");
+    let env = data("cubemaps/humus_Park2_512");
     let model = data("meshes/stanford-bunny.obj");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_previz"))
         .env("DISPLAY", &display)

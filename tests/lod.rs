@@ -16,7 +16,7 @@ fn rgb(rgba: &[u8]) -> Vec<u8> {
 #[test]
 fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let s = scene(
-        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/pisa_ldr_png\"\n[placement]\nfill = 0.25\n",
+        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.25\n",
     );
     let full = inputs(&s);
     let chain = LodChain::build(&full.model);
@@ -38,4 +38,19 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let coarsest = chain.len() - 1;
     let coarse_flip = flip(coarsest);
     assert!(coarse_flip > chosen_flip, "level {coarsest}: {coarse_flip} vs level {chosen}: {chosen_flip}");
+}
+
+/// Computed (crease-split) normals are no seam: the 100k dragon, whose normals the loader
+/// computes, simplifies to under 2 000 triangles (before welding by position the chain stopped
+/// at 11k, every split vertex pinned; measured now 100 000 -> ... -> 1 582 -> ... -> 98).
+#[test]
+fn the_dragon_chain_reaches_a_few_thousand_triangles() {
+    let model = previz::scene::model::load_model(&common::data("meshes/stanford-dragon-100k.obj")).unwrap();
+    let chain = LodChain::build(&model);
+    let (first, last) = (chain.triangles[0], *chain.triangles.last().unwrap());
+    assert!(first >= 99_000, "{first}");
+    assert!(last <= 2_000, "the dragon's chain: {:?}", chain.triangles);
+    for w in chain.errors.windows(2) {
+        assert!(w[1] >= w[0], "errors must not decrease: {:?}", chain.errors);
+    }
 }

@@ -4,7 +4,7 @@ use std::process::{Command, Output};
 
 const EXE: &str = env!("CARGO_BIN_EXE_previz");
 const PVLIB_TABLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/sun/pvlib_spa_reference.csv");
-const PHOTOS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/photos/exif_gps");
+const PHOTOS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/photos/exif_gps");
 
 fn sun(args: &[&str]) -> Output {
     Command::new(EXE).arg("sun").args(args).output().unwrap()
@@ -154,7 +154,7 @@ fn batch_reproduces_pvlib_and_reports_bad_rows() {
 
 #[test]
 fn from_photo_uses_gps_time_and_warns_about_the_camera_clock() {
-    let photo = format!("{PHOTOS}/DSCN0010.jpg");
+    let photo = format!("{PHOTOS}/arezzo_0010.jpg");
     // The table's weather and ΔT (pvlib's defaults), so only the algorithms differ.
     let weather = ["--pressure", "1013.25", "--temperature", "12", "--delta-t", "67", "--elevation", "0"];
     let mut args = vec!["--from-photo", &photo, "--json"];

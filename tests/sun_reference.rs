@@ -6,8 +6,8 @@ use chrono::{DateTime, FixedOffset, NaiveDate, NaiveTime, TimeZone, Utc};
 use previz::sun::{self, Algorithm, Site, SunInput, exif::PhotoInfo, horizon::wrap_180, spa};
 
 const PVLIB_TABLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/sun/pvlib_spa_reference.csv");
-const SUNRISE_TABLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/reference/spa_sunrise_sunset_reference.csv");
-const PHOTOS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/photos/exif_gps");
+const SUNRISE_TABLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/reference/spa_sunrise_sunset_reference.csv");
+const PHOTOS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/photos/exif_gps");
 
 fn read_csv(path: &str) -> (csv::StringRecord, Vec<csv::StringRecord>) {
     let mut r = csv::Reader::from_path(path).unwrap();

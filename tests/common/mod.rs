@@ -11,9 +11,9 @@ use previz::setup::{Inputs, load_inputs, prepare};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-/// The shared test data folder (`../shared/data` beside the checkout).
+/// The test data folder, tests/data (origin and licence of each file: tests/data/SOURCES.md).
 pub fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
 }
 
 pub fn gpu() -> &'static Gpu {
@@ -21,7 +21,7 @@ pub fn gpu() -> &'static Gpu {
     GPU.get_or_init(|| Gpu::headless().expect("a Vulkan/GL adapter (lavapipe in CI)"))
 }
 
-/// A scene from TOML whose relative paths are relative to the shared data folder.
+/// A scene from TOML whose relative paths are relative to the test data folder.
 pub fn scene(toml: &str) -> Scene {
     SceneBuilder::from_toml(toml, &data("")).unwrap().build().unwrap()
 }

@@ -9,7 +9,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import render_reference as rr
 mi = rr.pick_variant(None)
-env = rr.load_env(mi, os.path.join(HERE, '../../../shared/data/hdri/polyhaven_1k/quarry_01_1k.hdr'))
+env = rr.load_env(mi, os.path.join(HERE, '../data/hdri/polyhaven_1k/quarry_01_1k.hdr'))
 H, W = env.shape[:2]
 NOCORR = os.environ.get("NOCORR") == "1"  # 1: skip the row resampling, to measure what it fixes
 def previz_sample(d, heading):

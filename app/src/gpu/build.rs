@@ -40,6 +40,21 @@ pub fn write_layer(queue: &wgpu::Queue, texture: &wgpu::Texture, layer: u32, tex
     );
 }
 
+/// A sampled 2D texture holding `texels` (tightly packed, `format`), as a view.
+pub fn sampled_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    texels: &[u8],
+) -> wgpu::TextureView {
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+    let texture = texture(device, label, (width, height, 1), format, 1, usage);
+    write_layer(queue, &texture, 0, texels);
+    texture.create_view(&Default::default())
+}
+
 /// A view of a six-layer texture as a cube map.
 pub fn cube_view(texture: &wgpu::Texture) -> wgpu::TextureView {
     texture.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::Cube), ..Default::default() })

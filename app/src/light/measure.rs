@@ -146,7 +146,7 @@ mod tests {
     use std::path::Path;
 
     fn data(rel: &str) -> std::path::PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! L_lm = Σ L(ω) Y_lm(ω) dΩ. Irradiance at a normal n is then E(n) = Σ Â_l L_lm Y_lm(n) with
 //! the clamped-cosine coefficients Â_0 = π, Â_1 = 2π/3, Â_2 = π/4 (RH2001 eq. 8–9); that is
 //! their quadratic form with c1 = 0.429043 … c5 = 0.247708, checked in the tests against the
-//! constants in `../shared/data/reference/sh9_irradiance_constants.csv`.
+//! constants in `tests/data/reference/sh9_irradiance_constants.csv`.
 //! Coefficient order: L00, L1−1, L10, L11, L2−2, L2−1, L20, L21, L22 (x = East, y = North,
 //! z = Up).
 
@@ -105,7 +105,7 @@ mod tests {
     use std::path::Path;
 
     fn data(rel: &str) -> std::path::PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
     }
 
     /// Evenly spread unit directions (Fibonacci sphere).

@@ -524,7 +524,7 @@ mod tests {
         assert_stats_agree(&g.stats, &c.stats);
         let env = crate::scene::environment::load_environment(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../shared/data/cubemaps/pisa_hdr"
+            "/tests/data/cubemaps/humus_Park2_512"
         )))
         .unwrap();
         let (g, c) = (reducer.environment(gpu, &env).unwrap(), crate::priors::environment_priors(&env).unwrap());

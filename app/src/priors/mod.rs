@@ -366,7 +366,7 @@ pub(crate) mod tests {
 
     /// Keenan Crane's Spot (OBJ without .mtl) with its texture.
     pub fn spot() -> Model {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/textured_models/spot/");
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/textured_models/spot/");
         let options = crate::scene::model::ModelOptions { texture: Some(format!("{dir}spot_texture.png").into()), ..Default::default() };
         crate::scene::model::load_model_with(std::path::Path::new(&format!("{dir}spot_triangulated.obj")), &options).unwrap().model
     }

@@ -1,14 +1,20 @@
 //! The renderer: pipelines and the passes of one frame (the device is `crate::gpu`).
 
 pub mod compositor;
+pub mod environment;
+pub mod frame;
 pub mod method;
+pub mod params;
+pub mod passes;
 pub mod pipelines;
 pub mod shaders;
+pub mod shadow_fit;
+pub mod targets;
 pub mod uniforms;
 pub mod view;
 
-pub use compositor::{
-    Camera, ColourSettings, Compositor, FrameData, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms, Rendered, Timings,
-};
+pub use compositor::{Compositor, Rendered, Timings};
+pub use frame::FrameData;
 pub use method::Method;
+pub use params::{Camera, ColourSettings, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms};
 pub use view::Placement;

@@ -7,7 +7,7 @@
 //! DateTimeOriginal with OffsetTimeOriginal; else DateTimeOriginal with an offset the user
 //! supplies; else an error. When camera and GPS clocks disagree by more than any time-zone
 //! offset can explain (UTC−12..UTC+14), a warning says so; the Nikon photos in
-//! ../shared/data/photos/exif_gps/ differ by a day (camera 22 Oct, GPS 23 Oct 2008).
+//! tests/data/photos/exif_gps/ (tags of the DSCN photos) differ by a day (camera 22 Oct, GPS 23 Oct 2008).
 
 use std::fs::File;
 use std::io::BufReader;

@@ -362,10 +362,10 @@ mod tests {
     use crate::sun::atmosphere::refraction_deg;
     use chrono::{FixedOffset, Timelike};
 
-    /// Published values, ../shared/data/reference/nrel_spa_test_case.csv (NREL/TP-560-34302
+    /// Published values, tests/data/reference/nrel_spa_test_case.csv (NREL/TP-560-34302
     /// Table A5.1 and spa_tester.c; extra digits from pvlib's test_spa.py).
     fn reference(name: &str) -> f64 {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/reference/nrel_spa_test_case.csv");
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/reference/nrel_spa_test_case.csv");
         let text = std::fs::read_to_string(path).unwrap();
         text.lines()
             .find_map(|l| {

@@ -6,7 +6,7 @@ Applications", NREL/TP-560-34302 (2004/2008), Table A4.2 (Earth periodic terms L
 B0..B1, R0..R4) and Table A4.3 (nutation: Y-terms and a, b, c, d coefficients). They are read
 from pvlib's transcription (pvlib/spa.py, BSD-3-Clause) so that no digit is retyped by hand;
 the Rust tests then check the tables against the published intermediate values of the SPA
-test case (L, B, R, dPsi, dEpsilon in ../shared/data/reference/nrel_spa_test_case.csv).
+test case (L, B, R, dPsi, dEpsilon in tests/data/reference/nrel_spa_test_case.csv).
 
 Run from the repository root:  python3 tests/data/sun/gen_spa_tables.py
 """

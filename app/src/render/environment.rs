@@ -1,0 +1,61 @@
+//! The environment on the GPU: the cube map as half floats (linear light after exposure) and
+//! what the frame maths needs from it (hemisphere priors, colour statistics, heading).
+
+use super::params::HemispherePriors;
+use crate::colour::stats::ColourStats;
+use crate::gpu::{Gpu, build};
+use crate::priors;
+use crate::scene::{CubeMap, FACE_NAMES};
+use anyhow::{Context, Result, bail};
+
+/// What the frame needs from the environment besides its texture.
+pub struct Environment {
+    pub priors: HemispherePriors,
+    /// Colour statistics of the horizontal faces after exposure, the correction's source.
+    pub colour: ColourStats,
+    pub exposure: f32,
+    /// World heading (radians, clockwise from North) of the cube map's front (+Z) face.
+    pub heading: f32,
+}
+
+/// One face's RGB texels as RGBA16F (alpha 1). The map is radiance: a negative value (which a
+/// loader should already have repaired) is clamped to 0.
+pub fn rgba16f_texels(face: &[[f32; 3]]) -> Vec<half::f16> {
+    face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect()
+}
+
+/// Upload `cube` (the shader scales it by `exposure`) and compute its priors. Returns the cube
+/// view and the environment; changes nothing else.
+pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<(wgpu::TextureView, Environment)> {
+    if !(exposure.is_finite() && exposure > 0.0) {
+        bail!("environment exposure must be a positive number, got {exposure}");
+    }
+    if !heading.is_finite() {
+        bail!("environment heading must be a finite angle");
+    }
+    let size = cube.size;
+    if let Some(layer) = cube.faces.iter().position(|face| face.len() != (size * size) as usize) {
+        bail!("cube-map face {} has {} pixels, expected {size}x{size}", FACE_NAMES[layer], cube.faces[layer].len());
+    }
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+    let texture = build::texture(&gpu.device, "environment", (size, size, 6), wgpu::TextureFormat::Rgba16Float, 1, usage);
+    for (layer, face) in cube.faces.iter().enumerate() {
+        build::write_layer(&gpu.queue, &texture, layer as u32, bytemuck::cast_slice(&rgba16f_texels(face)));
+    }
+    let env_priors = priors::environment_priors_scaled(cube, exposure).context("environment colour priors")?;
+    let env = Environment { priors: HemispherePriors::from_environment(&env_priors), colour: env_priors.horizontal, exposure, heading };
+    Ok((build::cube_view(&texture), env))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texels_are_rgba_halves_with_negatives_clamped() {
+        let t = rgba16f_texels(&[[0.5, -2.0, 1000.0], [0.0, 0.25, 65504.0]]);
+        let f: Vec<f32> = t.iter().map(|h| h.to_f32()).collect();
+        // 0.5, 0.25, 1000 and 65504 (the largest finite half) are exact in f16.
+        assert_eq!(f, [0.5, 0.0, 1000.0, 1.0, 0.0, 0.25, 65504.0, 1.0]);
+    }
+}

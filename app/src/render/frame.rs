@@ -1,0 +1,245 @@
+//! The frame maths: from the frame's parameters and what the loaded scene fixes, the uniform
+//! values every pass reads. Pure functions, no GPU access.
+
+use super::params::{ColourSettings, FrameParams, HemispherePriors};
+use super::uniforms::{FrameUniforms, InstanceUniforms};
+use super::view;
+use crate::colour::correction::ColourCorrection;
+use crate::colour::stats::ColourStats;
+use crate::colour::transfer::Method as ColourMethod;
+use anyhow::{Result, bail};
+use glam::{Mat4, Vec3};
+
+/// What the frame maths needs besides the frame's parameters: fixed by the loaded model and
+/// environment and by the render targets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameContext {
+    /// The model's bounds in model space.
+    pub bounds: (Vec3, Vec3),
+    /// The environment's hemisphere priors after exposure.
+    pub priors: HemispherePriors,
+    /// Linear scale applied to the environment map.
+    pub exposure: f32,
+    /// World heading (radians, clockwise from North) of the cube map's front (+Z) face.
+    pub env_heading: f32,
+    /// Output size in pixels.
+    pub size: (u32, u32),
+    /// Side of the square shadow map in texels.
+    pub shadow_map_size: u32,
+}
+
+/// The uniform values of one frame.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameData {
+    pub frame: FrameUniforms,
+    pub instance: InstanceUniforms,
+    pub ground: InstanceUniforms,
+    pub colour: ColourCorrection,
+}
+
+fn mat(m: Mat4) -> [[f32; 4]; 4] {
+    m.to_cols_array_2d()
+}
+
+/// Uniforms of a frame: camera, model/ground transforms, sun shadow camera, lights, priors.
+/// Returns the `Frame` uniform, the model's instance and the ground plane's instance.
+pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, InstanceUniforms, InstanceUniforms) {
+    let (width, height) = c.size;
+    let aspect = width as f32 / height as f32;
+    let bounds = c.bounds;
+    let model = view::model_matrix(bounds, &p.placement);
+    // World bounding sphere of the placed model.
+    let centre_model = 0.5 * (bounds.0 + bounds.1);
+    let centre = model.transform_point3(centre_model);
+    let radius = (0.5 * (bounds.1 - bounds.0).length() * p.placement.scale).max(1e-4);
+    let distance = (centre - p.camera.position).length();
+    let near = (distance - 4.0 * radius).max(distance * 1e-3).max(1e-3);
+    let far = (distance + 50.0 * radius).max(near * 2.0);
+    let proj = view::projection(p.camera.vfov, aspect, near, far);
+    let view_m = view::view_matrix(p.camera.pose, p.camera.position);
+    let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
+    let light = view::sun_view_proj(sun, centre, radius);
+    // The ground plane: a square under the model, large enough for long low-sun shadows.
+    let ground = Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::new(40.0 * radius, 40.0 * radius, 1.0));
+    let (hs, hc) = c.env_heading.sin_cos();
+    let priors = &c.priors;
+    let frame = FrameUniforms {
+        view_proj: mat(proj * view_m),
+        view: mat(view_m),
+        light_view_proj: mat(light),
+        camera_pos: p.camera.position.to_array(),
+        daylight: p.lighting.daylight,
+        sun_dir: sun.to_array(),
+        sunlight: p.lighting.sunlight,
+        sky: priors.sky,
+        occlusion_light: priors.light,
+        ground: priors.ground,
+        occlusion_shadow: priors.shadow,
+        env_rotation: [hc, hs],
+        env_exposure: c.exposure,
+        reflection: p.lighting.reflection,
+        eta: 1.0 / p.lighting.ior,
+        shadow_opacity: p.lighting.shadow_opacity,
+        live_depth: p.lighting.live_depth,
+        tan_half_vfov: (0.5 * p.camera.vfov).tan(),
+        aspect,
+        method: p.method.shader_id(),
+        shadow_map_size: c.shadow_map_size,
+        _padding: 0,
+    };
+    let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
+    let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
+    (frame, instance, ground)
+}
+
+/// The colour correction of a frame: from the environment's statistics (`source`) towards the
+/// model's (`target`, or why it has none — every texel masked out, an error then).
+pub fn colour_correction(
+    settings: ColourSettings,
+    source: &ColourStats,
+    target: &std::result::Result<ColourStats, String>,
+) -> Result<ColourCorrection> {
+    Ok(match (settings.method, target) {
+        (ColourMethod::None, _) => ColourCorrection::identity(),
+        (m, Ok(target)) => ColourCorrection::new(m, settings.strength, source, target),
+        (m, Err(why)) => bail!("colour correction {} needs the model's colour statistics: {why}", m.name()),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::params::{Camera, Lighting, MaterialTerms};
+    use crate::render::{Method, Placement};
+    use glam::{Quat, Vec4};
+    use std::f32::consts::{FRAC_PI_2, PI};
+
+    /// A 2×2×2 cube whose base stands at (0, 0, −10), seen from the origin by a camera looking
+    /// straight down (identity pose: camera −z = world −z) with a 90° vertical field of view
+    /// into a 200×100 target. By hand: the box's centre is at (0, 0, −9), the bounding sphere's
+    /// radius is √3 (half the 2×2×2 diagonal), so near = 9 − 4√3 and far = 9 + 50√3.
+    fn scene(scale: f32) -> (FrameParams, FrameContext) {
+        let p = FrameParams {
+            camera: Camera { pose: Quat::IDENTITY, position: Vec3::ZERO, vfov: FRAC_PI_2 },
+            method: Method::CubeRefraction,
+            lighting: Lighting {
+                sun_dir: Vec3::new(0.0, 0.0, 2.0),
+                sunlight: 0.7,
+                daylight: 0.3,
+                material: MaterialTerms { ambient: 1.0, diffuse: 1.0, specular: 1.0, gloss: None },
+                reflection: 0.25,
+                ior: 1.5,
+                shadow_opacity: 0.6,
+                live_depth: 2.0,
+            },
+            placement: Placement { position: Vec3::new(0.0, 0.0, -10.0), rotation: Vec3::ZERO, scale },
+            colour: ColourSettings::NONE,
+        };
+        let c = FrameContext {
+            bounds: (Vec3::splat(-1.0), Vec3::splat(1.0)),
+            priors: HemispherePriors { sky: [0.1, 0.2, 0.3], ground: [0.4, 0.5, 0.6], light: 0.9, shadow: 0.05 },
+            exposure: 2.0,
+            env_heading: FRAC_PI_2,
+            size: (200, 100),
+            shadow_map_size: 1024,
+        };
+        (p, c)
+    }
+
+    fn clip(m: [[f32; 4]; 4], world: Vec3) -> Vec3 {
+        let v = Mat4::from_cols_array_2d(&m) * Vec4::new(world.x, world.y, world.z, 1.0);
+        v.truncate() / v.w
+    }
+
+    fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
+        (a - b).abs().max_element() < tol
+    }
+
+    #[test]
+    fn camera_projection_against_hand_computed_points() {
+        let (p, c) = scene(1.0);
+        let (f, _, _) = frame_uniforms(&p, &c);
+        let r = 3f32.sqrt();
+        let (near, far) = (9.0 - 4.0 * r, 9.0 + 50.0 * r);
+        // On the view axis: the near and far distances land on depth 0 and 1.
+        assert!(close(clip(f.view_proj, Vec3::new(0.0, 0.0, -near)), Vec3::ZERO, 1e-5));
+        assert!(close(clip(f.view_proj, Vec3::new(0.0, 0.0, -far)), Vec3::new(0.0, 0.0, 1.0), 1e-5));
+        // tan(45°) = 1: at 9 m the half-height is 9 m and the half-width (aspect 2) is 18 m.
+        // Camera +x is world +x and camera +y is world +y for the identity pose.
+        assert!(close(clip(f.view_proj, Vec3::new(18.0, 0.0, -9.0)).truncate().extend(0.0), Vec3::X, 1e-5));
+        assert!(close(clip(f.view_proj, Vec3::new(0.0, 9.0, -9.0)).truncate().extend(0.0), Vec3::Y, 1e-5));
+        assert!((f.tan_half_vfov - 1.0).abs() < 1e-6);
+        assert_eq!(f.aspect, 2.0);
+        assert_eq!(f.camera_pos, [0.0; 3]);
+        assert_eq!(f.view, Mat4::IDENTITY.to_cols_array_2d());
+    }
+
+    #[test]
+    fn sun_camera_encloses_the_model_sphere() {
+        let (p, c) = scene(1.0);
+        let (f, _, _) = frame_uniforms(&p, &c);
+        // The sun direction (0, 0, 2) is normalised.
+        assert_eq!(f.sun_dir, [0.0, 0.0, 1.0]);
+        // Orthographic from 2r above the centre (0, 0, −9), depth r..3r: the centre is at depth
+        // 0.5, the sphere's top at 0 and its bottom at 1; r to the East is the right edge
+        // (looking down with North up).
+        let r = 3f32.sqrt();
+        let centre = Vec3::new(0.0, 0.0, -9.0);
+        assert!(close(clip(f.light_view_proj, centre), Vec3::new(0.0, 0.0, 0.5), 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::Z * r), Vec3::ZERO, 1e-5));
+        assert!(close(clip(f.light_view_proj, centre - Vec3::Z * r), Vec3::Z, 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::X * r), Vec3::new(1.0, 0.0, 0.5), 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::Y * r), Vec3::new(0.0, 1.0, 0.5), 1e-5));
+        // No sun direction at all falls back to straight overhead.
+        let mut p0 = p;
+        p0.lighting.sun_dir = Vec3::ZERO;
+        assert_eq!(frame_uniforms(&p0, &c).0.sun_dir, [0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn scalars_pass_through_or_follow_their_formula() {
+        let (p, c) = scene(1.0);
+        let (f, _, _) = frame_uniforms(&p, &c);
+        // Heading 90°: (cos, sin) = (0, 1).
+        assert!(f.env_rotation[0].abs() < 1e-6 && (f.env_rotation[1] - 1.0).abs() < 1e-6);
+        // eta = 1 / ior = 1 / 1.5.
+        assert!((f.eta - 2.0 / 3.0).abs() < 1e-6);
+        assert_eq!(f.method, Method::CubeRefraction.shader_id());
+        assert_eq!((f.shadow_map_size, f.env_exposure), (1024, 2.0));
+        assert_eq!((f.sunlight, f.daylight, f.reflection, f.shadow_opacity, f.live_depth), (0.7, 0.3, 0.25, 0.6, 2.0));
+        assert_eq!((f.sky, f.ground, f.occlusion_light, f.occlusion_shadow), ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], 0.9, 0.05));
+        // Heading 180°: (−1, 0).
+        let c = FrameContext { env_heading: PI, ..c };
+        let rot = frame_uniforms(&p, &c).0.env_rotation;
+        assert!((rot[0] + 1.0).abs() < 1e-6 && rot[1].abs() < 1e-6);
+    }
+
+    #[test]
+    fn model_and_ground_transforms() {
+        // Scale 2: the box is 4 m high, its base centre at (0, 0, −10); the model's +y (up)
+        // becomes world +z, its +z (front) world −y (South).
+        let (p, c) = scene(2.0);
+        let (_, instance, ground) = frame_uniforms(&p, &c);
+        let m = Mat4::from_cols_array_2d(&instance.model);
+        assert!(close(m.transform_point3(Vec3::new(0.0, -1.0, 0.0)), Vec3::new(0.0, 0.0, -10.0), 1e-5));
+        assert!(close(m.transform_point3(Vec3::new(1.0, 1.0, 1.0)), Vec3::new(2.0, -2.0, -6.0), 1e-5));
+        // Normal matrix = inverse transpose: a uniform scale of 2 halves normals.
+        let n = Mat4::from_cols_array_2d(&instance.normal);
+        assert!(close(n.transform_vector3(Vec3::Y), Vec3::new(0.0, 0.0, 0.5), 1e-6));
+        // The ground: 40 sphere radii (r = 2√3) across, in the plane of the model's base.
+        let g = Mat4::from_cols_array_2d(&ground.model);
+        let side = 40.0 * 2.0 * 3f32.sqrt();
+        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(side, side, -10.0), 1e-3));
+        assert_eq!(ground.normal, Mat4::IDENTITY.to_cols_array_2d());
+    }
+
+    #[test]
+    fn colour_correction_needs_the_model_statistics_only_when_on() {
+        let stats = ColourStats::from_linear(&[[0.2, 0.3, 0.4], [0.5, 0.5, 0.5]]).unwrap();
+        let none = colour_correction(ColourSettings::NONE, &stats, &Err("all masked".into())).unwrap();
+        assert_eq!(bytemuck::bytes_of(&none), bytemuck::bytes_of(&ColourCorrection::identity()));
+        let on = ColourSettings { method: ColourMethod::ALL[1], strength: 1.0 };
+        let err = colour_correction(on, &stats, &Err("all masked".into())).unwrap_err();
+        assert!(format!("{err:#}").contains("all masked"), "{err:#}");
+    }
+}

@@ -1,0 +1,114 @@
+//! What a frame is made of, as the caller sets it: camera, lighting, placement, colour
+//! correction and the method. Plain data; the frame maths is in [`super::frame`].
+
+use super::Method;
+use super::view::Placement;
+use crate::colour::transfer::Method as ColourMethod;
+use crate::priors::EnvironmentPriors;
+use glam::{Quat, Vec3};
+
+/// What the hemisphere methods need from the environment (seed 000 §5.4), in linear light after
+/// exposure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HemispherePriors {
+    /// Mean colour of the up (+Y, sky) face.
+    pub sky: [f32; 3],
+    /// Mean colour of the down (−Y, ground) face.
+    pub ground: [f32; 3],
+    /// Hemisphere-occlusion light level: the bright end of the horizontal faces' luminance.
+    pub light: f32,
+    /// Hemisphere-occlusion shadow level: the dark end of the horizontal faces' luminance.
+    pub shadow: f32,
+}
+
+impl HemispherePriors {
+    /// From the environment priors (after exposure): sky/ground = mean colour of the +Y/−Y faces;
+    /// occlusion light/shadow = 99th/1st percentile of BT.709 luminance over the four horizontal
+    /// faces (robust against one bright pixel, unlike the seed's single-pixel max/min).
+    pub fn from_environment(p: &EnvironmentPriors) -> HemispherePriors {
+        let rgb = |v: [f64; 3]| v.map(|c| c as f32);
+        HemispherePriors {
+            sky: rgb(p.up_mean),
+            ground: rgb(p.down_mean),
+            light: p.horizontal.luminance.p_hi as f32,
+            shadow: p.horizontal.luminance.p_lo as f32,
+        }
+    }
+}
+
+/// Colour correction of the model towards the environment (seed §5.6): which method, how much.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColourSettings {
+    pub method: ColourMethod,
+    /// 0..1 (the seed's CC slider).
+    pub strength: f32,
+}
+
+impl ColourSettings {
+    pub const NONE: ColourSettings = ColourSettings { method: ColourMethod::None, strength: 0.0 };
+}
+
+/// The Blinn-Phong material terms of Eq. 3 (scalars; colour comes from the material/texture).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialTerms {
+    /// a_c
+    pub ambient: f32,
+    /// d_c
+    pub diffuse: f32,
+    /// s_c
+    pub specular: f32,
+    /// g_f; `None` keeps each material's own exponent (MTL `Ns`).
+    pub gloss: Option<f32>,
+}
+
+/// The lights and effect strengths of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lighting {
+    /// Unit direction to the sun, world (ENU).
+    pub sun_dir: Vec3,
+    /// Sunlight intensity l_s (already faded through twilight by the caller).
+    pub sunlight: f32,
+    /// Daylight (ambient) intensity l_d.
+    pub daylight: f32,
+    pub material: MaterialTerms,
+    /// Mix of the reflection into the model, 0..1 (reflection methods).
+    pub reflection: f32,
+    /// Refractive index of the model's material (refraction methods); eta = 1 / ior.
+    pub ior: f32,
+    /// How dark the model's shadow makes the ground, 0..1.
+    pub shadow_opacity: f32,
+    /// Live-feed refraction: how far behind the surface (metres) the refracted ray meets the scene.
+    pub live_depth: f32,
+}
+
+/// The camera of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Orientation, camera → world.
+    pub pose: Quat,
+    /// Position in world (ENU), metres.
+    pub position: Vec3,
+    /// Vertical field of view, radians.
+    pub vfov: f32,
+}
+
+/// Everything that may change from frame to frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameParams {
+    pub camera: Camera,
+    pub method: Method,
+    pub lighting: Lighting,
+    pub placement: Placement,
+    pub colour: ColourSettings,
+}
+
+/// Which image a render produces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layer {
+    /// Background, ground shadow and model.
+    Composite,
+    /// The model alone over transparent black: premultiplied RGBA, alpha = coverage.
+    Model,
+    /// The background alone.
+    Background,
+}

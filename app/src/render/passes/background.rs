@@ -1,0 +1,171 @@
+//! The background pass (step 3 of DESIGN.md "One frame"): the camera image (or a photograph) fills
+//! the target. Without one, the environment seen by the camera is first rendered into the
+//! background texture (the environment-view pass), so every later pass reads one background.
+
+use crate::gpu::{Gpu, build};
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline as make};
+use crate::render::shaders::Technique;
+use crate::scene::Rgba8Image;
+use anyhow::{Result, anyhow, bail};
+use wgpu::SamplerBindingType::Filtering;
+use wgpu::ShaderStages;
+use wgpu::TextureViewDimension::{Cube, D2};
+
+/// The environment-view pipeline: a full-screen triangle sampling the cube map into the
+/// single-sampled background texture.
+pub fn env_view_pipeline(device: &wgpu::Device) -> PassPipeline {
+    let fs = ShaderStages::FRAGMENT;
+    let layout = build::layout(
+        device,
+        "env_view",
+        &[build::uniform(0, ShaderStages::VERTEX | fs), build::texture_entry(1, fs, Cube, true), build::sampler_entry(2, fs, Filtering)],
+    );
+    let pipeline = make(
+        device,
+        PipelineSpec {
+            technique: Technique::EnvView,
+            layouts: &[&layout],
+            vertex_buffers: &[],
+            depth: None,
+            samples: 1,
+            blend: Some(None),
+        },
+    );
+    PassPipeline { layout, pipeline }
+}
+
+/// The background pipeline: a full-screen triangle into the multisampled composite target.
+pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
+    let fs = ShaderStages::FRAGMENT;
+    let layout = build::layout(device, "background", &[build::texture_entry(0, fs, D2, true), build::sampler_entry(1, fs, Filtering)]);
+    let pipeline = make(
+        device,
+        PipelineSpec {
+            technique: Technique::Background,
+            layouts: &[&layout],
+            vertex_buffers: &[],
+            depth: depth_state(false, wgpu::DepthBiasState::default()),
+            samples: SAMPLES,
+            blend: Some(None),
+        },
+    );
+    PassPipeline { layout, pipeline }
+}
+
+pub struct BackgroundPass {
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+    texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    env_view_pipeline: wgpu::RenderPipeline,
+    /// The environment-view bind group, once there is an environment.
+    env_view_bind_group: Option<wgpu::BindGroup>,
+    /// True: the background is the environment seen by the camera; false: an uploaded image.
+    from_env: bool,
+}
+
+impl BackgroundPass {
+    /// A `width`×`height` background texture, drawn from the environment until an image is set.
+    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, (width, height): (u32, u32)) -> BackgroundPass {
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+        let texture = build::texture(device, "background", (width, height, 1), COLOR_FORMAT, 1, usage);
+        let view = texture.create_view(&Default::default());
+        let bind_group = build::bind_group(
+            device,
+            "background",
+            &pipelines.background.layout,
+            &[wgpu::BindingResource::TextureView(&view), wgpu::BindingResource::Sampler(&pipelines.linear_sampler)],
+        );
+        BackgroundPass {
+            pipeline: pipelines.background.pipeline.clone(),
+            bind_group,
+            texture,
+            view,
+            env_view_pipeline: pipelines.env_view.pipeline.clone(),
+            env_view_bind_group: None,
+            from_env: true,
+        }
+    }
+
+    /// The background texture (the model pass samples it for the live methods).
+    pub fn view(&self) -> &wgpu::TextureView {
+        &self.view
+    }
+
+    /// The environment-view bind group for a new environment cube map (`frame`: the Frame
+    /// uniform buffer).
+    pub fn env_view_bind_group(
+        device: &wgpu::Device,
+        pipelines: &Pipelines,
+        frame: &wgpu::Buffer,
+        cube: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
+        build::bind_group(
+            device,
+            "env view",
+            &pipelines.env_view.layout,
+            &[
+                frame.as_entire_binding(),
+                wgpu::BindingResource::TextureView(cube),
+                wgpu::BindingResource::Sampler(&pipelines.linear_sampler),
+            ],
+        )
+    }
+
+    pub fn set_env_view_bind_group(&mut self, bind_group: wgpu::BindGroup) {
+        self.env_view_bind_group = Some(bind_group);
+    }
+
+    /// Use `image` (already the background's size) as the background, or `None` for the
+    /// environment seen by the camera. An image is one `write_texture`.
+    pub fn set_image(&mut self, gpu: &Gpu, image: Option<&Rgba8Image>) -> Result<()> {
+        let Some(img) = image else {
+            self.from_env = true;
+            return Ok(());
+        };
+        let (width, height) = (self.texture.width(), self.texture.height());
+        if (img.width, img.height) != (width, height) {
+            bail!("background is {}x{}, the output is {width}x{height}", img.width, img.height);
+        }
+        if img.pixels.len() != (4 * img.width * img.height) as usize {
+            bail!("background pixel buffer has the wrong length");
+        }
+        gpu.checked("the background image", || {
+            build::write_layer(&gpu.queue, &self.texture, 0, &img.pixels);
+            Ok(())
+        })?;
+        self.from_env = false;
+        Ok(())
+    }
+
+    /// Whether the background is the environment seen by the camera (drawn by the
+    /// environment-view pass each frame) rather than an uploaded image.
+    pub fn from_env(&self) -> bool {
+        self.from_env
+    }
+
+    /// Begin the environment-view pass into the background texture.
+    pub fn begin_env_view<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> wgpu::RenderPass<'e> {
+        build::clear_pass(encoder, "environment view", &self.view, timestamps)
+    }
+
+    /// 3a. The environment seen by the camera.
+    pub fn draw_env_view(&self, pass: &mut wgpu::RenderPass<'_>) -> Result<()> {
+        let bind_group = self.env_view_bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        pass.set_pipeline(&self.env_view_pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
+        pass.draw(0..3, 0..1);
+        Ok(())
+    }
+
+    /// 3b. The background fills the composite target.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+}

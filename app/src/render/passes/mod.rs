@@ -1,0 +1,8 @@
+//! One file per pass of a frame (DESIGN.md "One frame"): each pass builds its pipeline, owns its
+//! bind groups, uniform buffers and targets, and encodes itself. `Compositor::encode_frame`
+//! calls them in order.
+
+pub mod background;
+pub mod ground;
+pub mod model;
+pub mod shadow;

@@ -1,0 +1,314 @@
+//! The model pass (step 5 of DESIGN.md "One frame"): shading, reflection/refraction and colour
+//! correction in one fragment shader, over the background and ground in the multisampled target.
+//! Also the model's GPU copy (vertex/index buffers and material bind groups), which the shadow pass
+//! draws too.
+
+use crate::colour::correction::ColourCorrection;
+use crate::colour::stats::ColourStats;
+use crate::gpu::{Gpu, build};
+use crate::priors;
+use crate::render::params::MaterialTerms;
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, Vertex, depth_state, pipeline as make};
+use crate::render::shaders::Technique;
+use crate::render::uniforms::MaterialUniforms;
+use crate::scene::{Mesh, Model};
+use anyhow::{Result, anyhow, bail};
+use glam::Vec3;
+use wgpu::SamplerBindingType::{Comparison, Filtering};
+use wgpu::ShaderStages;
+use wgpu::TextureViewDimension::{Cube, D2};
+use wgpu::util::DeviceExt;
+
+/// The model pipeline and its material layout (bind group 1).
+pub fn pipeline(device: &wgpu::Device) -> (PassPipeline, wgpu::BindGroupLayout) {
+    let fs = ShaderStages::FRAGMENT;
+    let vs_fs = ShaderStages::VERTEX | fs;
+    let layout = build::layout(
+        device,
+        "model",
+        &[
+            build::uniform(0, vs_fs),
+            build::uniform(1, vs_fs),
+            build::texture_entry(2, fs, Cube, true),
+            build::sampler_entry(3, fs, Filtering),
+            build::texture_entry(4, fs, D2, true),
+            build::sampler_entry(5, fs, Filtering),
+            build::depth_texture_entry(6, fs),
+            build::sampler_entry(7, fs, Comparison),
+            build::uniform(8, fs),
+        ],
+    );
+    let material_layout = build::layout(
+        device,
+        "material",
+        &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
+    );
+    let vertex_layout = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+    };
+    let pipeline = make(
+        device,
+        PipelineSpec {
+            technique: Technique::Model,
+            layouts: &[&layout, &material_layout],
+            vertex_buffers: &[Some(vertex_layout)],
+            depth: depth_state(true, wgpu::DepthBiasState::default()),
+            samples: SAMPLES,
+            blend: Some(Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING)),
+        },
+    );
+    (PassPipeline { layout, pipeline }, material_layout)
+}
+
+/// A mesh's vertices interleaved for the vertex buffer, after checking that its attribute
+/// arrays agree and its indices stay inside them (missing uvs become (0, 0)).
+pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
+    let n = mesh.positions.len();
+    if mesh.normals.len() != n || (!mesh.uvs.is_empty() && mesh.uvs.len() != n) {
+        bail!("a mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
+    }
+    if let Some(&bad) = mesh.indices.iter().find(|&&i| i as usize >= n) {
+        bail!("a mesh index ({bad}) points past its {n} vertices");
+    }
+    Ok((0..n)
+        .map(|i| Vertex { position: mesh.positions[i], normal: mesh.normals[i], uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]) })
+        .collect())
+}
+
+/// A material's uniform for this frame: its own colours with the frame's Eq. 3 terms, and the
+/// frame's gloss exponent in place of its own when one is given.
+pub fn material_uniforms(base: &MaterialUniforms, terms: &MaterialTerms) -> MaterialUniforms {
+    let mut m = *base;
+    m.terms = [terms.ambient, terms.diffuse, terms.specular, 0.0];
+    if let Some(g) = terms.gloss {
+        m.specular[3] = g;
+    }
+    m
+}
+
+struct MeshGpu {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    material: wgpu::BindGroup,
+}
+
+/// A model on the GPU.
+pub struct ModelGpu {
+    meshes: Vec<MeshGpu>,
+    /// Bounds in model space.
+    pub bounds: (Vec3, Vec3),
+    /// Each mesh's material buffer and its values as loaded, rewritten each frame with the
+    /// frame's material terms.
+    materials: Vec<(wgpu::Buffer, MaterialUniforms)>,
+    /// Colour statistics of the model's texture (or diffuse colours), the correction's target;
+    /// the reason when there are none (every texel masked out).
+    pub colour: std::result::Result<ColourStats, String>,
+}
+
+impl ModelGpu {
+    /// Draw every mesh; `material_group`: where to bind each mesh's material (None: no
+    /// materials, the shadow pass).
+    pub fn draw_meshes(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>) {
+        for mesh in &self.meshes {
+            if let Some(group) = material_group {
+                pass.set_bind_group(group, &mesh.material, &[]);
+            }
+            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        }
+    }
+}
+
+pub struct ModelPass {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    material_layout: wgpu::BindGroupLayout,
+    linear_sampler: wgpu::Sampler,
+    repeat_sampler: wgpu::Sampler,
+    shadow_sampler: wgpu::Sampler,
+    /// The colour correction (`ColourCorrection`).
+    colour: wgpu::Buffer,
+    /// The texture of untextured materials.
+    white: wgpu::TextureView,
+    /// Bind group 0, once there is an environment.
+    bind_group: Option<wgpu::BindGroup>,
+}
+
+impl ModelPass {
+    pub fn new(gpu: &Gpu, pipelines: &Pipelines) -> ModelPass {
+        let device = &gpu.device;
+        ModelPass {
+            pipeline: pipelines.model.pipeline.clone(),
+            layout: pipelines.model.layout.clone(),
+            material_layout: pipelines.material_layout.clone(),
+            linear_sampler: pipelines.linear_sampler.clone(),
+            repeat_sampler: pipelines.repeat_sampler.clone(),
+            shadow_sampler: pipelines.shadow_sampler.clone(),
+            colour: build::uniform_buffer::<ColourCorrection>(device, "colour correction"),
+            white: build::sampled_texture(device, &gpu.queue, "white", (1, 1), COLOR_FORMAT, &[255; 4]),
+            bind_group: None,
+        }
+    }
+
+    /// Bind group 0 for a new environment: the frame and instance uniforms, the environment
+    /// cube map, the background, the shadow map and the colour correction.
+    pub fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        (frame, instance): (&wgpu::Buffer, &wgpu::Buffer),
+        cube: &wgpu::TextureView,
+        background: &wgpu::TextureView,
+        shadow_map: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
+        use wgpu::BindingResource::{Sampler, TextureView};
+        build::bind_group(
+            device,
+            "model",
+            &self.layout,
+            &[
+                frame.as_entire_binding(),
+                instance.as_entire_binding(),
+                TextureView(cube),
+                Sampler(&self.linear_sampler),
+                TextureView(background),
+                Sampler(&self.linear_sampler),
+                TextureView(shadow_map),
+                Sampler(&self.shadow_sampler),
+                self.colour.as_entire_binding(),
+            ],
+        )
+    }
+
+    pub fn set_bind_group(&mut self, bind_group: wgpu::BindGroup) {
+        self.bind_group = Some(bind_group);
+    }
+
+    /// Upload a model: one vertex/index buffer and material bind group per mesh. Returns the
+    /// GPU copy without touching the current one (the caller swaps it in once the GPU accepted
+    /// the upload).
+    pub fn upload(&self, gpu: &Gpu, model: &Model) -> Result<ModelGpu> {
+        let bounds = model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
+        if !(bounds.0.is_finite() && bounds.1.is_finite()) {
+            bail!("the model has non-finite vertex positions");
+        }
+        let device = &gpu.device;
+        let textures: Vec<Option<wgpu::TextureView>> = model
+            .materials
+            .iter()
+            .map(|m| {
+                m.texture
+                    .as_ref()
+                    .map(|t| build::sampled_texture(device, &gpu.queue, &m.name, (t.width, t.height), COLOR_FORMAT, &t.pixels))
+            })
+            .collect();
+        let mut meshes = Vec::new();
+        let mut materials = Vec::new();
+        for mesh in model.meshes.iter().filter(|m| !m.indices.is_empty()) {
+            let vertices = interleave(mesh)?;
+            let material =
+                model.materials.get(mesh.material).ok_or_else(|| anyhow!("a mesh refers to missing material {}", mesh.material))?;
+            let uniforms = MaterialUniforms {
+                albedo: [material.diffuse[0], material.diffuse[1], material.diffuse[2], if material.texture.is_some() { 1.0 } else { 0.0 }],
+                specular: [material.specular[0], material.specular[1], material.specular[2], material.shininess],
+                terms: [1.0, 1.0, 1.0, 0.0],
+            };
+            let material_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("material"),
+                contents: bytemuck::bytes_of(&uniforms),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+            let texture = textures[mesh.material].as_ref().unwrap_or(&self.white);
+            let bind = build::bind_group(
+                device,
+                "material",
+                &self.material_layout,
+                &[
+                    material_buf.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(texture),
+                    wgpu::BindingResource::Sampler(&self.repeat_sampler),
+                ],
+            );
+            meshes.push(MeshGpu {
+                vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("vertices"),
+                    contents: bytemuck::cast_slice(&vertices),
+                    usage: wgpu::BufferUsages::VERTEX,
+                }),
+                indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("indices"),
+                    contents: bytemuck::cast_slice(&mesh.indices),
+                    usage: wgpu::BufferUsages::INDEX,
+                }),
+                index_count: mesh.indices.len() as u32,
+                material: bind,
+            });
+            materials.push((material_buf, uniforms));
+        }
+        if meshes.is_empty() {
+            bail!("the model has no triangles");
+        }
+        let colour = priors::model_priors(model).map(|p| p.stats).map_err(|e| format!("{e:#}"));
+        Ok(ModelGpu { meshes, bounds, materials, colour })
+    }
+
+    /// This frame's colour correction and material terms.
+    pub fn write(&self, queue: &wgpu::Queue, model: &ModelGpu, colour: &ColourCorrection, terms: &MaterialTerms) {
+        queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
+        for (buf, base) in &model.materials {
+            queue.write_buffer(buf, 0, bytemuck::bytes_of(&material_uniforms(base, terms)));
+        }
+    }
+
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu) -> Result<()> {
+        let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, bind_group, &[]);
+        model.draw_meshes(pass, Some(1));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn triangle() -> Mesh {
+        Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            normals: vec![[0.0, 0.0, 1.0]; 3],
+            uvs: vec![],
+            indices: vec![0, 1, 2],
+            material: 0,
+        }
+    }
+
+    #[test]
+    fn interleave_checks_the_mesh() {
+        let v = interleave(&triangle()).unwrap();
+        assert_eq!(v.len(), 3);
+        assert_eq!((v[1].position, v[1].normal, v[1].uv), ([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0]));
+        let mut m = triangle();
+        m.indices[2] = 3;
+        assert!(format!("{:#}", interleave(&m).unwrap_err()).contains("index (3) points past its 3 vertices"));
+        let mut m = triangle();
+        m.normals.pop();
+        assert!(format!("{:#}", interleave(&m).unwrap_err()).contains("3 positions but 2 normals"));
+        let mut m = triangle();
+        m.uvs = vec![[0.5, 0.5]];
+        assert!(interleave(&m).is_err());
+    }
+
+    #[test]
+    fn material_terms_replace_the_loaded_ones() {
+        let base = MaterialUniforms { albedo: [0.5, 0.6, 0.7, 1.0], specular: [0.1, 0.2, 0.3, 40.0], terms: [1.0; 4] };
+        let terms = MaterialTerms { ambient: 0.2, diffuse: 0.8, specular: 0.4, gloss: None };
+        let m = material_uniforms(&base, &terms);
+        assert_eq!((m.albedo, m.specular, m.terms), (base.albedo, base.specular, [0.2, 0.8, 0.4, 0.0]));
+        let m = material_uniforms(&base, &MaterialTerms { gloss: Some(8.0), ..terms });
+        assert_eq!(m.specular, [0.1, 0.2, 0.3, 8.0]);
+    }
+}

@@ -1,0 +1,89 @@
+//! The shadow pass (step 2 of DESIGN.md "One frame"): the model's depth seen from the sun (a
+//! directional light) into a square shadow map, which the ground and model passes sample.
+
+use super::model::ModelGpu;
+use crate::gpu::build;
+use crate::render::pipelines::{
+    DEPTH_FORMAT, PassPipeline, PipelineSpec, Pipelines, SHADOW_MAP_SIZE, Vertex, depth_state, pipeline as make,
+};
+use crate::render::shaders::Technique;
+use wgpu::ShaderStages;
+
+/// The shadow pipeline: model positions only, depth with a slope-scaled bias, no colour.
+pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
+    let layout = build::layout(device, "shadow", &[build::uniform(0, ShaderStages::VERTEX), build::uniform(1, ShaderStages::VERTEX)]);
+    let position_only = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+    };
+    let pipeline = make(
+        device,
+        PipelineSpec {
+            technique: Technique::Shadow,
+            layouts: &[&layout],
+            vertex_buffers: &[Some(position_only)],
+            depth: depth_state(true, wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 }),
+            samples: 1,
+            blend: None,
+        },
+    );
+    PassPipeline { layout, pipeline }
+}
+
+pub struct ShadowPass {
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+    map: wgpu::TextureView,
+    size: u32,
+}
+
+impl ShadowPass {
+    /// The shadow map (SHADOW_MAP_SIZE a side where the device allows it), reading the frame
+    /// and the model's instance uniforms.
+    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, frame: &wgpu::Buffer, instance: &wgpu::Buffer) -> ShadowPass {
+        let size = SHADOW_MAP_SIZE.min(device.limits().max_texture_dimension_2d);
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        let map = build::texture(device, "shadow map", (size, size, 1), DEPTH_FORMAT, 1, usage).create_view(&Default::default());
+        let bind_group =
+            build::bind_group(device, "shadow", &pipelines.shadow.layout, &[frame.as_entire_binding(), instance.as_entire_binding()]);
+        ShadowPass { pipeline: pipelines.shadow.pipeline.clone(), bind_group, map, size }
+    }
+
+    /// The shadow map's depth view.
+    pub fn map(&self) -> &wgpu::TextureView {
+        &self.map
+    }
+
+    /// Side of the square shadow map in texels.
+    pub fn size(&self) -> u32 {
+        self.size
+    }
+
+    /// Begin the pass: the shadow map cleared to the far plane.
+    pub fn begin<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> wgpu::RenderPass<'e> {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("shadow"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.map,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: timestamps,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
+    /// The model's depth.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        model.draw_meshes(pass, None);
+    }
+}

@@ -120,6 +120,15 @@ impl Compositor {
         Ok(())
     }
 
+    /// EXPERIMENT (docs/PERFORMANCE.md): draw the model with one pipeline per method, the
+    /// method an `override` constant, instead of one pipeline switching on `frame.method`.
+    pub fn specialize_methods(&mut self, gpu: &Gpu) -> Result<()> {
+        gpu.checked("the per-method model pipelines", || {
+            self.model_pass.specialize(&gpu.device, &self.pipelines);
+            Ok(())
+        })
+    }
+
     /// The environment's hemisphere priors after exposure (None before `set_environment`).
     pub fn priors(&self) -> Option<HemispherePriors> {
         self.env.as_ref().map(|e| e.priors)
@@ -216,7 +225,7 @@ impl Compositor {
         self.ground.write(queue, &data.ground);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        self.encode_frame(&mut encoder, layer)?;
+        self.encode_frame(&mut encoder, layer, p.method)?;
         Ok(encoder)
     }
 
@@ -224,7 +233,7 @@ impl Compositor {
     /// uploaded by `set_background`; nothing here allocates GPU resources. Each pass's commands
     /// are a debug group inside its render pass: groups on the encoder around a pass crash
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
-    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer) -> Result<()> {
+    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::Method) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         // The shadow is not needed for the background alone.
         let shadows = layer != Layer::Background;
@@ -257,7 +266,7 @@ impl Compositor {
         }
         // 5. Model pass: shading, reflection/refraction and colour correction.
         if layer != Layer::Background {
-            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model))?;
+            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method))?;
         }
         Ok(())
     }

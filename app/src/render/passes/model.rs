@@ -62,6 +62,42 @@ pub fn pipeline(device: &wgpu::Device) -> (PassPipeline, wgpu::BindGroupLayout) 
     (PassPipeline { layout, pipeline }, material_layout)
 }
 
+/// EXPERIMENT (docs/PERFORMANCE.md): one model pipeline per method, the method a pipeline
+/// `override` constant instead of the `frame.method` uniform, so each compiles only its branch.
+fn specialized_pipelines(device: &wgpu::Device, pipelines: &Pipelines) -> Vec<wgpu::RenderPipeline> {
+    let source = crate::render::shaders::source(Technique::Model).replace("let method = frame.method;", "let method = METHOD_ID;")
+        + "\noverride METHOD_ID: u32;\n";
+    let module = build::shader(device, "model (override)", source);
+    let vertex_layout = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+    };
+    crate::render::Method::ALL
+        .iter()
+        .map(|m| {
+            let constants = [("METHOD_ID", f64::from(m.shader_id()))];
+            build::render_pipeline(
+                device,
+                build::PipelineSpec {
+                    label: m.name(),
+                    module: &module,
+                    layouts: &[&pipelines.model.layout, &pipelines.material_layout],
+                    vertex_buffers: &[Some(vertex_layout.clone())],
+                    colour: Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    depth: depth_state(true, wgpu::DepthBiasState::default()),
+                    samples: SAMPLES,
+                    constants: &constants,
+                },
+            )
+        })
+        .collect()
+}
+
 /// A mesh's vertices interleaved for the vertex buffer, after checking that its attribute
 /// arrays agree and its indices stay inside them (missing uvs become (0, 0)).
 pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
@@ -136,6 +172,8 @@ pub struct ModelPass {
     white: wgpu::TextureView,
     /// Bind group 0, once there is an environment.
     bind_group: Option<wgpu::BindGroup>,
+    /// EXPERIMENT: one pipeline per method (`override` constant), indexed by shader id.
+    specialized: Option<Vec<wgpu::RenderPipeline>>,
 }
 
 impl ModelPass {
@@ -151,7 +189,13 @@ impl ModelPass {
             colour: build::uniform_buffer::<ColourCorrection>(device, "colour correction"),
             white: build::sampled_texture(device, &gpu.queue, "white", (1, 1), COLOR_FORMAT, &[255; 4]),
             bind_group: None,
+            specialized: None,
         }
+    }
+
+    /// EXPERIMENT: draw with one pipeline per method (see `specialized_pipelines`).
+    pub fn specialize(&mut self, device: &wgpu::Device, pipelines: &Pipelines) {
+        self.specialized = Some(specialized_pipelines(device, pipelines));
     }
 
     /// Bind group 0 for a new environment: the frame and instance uniforms, the environment
@@ -263,9 +307,12 @@ impl ModelPass {
         }
     }
 
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu) -> Result<()> {
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: crate::render::Method) -> Result<()> {
         let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        pass.set_pipeline(&self.pipeline);
+        match &self.specialized {
+            Some(by_method) => pass.set_pipeline(&by_method[method.shader_id() as usize]),
+            None => pass.set_pipeline(&self.pipeline),
+        }
         pass.set_bind_group(0, bind_group, &[]);
         model.draw_meshes(pass, Some(1));
         Ok(())

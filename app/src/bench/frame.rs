@@ -41,15 +41,9 @@ pub fn run(
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<FrameRow>> {
     let (mut compositor, base) = prepare(gpu, scene, inputs)?;
-    // EXPERIMENT: the same scene drawn with one pipeline per method (`override` constant).
-    let (mut specialized, _) = prepare(gpu, scene, inputs)?;
-    let t = std::time::Instant::now();
-    specialized.specialize_methods(gpu)?;
-    eprintln!("7 per-method pipelines built in {:.0} ms", t.elapsed().as_secs_f64() * 1e3);
     let none = ColourSettings::NONE;
     let mut paths: Vec<(String, Layer, Method, ColourSettings)> = vec![("background-only".into(), Layer::Background, scene.method, none)];
     paths.extend(Method::ALL.iter().map(|m| (m.name().to_string(), Layer::Composite, *m, none)));
-    paths.extend(Method::ALL.iter().map(|m| (format!("{} [override]", m.name()), Layer::Composite, *m, none)));
     paths.extend(ColourMethod::ALL.iter().map(|c| {
         let name = format!("{}+{}", Method::Hemisphere.name(), c.name());
         (name, Layer::Composite, Method::Hemisphere, ColourSettings { method: *c, strength: 1.0 })
@@ -60,8 +54,7 @@ pub fn run(
     let mut samples = vec![(Vec::new(), Vec::new(), Vec::new()); paths.len()];
     for i in 0..frames + warmup {
         progress.set_message(if i < warmup { "warm-up" } else { "measuring" });
-        for ((name, layer, method, colour), (cpu, gpu_t, wall)) in paths.iter().zip(samples.iter_mut()) {
-            let compositor = if name.ends_with("[override]") { &mut specialized } else { &mut compositor };
+        for ((_, layer, method, colour), (cpu, gpu_t, wall)) in paths.iter().zip(samples.iter_mut()) {
             let mut p: FrameParams = base;
             p.method = *method;
             p.colour = *colour;

@@ -120,15 +120,6 @@ impl Compositor {
         Ok(())
     }
 
-    /// EXPERIMENT (docs/PERFORMANCE.md): draw the model with one pipeline per method, the
-    /// method an `override` constant, instead of one pipeline switching on `frame.method`.
-    pub fn specialize_methods(&mut self, gpu: &Gpu) -> Result<()> {
-        gpu.checked("the per-method model pipelines", || {
-            self.model_pass.specialize(&gpu.device, &self.pipelines);
-            Ok(())
-        })
-    }
-
     /// The environment's hemisphere priors after exposure (None before `set_environment`).
     pub fn priors(&self) -> Option<HemispherePriors> {
         self.env.as_ref().map(|e| e.priors)

@@ -1,6 +1,6 @@
 //! The lighting method: a run-time choice, so new methods slot in and the benchmark iterates
-//! over all of them. The numbers are the `frame.method` values the model shader switches on; the
-//! shader knows them by name through [`Method::wgsl_consts`].
+//! over all of them. The numbers are the values of the model shader's `METHOD` override constant
+//! (one model pipeline per method); the shader knows them by name through [`Method::wgsl_consts`].
 
 use serde::{Deserialize, Serialize};
 
@@ -36,7 +36,7 @@ impl Method {
         Method::LiveRefraction,
     ];
 
-    /// The value of `frame.method` in shaders/model.wgsl.
+    /// The value of the `METHOD` override constant in shaders/model.wgsl.
     pub fn shader_id(self) -> u32 {
         self as u32
     }

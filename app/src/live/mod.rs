@@ -47,7 +47,7 @@ use crate::scene::file::Scene;
 use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
-use crate::setup::{compositor_for, exposure};
+use crate::setup::{LightTerms, compositor_and_light, exposure};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
 use crate::ui::controls::Controls;
 use anyhow::{Result, bail};
@@ -195,6 +195,9 @@ pub struct LiveSession {
     sun_intensity: f32,
     /// The current camera image (the background of the frame).
     camera_image: Option<crate::scene::Rgba8Image>,
+    /// The light measured in the environment with the scene's multipliers at 1 (unfaded): the
+    /// export writes the frame's light as multipliers of it.
+    unit_light: LightTerms,
     /// The scene the session was made from (model, environment, size), for the export.
     scene: Scene,
     /// Camera and sensors stopped ([`LiveSession::suspend`]).
@@ -208,7 +211,7 @@ impl LiveSession {
     /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
     pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let (compositor, params) = compositor_for(gpu, scene, env, model)?;
+        let (compositor, params, unit_light) = compositor_and_light(gpu, scene, env, model)?;
         // True north from the first GPS fix and the World Magnetic Model for the date.
         let mut filter = OrientationFilter::new(FusionConfig::default());
         filter.set_date(magnetic_model_date(cfg.start.date_naive()));
@@ -218,13 +221,14 @@ impl LiveSession {
             filter,
             params,
             layer: Layer::Composite,
-            full_sunlight: scene.sun.sunlight as f32,
+            full_sunlight: scene.sun.sunlight as f32 * unit_light.sunlight,
             location: (cfg.lat_deg, cfg.lon_deg),
             cfg,
             readings: Vec::new(),
             controls: None,
-            sun_intensity: scene.sun.sunlight as f32,
+            sun_intensity: scene.sun.sunlight as f32 * unit_light.sunlight,
             camera_image: None,
+            unit_light,
             scene: scene.clone(),
             suspended: false,
         })
@@ -347,6 +351,11 @@ impl LiveSession {
     pub fn set_controls(&mut self, c: Controls) {
         c.apply(&mut self.params, self.sun_intensity);
         self.controls = Some(c);
+    }
+
+    /// The light measured in the environment with the scene's multipliers at 1 (unfaded).
+    pub fn unit_light(&self) -> &LightTerms {
+        &self.unit_light
     }
 
     /// The scene the session was made from.

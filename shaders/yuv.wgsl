@@ -1,7 +1,8 @@
 // Camera YUV 4:2:0 -> R'G'B' (gamma-encoded, as the camera's sRGB-like transfer leaves it) in one
 // pass: the luma plane and the chroma plane(s) arrive as textures straight from the camera
 // buffers (camera::yuv); the matrix and offsets for BT.601/BT.709, full/limited range, come in
-// the uniform (camera::yuv::YuvUniforms, built by camera::yuv::ycbcr_to_rgb).
+// the uniform (camera::yuv::YuvUniforms, built by camera::yuv::ycbcr_to_rgb). The full-screen
+// triangle (FullScreen, full_screen) comes from full_screen.wgsl (gpu::wgsl::with_full_screen).
 
 struct YuvUniforms {
     // Rows of the Y'CbCr -> R'G'B' matrix (xyz), applied to (code values - offset) * scale.
@@ -24,10 +25,8 @@ struct YuvUniforms {
 @group(0) @binding(3) var chroma_cr: texture_2d<f32>;
 
 @vertex
-fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    // One triangle covering the target.
-    let p = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(p * 2.0 - 1.0, 0.0, 1.0);
+fn vs_main(@builtin(vertex_index) i: u32) -> FullScreen {
+    return full_screen(i);
 }
 
 @fragment

@@ -363,62 +363,11 @@ pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 impl YuvConverter {
     pub fn new(gpu: &Gpu) -> YuvConverter {
         let device = &gpu.device;
-        let module = device
-            .create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("yuv"), source: wgpu::ShaderSource::Wgsl(YUV_WGSL.into()) });
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("yuv"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<YuvUniforms>() as u64),
-                    },
-                    count: None,
-                },
-                texture(1),
-                texture(2),
-                texture(3),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("yuv"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("yuv"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState { format: TARGET_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL })],
-            }),
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            multiview_mask: None,
-            cache: None,
-        });
+        let module = build::shader(device, "yuv", crate::gpu::wgsl::with_full_screen(YUV_WGSL));
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let texture = |binding| build::texture_entry(binding, fs, wgpu::TextureViewDimension::D2, false);
+        let layout = build::layout(device, "yuv", &[build::uniform(0, fs), texture(1), texture(2), texture(3)]);
+        let pipeline = build::render_pipeline(device, build::PipelineSpec::full_screen("yuv", &module, &[&layout], TARGET_FORMAT));
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("yuv uniforms"),
             size: std::mem::size_of::<YuvUniforms>() as u64,
@@ -591,7 +540,7 @@ mod tests {
 
     #[test]
     fn uniform_layout_matches_the_wgsl() {
-        let module = naga::front::wgsl::parse_str(YUV_WGSL).unwrap();
+        let module = naga::front::wgsl::parse_str(&crate::gpu::wgsl::with_full_screen(YUV_WGSL)).unwrap();
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all()).validate(&module).unwrap();
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).unwrap();

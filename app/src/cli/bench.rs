@@ -3,7 +3,8 @@
 use crate::bench::{frame, live, lod};
 use crate::cli::composite::{SceneArgs, scene_from_args};
 use crate::gpu::Gpu;
-use crate::setup::load_inputs;
+use crate::scene::file::Scene;
+use crate::setup::{Inputs, load_inputs};
 use anyhow::{Result, bail};
 use std::path::PathBuf;
 
@@ -113,14 +114,34 @@ pub fn run(args: Args) -> Result<()> {
     }
 }
 
-fn run_lod(a: LodArgs) -> Result<()> {
-    if a.frames == 0 {
-        bail!("--frames must be at least 1");
+/// What every rendering benchmark starts from: the scene and its inputs, a headless GPU, and a
+/// progress bar counting frames.
+struct Bench {
+    scene: Scene,
+    inputs: Inputs,
+    gpu: Gpu,
+    bar: indicatif::ProgressBar,
+}
+
+impl Bench {
+    /// Check `--frames`, load the scene, start the GPU.
+    fn set_up(scene: &SceneArgs, frames: usize) -> Result<Bench> {
+        if frames == 0 {
+            bail!("--frames must be at least 1");
+        }
+        let (scene, demo) = scene_from_args(scene, None)?;
+        let inputs = load_inputs(&scene, demo)?;
+        let gpu = Gpu::headless()?;
+        let bar = indicatif::ProgressBar::new(0).with_style(
+            indicatif::ProgressStyle::with_template("{msg:>10} {bar:40} {pos}/{len} frames")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Ok(Bench { scene, inputs, gpu, bar })
     }
-    let (scene, demo) = scene_from_args(&a.scene, None)?;
-    let inputs = load_inputs(&scene, demo)?;
-    let gpu = Gpu::headless()?;
-    let bar = indicatif::ProgressBar::new(0);
+}
+
+fn run_lod(a: LodArgs) -> Result<()> {
+    let Bench { scene, inputs, gpu, bar } = Bench::set_up(&a.scene, a.frames)?;
     let t = std::time::Instant::now();
     let rows = lod::run(&gpu, &scene, &inputs, a.frames, &bar)?;
     bar.finish_and_clear();
@@ -142,16 +163,7 @@ fn run_lod(a: LodArgs) -> Result<()> {
 }
 
 fn run_frame(a: FrameArgs) -> Result<()> {
-    if a.frames == 0 {
-        bail!("--frames must be at least 1");
-    }
-    let (scene, demo) = scene_from_args(&a.scene, None)?;
-    let inputs = load_inputs(&scene, demo)?;
-    let gpu = Gpu::headless()?;
-    let bar = indicatif::ProgressBar::new(0).with_style(
-        indicatif::ProgressStyle::with_template("{msg:>10} {bar:40} {pos}/{len} frames")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let Bench { scene, inputs, gpu, bar } = Bench::set_up(&a.scene, a.frames)?;
     let rows = frame::run(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     if let Some(path) = &a.csv {
@@ -180,14 +192,8 @@ fn run_frame(a: FrameArgs) -> Result<()> {
 }
 
 fn run_live(a: LiveArgs) -> Result<()> {
-    if a.frames == 0 {
-        bail!("--frames must be at least 1");
-    }
-    let (scene, demo) = scene_from_args(&a.scene, None)?;
-    let inputs = load_inputs(&scene, demo)?;
-    let gpu = Gpu::headless()?;
+    let Bench { scene, inputs, gpu, bar } = Bench::set_up(&a.scene, a.frames)?;
     let triangles = inputs.model.triangle_count();
-    let bar = indicatif::ProgressBar::new(0);
     let rows = live::run(&gpu, &scene, inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     println!(

@@ -8,7 +8,7 @@ mod common;
 
 use common::{assert_golden, data, gpu, mean_rgb, render, scene};
 use previz::colour::correction::{ColourCorrection, correct};
-use previz::colour::transfer::Method;
+use previz::colour::transfer::TransferMethod;
 use previz::colour::{linear_to_srgb, srgb_to_linear};
 use previz::priors::{environment_priors_scaled, model_priors};
 use previz::render::{ColourSettings, Layer};
@@ -45,7 +45,7 @@ fn quad(tex: Rgba8Image) -> Model {
 }
 
 /// Ambient light only, at 1: the model's pixels are its (corrected) albedo.
-fn flat(env: &str, correction: Method, strength: f64) -> String {
+fn flat(env: &str, correction: TransferMethod, strength: f64) -> String {
     format!(
         "width = 320\nheight = 240\nmethod = \"blinn-phong\"\nenvironment = \"{env}\"\n\
 [sun]\nsunlight = 0.0\ndaylight = 1.0\n[material]\nambient = 1.0\ndiffuse = 0.0\nspecular = 0.0\n\
@@ -64,13 +64,19 @@ fn shader_applies_the_correction_built_from_the_priors() {
         let env = previz::scene::environment::load_environment(&data(env_dir)).unwrap();
         let inputs = Inputs { model: model.clone(), env, background: None };
         // One compositor per environment; the correction is a per-frame setting.
-        let s = scene(&flat(env_dir, Method::None, 1.0));
+        let s = scene(&flat(env_dir, TransferMethod::None, 1.0));
         let source = environment_priors_scaled(&inputs.env, exposure(&s, &inputs.env)).unwrap().horizontal;
         let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
         let mut moved = 0.0f64;
-        for method in [Method::None, Method::BrightnessContrast, Method::Reinhard, Method::CielabApprox, Method::Mkl] {
+        for method in [
+            TransferMethod::None,
+            TransferMethod::BrightnessContrast,
+            TransferMethod::Reinhard,
+            TransferMethod::CielabApprox,
+            TransferMethod::Mkl,
+        ] {
             for strength in [1.0f32, 0.5] {
-                let cc = if method == Method::None {
+                let cc = if method == TransferMethod::None {
                     ColourCorrection::identity()
                 } else {
                     ColourCorrection::new(method, strength, &source, &target)
@@ -107,10 +113,10 @@ fn a_correction_needs_model_statistics() {
     }
     let env = previz::scene::environment::load_environment(&data("cubemaps/humus_Park2_512")).unwrap();
     let inputs = Inputs { model, env, background: None };
-    let plain = scene(&flat("cubemaps/humus_Park2_512", Method::None, 1.0));
+    let plain = scene(&flat("cubemaps/humus_Park2_512", TransferMethod::None, 1.0));
     let (mut compositor, params) = prepare(gpu(), &plain, &inputs).unwrap();
     assert!(compositor.render(gpu(), &params, Layer::Model).is_ok());
-    let corrected = scene(&flat("cubemaps/humus_Park2_512", Method::Reinhard, 1.0));
+    let corrected = scene(&flat("cubemaps/humus_Park2_512", TransferMethod::Reinhard, 1.0));
     let (mut compositor, params) = prepare(gpu(), &corrected, &inputs).unwrap();
     let err = compositor.render(gpu(), &params, Layer::Model).err().map(|e| format!("{e:#}")).unwrap_or_default();
     assert!(err.contains("reinhard") && err.contains("green"), "{err}");

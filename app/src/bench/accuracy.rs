@@ -230,7 +230,7 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
         bail!("scene {name} renders {}x{} but its reference is {}x{}", scene.width, scene.height, reference.width, reference.height);
     }
     let mut rows = Vec::new();
-    for method in crate::render::Method::ALL {
+    for method in crate::render::LightingMethod::ALL {
         let mut s = scene.clone();
         s.method = method;
         let (mut compositor, params) = crate::setup::prepare(gpu, &s, inputs)?;

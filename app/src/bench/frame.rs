@@ -3,9 +3,9 @@
 //! only draws the background), in one run.
 
 use super::median;
-use crate::colour::transfer::Method as ColourMethod;
+use crate::colour::transfer::TransferMethod;
 use crate::gpu::Gpu;
-use crate::render::{ColourSettings, FrameParams, Layer, Method};
+use crate::render::{ColourSettings, FrameParams, Layer, LightingMethod};
 use crate::scene::file::Scene;
 use crate::setup::{Inputs, prepare};
 use anyhow::Result;
@@ -42,11 +42,12 @@ pub fn run(
 ) -> Result<Vec<FrameRow>> {
     let (mut compositor, base) = prepare(gpu, scene, inputs)?;
     let none = ColourSettings::NONE;
-    let mut paths: Vec<(String, Layer, Method, ColourSettings)> = vec![("background-only".into(), Layer::Background, scene.method, none)];
-    paths.extend(Method::ALL.iter().map(|m| (m.name().to_string(), Layer::Composite, *m, none)));
-    paths.extend(ColourMethod::ALL.iter().map(|c| {
-        let name = format!("{}+{}", Method::Hemisphere.name(), c.name());
-        (name, Layer::Composite, Method::Hemisphere, ColourSettings { method: *c, strength: 1.0 })
+    let mut paths: Vec<(String, Layer, LightingMethod, ColourSettings)> =
+        vec![("background-only".into(), Layer::Background, scene.method, none)];
+    paths.extend(LightingMethod::ALL.iter().map(|m| (m.name().to_string(), Layer::Composite, *m, none)));
+    paths.extend(TransferMethod::ALL.iter().map(|c| {
+        let name = format!("{}+{}", LightingMethod::Hemisphere.name(), c.name());
+        (name, Layer::Composite, LightingMethod::Hemisphere, ColourSettings { method: *c, strength: 1.0 })
     }));
     progress.set_length(((frames + warmup) * paths.len()) as u64);
     // Paths are interleaved frame by frame, so a slow spell of a shared machine (or a clock

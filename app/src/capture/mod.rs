@@ -26,12 +26,12 @@ pub mod align;
 pub mod assistant;
 pub mod folder;
 pub mod frame_fold;
+pub mod guided_path;
 pub mod projection;
 pub mod replay;
 pub mod reproject;
 pub mod stability;
 pub mod targets;
-pub mod user_path;
 
 pub use assistant::{Assistant, AssistantConfig, Guidance, Phase};
 pub use folder::{CaptureMeta, CubeCapture, load_capture, save_capture};

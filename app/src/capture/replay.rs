@@ -16,16 +16,16 @@
 use super::Mode;
 use super::assistant::{Assistant, AssistantConfig, Phase};
 use super::folder::{CubeCapture, Location};
+use super::guided_path::{AimShift, CapturePath, simulate_guided_path};
 use super::projection::{Pinhole, face_pixel_dir_local, local_to_world};
 use super::targets::Face;
 use super::targets::{AimError, Target};
-use super::user_path::{AimShift, CapturePath, simulate_guided_path};
 use crate::camera::exposure::{AutoExposure, ExposureMode, ToneLut};
 use crate::camera::sim::{SimSettings, VirtualPhone};
 use crate::pose::frames::angle_between;
 use crate::pose::fusion::{FusionConfig, OrientationFilter};
+use crate::pose::hand_motion::UserPathParams;
 use crate::pose::trace::TruthTrace;
-use crate::pose::user_path::UserPathParams;
 use crate::pose::{HeadingSource, OrientationEstimator};
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
@@ -411,8 +411,8 @@ fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::capture::user_path::simulate_capture_path;
-    use crate::pose::user_path::UserPathParams;
+    use crate::capture::guided_path::simulate_capture_path;
+    use crate::pose::hand_motion::UserPathParams;
 
     #[test]
     fn psnr_reference_values() {
@@ -483,7 +483,7 @@ mod tests {
                 score: false,
                 ..Default::default()
             };
-            let path = crate::pose::user_path::simulate_user_path(seed, &UserPathParams::default()).unwrap();
+            let path = crate::pose::hand_motion::simulate_user_path(seed, &UserPathParams::default()).unwrap();
             let r = replay(&env(), &TruthTrace::new(path.samples).unwrap(), &cfg).unwrap();
             assert!(r.incomplete.is_none(), "seed {seed}: {:?}", r.incomplete);
         }

@@ -10,13 +10,13 @@
 
 use super::Mode;
 use super::assistant::Assistant;
+use super::guided_path::simulate_capture_path;
 use super::replay::{ReplayConfig, ReplayResult, replay, replay_guided};
 use super::targets::Face;
-use super::user_path::simulate_capture_path;
 use crate::pose::fusion::{DisturbanceConfig, FusionConfig};
+use crate::pose::hand_motion::UserPathParams;
+use crate::pose::hand_motion::simulate_user_path;
 use crate::pose::trace::TruthTrace;
-use crate::pose::user_path::UserPathParams;
-use crate::pose::user_path::simulate_user_path;
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel};
 use anyhow::{Context, Result, bail};
@@ -49,7 +49,7 @@ pub enum Case {
     /// Random headings with a 100° lens (guided user).
     Wide,
     /// Held out: pre-recorded hand-held paths that only visit the six face centres (seed 000's
-    /// procedure, [`crate::pose::user_path::simulate_user_path`], the pose study's user holding
+    /// procedure, [`crate::pose::hand_motion::simulate_user_path`], the pose study's user holding
     /// each 1.2–2.0 s) with a 100° lens, replayed once — nobody follows the guidance.
     SixFaces,
 }

@@ -6,12 +6,12 @@
 use crate::capture::Mode;
 use crate::capture::assistant::Assistant;
 use crate::capture::folder::save_capture;
+use crate::capture::guided_path::simulate_capture_path;
 use crate::capture::replay::{ReplayConfig, replay};
 use crate::capture::stability::{self, StudyConfig};
-use crate::capture::user_path::simulate_capture_path;
 use crate::output::write_atomic;
+use crate::pose::hand_motion::UserPathParams;
 use crate::pose::trace::{TruthTrace, load_truth_trace, write_truth_trace};
-use crate::pose::user_path::UserPathParams;
 use crate::scene::environment::load_environment;
 use crate::sensors::sim::NoiseLevel;
 use anyhow::{Context, Result, bail};
@@ -246,7 +246,7 @@ fn run_stability(a: StabilityArgs) -> Result<()> {
         "## Capture stability (`previz capture stability`)\n\n\
 Machine: {} logical CPUs ({}), date {}. {} simulated captures in {:.0} s on {} threads; \
 environment `{}`; virtual phone {}x{} at {}° vertical FOV; faces {} px; tolerance ±{}°. Every run: simulated user \
-path (`capture::user_path`) → virtual phone + simulated sensors → fusion filter (default setting) → assistant → faces, \
+path (`capture::guided_path`) → virtual phone + simulated sensors → fusion filter (default setting) → assistant → faces, \
 scored against the ideal faces (same exposure and tone curve). Random headings: {} runs per noise level and mode; hard \
 cases: {} runs per mode at `phone` noise. Raw rows: `docs/capture_stability.csv`; chart: `docs/capture_stability.png`.\n\n\
 {}\n\

@@ -6,7 +6,7 @@ use crate::colour::correction::ColourCorrection;
 use crate::colour::images::{apply, counted_linear, image_stats, load_rgba8};
 use crate::colour::report::{HistogramSet, histogram_report};
 use crate::colour::stats::ColourStats;
-use crate::colour::transfer::Method;
+use crate::colour::transfer::TransferMethod;
 use crate::output::{write_atomic, write_png_rgb8, write_png_rgba8};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -34,7 +34,7 @@ pub struct Args {
     /// reinhard: Reinhard 2001 in log lαβ; cielab-approx: lαβ without the log (seed Eq. 11a);
     /// mkl: linear Monge–Kantorovich (full covariance); brightness-contrast: luminance only.
     #[arg(long, value_enum, default_value = "reinhard")]
-    pub method: Method,
+    pub method: TransferMethod,
     /// 0 = TARGET unchanged, 1 = full correction.
     #[arg(long, default_value_t = 1.0, value_parser = parse_strength)]
     pub strength: f32,

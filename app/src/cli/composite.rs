@@ -2,7 +2,7 @@
 //! demo scene.
 
 use crate::gpu::Gpu;
-use crate::render::{Layer, Method};
+use crate::render::{Layer, LightingMethod};
 use crate::scene::demo;
 use crate::scene::file::{Scene, SceneBuilder};
 use crate::setup::{load_inputs, prepare};
@@ -64,7 +64,7 @@ pub struct SceneArgs {
     pub sun_dir: Option<String>,
     /// Lighting method  [key: method]
     #[arg(long, value_enum)]
-    pub method: Option<Method>,
+    pub method: Option<LightingMethod>,
     /// Set any scene key, e.g. --set material.gloss=64 --set placement.rotation=[0,0,90]
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,

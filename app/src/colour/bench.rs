@@ -10,7 +10,7 @@ use super::images::{apply, counted_linear, image_stats};
 use super::lab::{LabSpace, rgb_to_lab};
 use super::report::{Raster, SpeedPoint, montage, speed_accuracy_chart};
 use super::stats::ColourStats;
-use super::transfer::Method;
+use super::transfer::TransferMethod;
 use crate::bench::median;
 use crate::gpu::Gpu;
 use crate::scene::Rgba8Image;
@@ -22,7 +22,8 @@ use std::time::Instant;
 /// The frame size costs are measured at.
 pub const FRAME: (u32, u32) = (960, 640);
 /// The methods measured: `none` first, the floor (a pass that only reads and writes the image).
-pub const METHODS: [Method; 5] = [Method::None, Method::BrightnessContrast, Method::Reinhard, Method::CielabApprox, Method::Mkl];
+pub const METHODS: [TransferMethod; 5] =
+    [TransferMethod::None, TransferMethod::BrightnessContrast, TransferMethod::Reinhard, TransferMethod::CielabApprox, TransferMethod::Mkl];
 /// Points per distribution for the sliced Wasserstein distance.
 const SW_POINTS: usize = 20_000;
 
@@ -61,7 +62,7 @@ pub struct Accuracy {
 /// One method on one pair.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct MethodRow {
-    pub method: Method,
+    pub method: TransferMethod,
     /// Median CPU time to correct one 960×640 frame (the tool's per-pixel loop), ms.
     pub cpu_ms: f64,
     /// Median GPU time of the full-screen pass on one 960×640 frame (timestamps), ms.
@@ -165,7 +166,7 @@ pub fn run(pairs: &[PairSpec], gpu: Option<&Gpu>, repeats: u32, mut tick: impl F
 
 /// Per method, averaged over the pairs: (method, cpu ms, gpu ms, SW, mean |Δμ|, mean |Δσ|).
 /// `none` is the floor: decoding, encoding and (GPU) the pass itself, no correction.
-pub fn summary(report: &BenchReport) -> Vec<(Method, f64, Option<f64>, f64, f64, f64)> {
+pub fn summary(report: &BenchReport) -> Vec<(TransferMethod, f64, Option<f64>, f64, f64, f64)> {
     METHODS
         .iter()
         .map(|&m| {
@@ -209,7 +210,7 @@ pub fn markdown(report: &BenchReport) -> String {
         uncorrected_mean(report)
     );
     let rows = summary(report);
-    let floor = rows.iter().find(|r| r.0 == Method::None).map(|r| (r.1, r.2));
+    let floor = rows.iter().find(|r| r.0 == TransferMethod::None).map(|r| (r.1, r.2));
     let _ = writeln!(
         s,
         "| method | GPU ms/frame | GPU ms above `none` | CPU ms/frame | CPU ms above `none` | CPU/GPU | SW to source | mean abs Δμ | mean abs Δσ |"
@@ -247,7 +248,7 @@ pub fn markdown(report: &BenchReport) -> String {
 pub fn chart(report: &BenchReport) -> Result<Raster> {
     let mut points = Vec::new();
     for (m, cpu, gpu, sw, _, _) in summary(report) {
-        let label_above = matches!(m, Method::None | Method::Reinhard);
+        let label_above = matches!(m, TransferMethod::None | TransferMethod::Reinhard);
         points.push(SpeedPoint { label: m.name().to_string(), ms: cpu, distance: sw, gpu: false, label_above });
         if let Some(g) = gpu {
             points.push(SpeedPoint { label: m.name().to_string(), ms: g, distance: sw, gpu: true, label_above });
@@ -299,7 +300,7 @@ fn manual_diagonal(space: LabSpace, source: &ColourStats, target: &ColourStats, 
     let g = DVec3::from_array([0, 1, 2].map(|i| gain(cs.col(i)[i].max(0.0).sqrt(), ct.col(i)[i].max(0.0).sqrt())));
     let offset = source.mean_in(space) - g * target.mean_in(space);
     let mut cc = ColourCorrection::identity();
-    cc.method = if space == LabSpace::Log { Method::Reinhard.shader_id() } else { Method::CielabApprox.shader_id() };
+    cc.method = if space == LabSpace::Log { TransferMethod::Reinhard.shader_id() } else { TransferMethod::CielabApprox.shader_id() };
     cc.strength = 1.0;
     cc.transfer = [[g.x as f32, 0.0, 0.0, 0.0], [0.0, g.y as f32, 0.0, 0.0], [0.0, 0.0, g.z as f32, 0.0]];
     cc.offset = offset.as_vec3().to_array();
@@ -320,18 +321,18 @@ pub fn single_colour_figure(environment: &Rgba8Image, environment_stats: &Colour
         Rgba8Image { width: size, height: size, pixels: r.into_raw() }
     };
     let fix = |cc: ColourCorrection| apply(&sphere, &cc, false).image;
-    let ours_at = |m: Method, strength: f32| fix(ColourCorrection::new(m, strength, environment_stats, &texture_stats));
-    let ours = |m: Method| ours_at(m, 1.0);
+    let ours_at = |m: TransferMethod, strength: f32| fix(ColourCorrection::new(m, strength, environment_stats, &texture_stats));
+    let ours = |m: TransferMethod| ours_at(m, 1.0);
     let tiles = [
         ("environment (one face)", env_tile),
         ("model, uncorrected", sphere.clone()),
         ("seed Eq. 11b", fix(seed_eq11b(environment_stats, &texture_stats))),
         ("Reinhard, unguarded", fix(unguarded_reinhard(environment_stats, &texture_stats))),
-        ("reinhard (ours)", ours(Method::Reinhard)),
-        ("reinhard, strength 0.5", ours_at(Method::Reinhard, 0.5)),
-        ("cielab-approx (ours)", ours(Method::CielabApprox)),
-        ("mkl (ours)", ours(Method::Mkl)),
-        ("brightness-contrast", ours(Method::BrightnessContrast)),
+        ("reinhard (ours)", ours(TransferMethod::Reinhard)),
+        ("reinhard, strength 0.5", ours_at(TransferMethod::Reinhard, 0.5)),
+        ("cielab-approx (ours)", ours(TransferMethod::CielabApprox)),
+        ("mkl (ours)", ours(TransferMethod::Mkl)),
+        ("brightness-contrast", ours(TransferMethod::BrightnessContrast)),
     ];
     let refs: Vec<(&str, &Rgba8Image)> = tiles.iter().map(|(l, t)| (*l, t)).collect();
     montage(&refs)
@@ -366,7 +367,7 @@ mod tests {
             v.len()
         };
         assert_eq!(distinct(&apply(&sphere, &seed_eq11b(&env_stats, &tex), false).image), 1);
-        let ours = apply(&sphere, &ColourCorrection::new(Method::Reinhard, 1.0, &env_stats, &tex), false).image;
+        let ours = apply(&sphere, &ColourCorrection::new(TransferMethod::Reinhard, 1.0, &env_stats, &tex), false).image;
         assert!(distinct(&ours) > 20, "{}", distinct(&ours));
     }
 }

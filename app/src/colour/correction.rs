@@ -9,7 +9,7 @@
 use super::intensity::{LuminanceLevels, correct_intensity};
 use super::lab::{LabSpace, lab_to_rgb, rgb_to_lab};
 use super::stats::ColourStats;
-use super::transfer::{Method, fit};
+use super::transfer::{TransferMethod, fit};
 use glam::{Mat3, Vec3};
 
 /// The WGSL functions (no bindings); shaders that correct colour concatenate it in front.
@@ -23,7 +23,7 @@ pub struct ColourCorrection {
     pub transfer: [[f32; 4]; 3],
     /// Added after `transfer`.
     pub offset: [f32; 3],
-    /// [`Method::shader_id`].
+    /// [`TransferMethod::shader_id`].
     pub method: u32,
     /// 0..1.
     pub strength: f32,
@@ -39,7 +39,7 @@ impl ColourCorrection {
         ColourCorrection {
             transfer: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
             offset: [0.0; 3],
-            method: Method::None.shader_id(),
+            method: TransferMethod::None.shader_id(),
             strength: 0.0,
             lum_low: 0.0,
             lum_mean: 0.0,
@@ -50,7 +50,7 @@ impl ColourCorrection {
     /// The correction that gives `target` (the model) the statistics of `source` (the
     /// environment). Brightness-contrast uses the source's robust luminance levels
     /// (1st percentile, mean, 99th percentile). `strength` is clamped to 0..1 (NaN → 0).
-    pub fn new(method: Method, strength: f32, source: &ColourStats, target: &ColourStats) -> ColourCorrection {
+    pub fn new(method: TransferMethod, strength: f32, source: &ColourStats, target: &ColourStats) -> ColourCorrection {
         let lum = source.luminance;
         let levels = LuminanceLevels { low: lum.p_lo as f32, mean: lum.mean as f32, high: lum.p_hi as f32 };
         let mut cc = ColourCorrection::identity().with_levels(levels);
@@ -128,7 +128,7 @@ mod tests {
         let src = ColourStats::from_linear(&cloud(500, [0.2, 0.3, 0.6], [0.3, 0.3, 0.3], 0.1)).unwrap();
         let tgt = ColourStats::from_linear(&cloud(500, [0.6, 0.4, 0.2], [0.4, 0.3, 0.2], 0.1)).unwrap();
         let c = Vec3::new(0.5, 0.4, 0.3);
-        for method in Method::ALL {
+        for method in TransferMethod::ALL {
             let full = correct(c, &ColourCorrection::new(method, 1.0, &src, &tgt));
             assert!((full - c).length() > 1e-3, "{method:?} did nothing");
             assert_eq!(correct(c, &ColourCorrection::new(method, 0.0, &src, &tgt)), c);
@@ -143,7 +143,7 @@ mod tests {
     fn output_is_finite_and_non_negative_on_extremes() {
         let src = ColourStats::from_linear(&cloud(500, [0.9, 0.1, 0.1], [0.2, 0.1, 0.1], 0.0)).unwrap();
         let tgt = ColourStats::from_linear(&cloud(500, [0.1, 0.1, 0.9], [0.1, 0.1, 0.2], 0.0)).unwrap();
-        for method in Method::ALL {
+        for method in TransferMethod::ALL {
             let cc = ColourCorrection::new(method, 1.0, &src, &tgt);
             for c in [Vec3::ZERO, Vec3::ONE, Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 0.0), Vec3::splat(50.0)] {
                 let out = correct(c, &cc);

@@ -104,7 +104,7 @@ impl CorrectPass {
 mod tests {
     use super::*;
     use crate::colour::stats::ColourStats;
-    use crate::colour::transfer::{Method, tests::cloud};
+    use crate::colour::transfer::{TransferMethod, tests::cloud};
     use glam::Vec3;
 
     /// A compute harness: `outputs[i] = colour_correct(inputs[i], cc)`.
@@ -198,7 +198,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let src = ColourStats::from_linear(&cloud(800, [0.25, 0.3, 0.5], [0.4, 0.4, 0.5], -0.2)).unwrap();
         let tgt = ColourStats::from_linear(&cloud(800, [0.6, 0.4, 0.2], [0.5, 0.4, 0.3], 0.4)).unwrap();
         let colours = test_colours();
-        for method in [Method::None, Method::BrightnessContrast, Method::Reinhard, Method::CielabApprox, Method::Mkl] {
+        for method in [
+            TransferMethod::None,
+            TransferMethod::BrightnessContrast,
+            TransferMethod::Reinhard,
+            TransferMethod::CielabApprox,
+            TransferMethod::Mkl,
+        ] {
             for strength in [1.0, 0.4] {
                 let cc = ColourCorrection::new(method, strength, &src, &tgt);
                 let gpu_out = run_harness(gpu, &cc, &colours);
@@ -216,7 +222,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let gpu = gpu();
         let src = ColourStats::from_linear(&cloud(800, [0.25, 0.3, 0.5], [0.4, 0.4, 0.5], -0.2)).unwrap();
         let tgt = ColourStats::from_linear(&cloud(800, [0.6, 0.4, 0.2], [0.5, 0.4, 0.3], 0.4)).unwrap();
-        let cc = ColourCorrection::new(Method::Reinhard, 0.8, &src, &tgt);
+        let cc = ColourCorrection::new(TransferMethod::Reinhard, 0.8, &src, &tgt);
         let (w, h) = (37u32, 5u32);
         let pixels: Vec<u8> = (0..w * h * 4).map(|i| if i % 4 == 3 { 255 } else { ((i * 37) % 256) as u8 }).collect();
         let image = Rgba8Image { width: w, height: h, pixels };

@@ -89,7 +89,7 @@ pub fn apply(image: &Rgba8Image, cc: &ColourCorrection, green_screen: bool) -> C
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::colour::transfer::Method;
+    use crate::colour::transfer::TransferMethod;
 
     fn img(pixels: Vec<[u8; 4]>) -> Rgba8Image {
         Rgba8Image { width: pixels.len() as u32, height: 1, pixels: pixels.concat() }
@@ -110,8 +110,12 @@ mod tests {
     fn apply_keeps_uncounted_pixels_and_alpha() {
         let src = img(vec![[200, 50, 50, 255], [150, 30, 20, 255], [250, 90, 70, 255]]);
         let tgt = img(vec![[20, 60, 200, 255], [0, 255, 0, 255], [40, 80, 160, 7], [9, 9, 9, 0]]);
-        let cc =
-            ColourCorrection::new(Method::Reinhard, 1.0, &image_stats(&src, false, "s").unwrap(), &image_stats(&tgt, true, "t").unwrap());
+        let cc = ColourCorrection::new(
+            TransferMethod::Reinhard,
+            1.0,
+            &image_stats(&src, false, "s").unwrap(),
+            &image_stats(&tgt, true, "t").unwrap(),
+        );
         let out = apply(&tgt, &cc, true);
         let px: Vec<&[u8]> = out.image.pixels.chunks(4).collect();
         assert_eq!(px[1], &[0, 255, 0, 255]);

@@ -49,7 +49,7 @@ pub const MAX_GAIN: f64 = 10.0;
 /// A colour-correction method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
-pub enum Method {
+pub enum TransferMethod {
     /// No correction (a scene's default; not offered by `colour-transfer`).
     #[value(skip)]
     None,
@@ -63,40 +63,41 @@ pub enum Method {
     Mkl,
 }
 
-impl Method {
+impl TransferMethod {
     /// The methods that transfer colour statistics, in the order reports list them.
-    pub const TRANSFERS: [Method; 3] = [Method::Reinhard, Method::CielabApprox, Method::Mkl];
+    pub const TRANSFERS: [TransferMethod; 3] = [TransferMethod::Reinhard, TransferMethod::CielabApprox, TransferMethod::Mkl];
     /// Every correcting method.
-    pub const ALL: [Method; 4] = [Method::BrightnessContrast, Method::Reinhard, Method::CielabApprox, Method::Mkl];
+    pub const ALL: [TransferMethod; 4] =
+        [TransferMethod::BrightnessContrast, TransferMethod::Reinhard, TransferMethod::CielabApprox, TransferMethod::Mkl];
 
     /// The lαβ space this method works in (None for the luminance-only method).
     pub fn space(self) -> Option<LabSpace> {
         match self {
-            Method::Reinhard | Method::Mkl => Some(LabSpace::Log),
-            Method::CielabApprox => Some(LabSpace::Linear),
-            Method::None | Method::BrightnessContrast => None,
+            TransferMethod::Reinhard | TransferMethod::Mkl => Some(LabSpace::Log),
+            TransferMethod::CielabApprox => Some(LabSpace::Linear),
+            TransferMethod::None | TransferMethod::BrightnessContrast => None,
         }
     }
 
     /// Name as on the command line.
     pub fn name(self) -> &'static str {
         match self {
-            Method::None => "none",
-            Method::BrightnessContrast => "brightness-contrast",
-            Method::Reinhard => "reinhard",
-            Method::CielabApprox => "cielab-approx",
-            Method::Mkl => "mkl",
+            TransferMethod::None => "none",
+            TransferMethod::BrightnessContrast => "brightness-contrast",
+            TransferMethod::Reinhard => "reinhard",
+            TransferMethod::CielabApprox => "cielab-approx",
+            TransferMethod::Mkl => "mkl",
         }
     }
 
     /// The id the shader switches on (`ColourCorrection::method`).
     pub fn shader_id(self) -> u32 {
         match self {
-            Method::None => 0,
-            Method::BrightnessContrast => 1,
-            Method::Reinhard => 2,
-            Method::CielabApprox => 3,
-            Method::Mkl => 4,
+            TransferMethod::None => 0,
+            TransferMethod::BrightnessContrast => 1,
+            TransferMethod::Reinhard => 2,
+            TransferMethod::CielabApprox => 3,
+            TransferMethod::Mkl => 4,
         }
     }
 }
@@ -131,12 +132,12 @@ fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
 
 /// Fit the map for `method` that moves `target`'s statistics onto `source`'s. Returns `None`
 /// for the methods that are not transfers (none, brightness-contrast).
-pub fn fit(method: Method, source: &ColourStats, target: &ColourStats) -> Option<AffineLab> {
+pub fn fit(method: TransferMethod, source: &ColourStats, target: &ColourStats) -> Option<AffineLab> {
     let space = method.space()?;
     let (mu_s, mu_t) = (source.mean_in(space), target.mean_in(space));
     let (cov_s, cov_t) = (source.cov_in(space), target.cov_in(space));
     let matrix = match method {
-        Method::Mkl => robust_mkl(cov_s, cov_t),
+        TransferMethod::Mkl => robust_mkl(cov_s, cov_t),
         _ => robust_diagonal(cov_s, cov_t),
     };
     if !matrix.is_finite() || !mu_s.is_finite() || !mu_t.is_finite() {
@@ -244,7 +245,7 @@ pub(crate) mod tests {
         let target = cloud(4000, [0.5, 0.35, 0.2], [0.5, 0.3, 0.2], 0.4);
         let source = cloud(3000, [0.25, 0.3, 0.45], [0.3, 0.35, 0.4], -0.3);
         let (ts, ss) = (ColourStats::from_linear(&target).unwrap(), ColourStats::from_linear(&source).unwrap());
-        for method in Method::TRANSFERS {
+        for method in TransferMethod::TRANSFERS {
             let map = fit(method, &ss, &ts).unwrap();
             let out = apply_all(&map, &target);
             // The log space maps back exactly while LMS stays ≥ 0; for these clouds it does.
@@ -255,7 +256,7 @@ pub(crate) mod tests {
                 let (s1, s2) = (c.col(i)[i].sqrt(), cs.col(i)[i].sqrt());
                 assert!((s1 - s2).abs() < 2e-4 * s2.max(0.01) + 1e-5, "{method:?} σ {i}: {s1} vs {s2}");
             }
-            if method == Method::Mkl {
+            if method == TransferMethod::Mkl {
                 // MKL also matches the off-diagonal covariance.
                 for i in 0..3 {
                     for j in 0..3 {
@@ -296,7 +297,7 @@ pub(crate) mod tests {
         // A single-colour texture (σ_t = 0): gains are 1, the mean moves to the source's.
         let target = ColourStats::from_linear(&[[0.6, 0.1, 0.1]; 10]).unwrap();
         let source = ColourStats::from_linear(&cloud(2000, [0.3, 0.4, 0.5], [0.4, 0.4, 0.4], 0.2)).unwrap();
-        for method in Method::TRANSFERS {
+        for method in TransferMethod::TRANSFERS {
             let map = fit(method, &source, &target).unwrap();
             assert!((0..3).all(|c| (map.matrix.col(c) - DMat3::IDENTITY.col(c)).abs().max_element() < 1e-9), "{method:?} {}", map.matrix);
             let out = map.apply_unclipped(Vec3::new(0.6, 0.1, 0.1));
@@ -312,7 +313,7 @@ pub(crate) mod tests {
     fn flat_source_keeps_target_variation_and_gains_are_bounded() {
         let flat = ColourStats::from_linear(&[[0.4, 0.4, 0.4]; 5]).unwrap();
         let target = ColourStats::from_linear(&cloud(1000, [0.5, 0.3, 0.2], [0.5, 0.3, 0.2], 0.0)).unwrap();
-        for method in Method::TRANSFERS {
+        for method in TransferMethod::TRANSFERS {
             let map = fit(method, &flat, &target).unwrap();
             assert!((0..3).all(|c| (map.matrix.col(c) - DMat3::IDENTITY.col(c)).abs().max_element() < 1e-9), "{method:?}");
         }
@@ -324,7 +325,7 @@ pub(crate) mod tests {
         // Non-finite statistics fall back to the identity instead of producing NaN.
         let mut bad = target;
         bad.lab_cov[0][0] = f64::NAN;
-        let map = fit(Method::Mkl, &bad, &target).unwrap();
+        let map = fit(TransferMethod::Mkl, &bad, &target).unwrap();
         assert!(map.matrix.is_finite() && map.offset.is_finite());
     }
 }

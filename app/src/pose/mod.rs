@@ -5,7 +5,7 @@
 //! accelerometer, gyroscope and magnetometer readings ([`crate::sensors`]) into poses with an
 //! accuracy estimate, falling back to the gyroscope alone while the magnetometer is disturbed;
 //! [`magnetic`] gives true north from the World Magnetic Model. [`trace`] reads the truth
-//! traces the capture CLI replays and [`user_path`] makes plausible ones. [`stability`]
+//! traces the capture CLI replays and [`hand_motion`] makes plausible ones. [`stability`]
 //! measures jitter, lag and failure cases (`previz pose-stability`).
 
 use crate::sensors::Reading;
@@ -14,12 +14,12 @@ use glam::{DQuat, Quat};
 
 pub mod frames;
 pub mod fusion;
+pub mod hand_motion;
 pub mod hard_iron;
 pub mod magnetic;
 pub mod stability;
 pub mod tilt_compass;
 pub mod trace;
-pub mod user_path;
 
 pub use frames::DisplayRotation;
 pub use fusion::{FusionConfig, OrientationFilter};

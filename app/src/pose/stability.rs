@@ -14,10 +14,10 @@
 //! paired.
 
 use super::fusion::{DisturbanceConfig, FusionConfig, OrientationFilter};
+use super::hand_motion::{HandShake, UserPathParams, minimum_jerk};
 use super::magnetic::MagneticReference;
 use super::tilt_compass::CompassOnlyFilter;
 use super::trace::{TruthSample, TruthTrace};
-use super::user_path::{HandShake, UserPathParams, minimum_jerk};
 use super::{DisplayRotation, OrientationEstimator, Pose};
 use crate::pose::frames::{angle_between, angle_difference, from_heading_pitch_roll, heading_pitch_roll};
 use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
@@ -491,11 +491,11 @@ pub fn measure_cases(cfg: &StabilityConfig, setting: &Setting, mut progress: imp
             }
         }
     }
-    // A whole simulated capture (user_path): orientation error while the faces are held.
+    // A whole simulated capture (hand_motion): orientation error while the faces are held.
     for &noise in &cfg.noise_levels {
         let (mut max_e, mut sum_sq, mut count, mut flagged, mut finite) = (0f64, 0.0, 0usize, 0usize, true);
         for seed in 0..cfg.seeds {
-            let path = super::user_path::simulate_user_path(seed, &UserPathParams::default())?;
+            let path = super::hand_motion::simulate_user_path(seed, &UserPathParams::default())?;
             let holds = path.holds.clone();
             let run = simulate(TruthTrace::new(path.samples)?, noise, seed, Vec::new())?;
             evaluate(&run, setting, |t, truth, p| {

@@ -249,7 +249,7 @@ impl Compositor {
     /// uploaded by `set_background`; nothing here allocates GPU resources. Each pass's commands
     /// are a debug group inside its render pass: groups on the encoder around a pass crash
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
-    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::Method) -> Result<()> {
+    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::LightingMethod) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         // The shadow is not needed for the background alone.
         let shadows = layer != Layer::Background;

@@ -6,7 +6,7 @@ use super::uniforms::{FrameUniforms, InstanceUniforms};
 use super::view;
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
-use crate::colour::transfer::Method as ColourMethod;
+use crate::colour::transfer::TransferMethod;
 use crate::scene::lod;
 use anyhow::{Result, bail};
 use glam::{Mat4, Vec3};
@@ -116,7 +116,7 @@ pub fn colour_correction(
     target: &std::result::Result<ColourStats, String>,
 ) -> Result<ColourCorrection> {
     Ok(match (settings.method, target) {
-        (ColourMethod::None, _) => ColourCorrection::identity(),
+        (TransferMethod::None, _) => ColourCorrection::identity(),
         (m, Ok(target)) => ColourCorrection::new(m, settings.strength, source, target),
         (m, Err(why)) => bail!("colour correction {} needs the model's colour statistics: {why}", m.name()),
     })
@@ -126,7 +126,7 @@ pub fn colour_correction(
 mod tests {
     use super::*;
     use crate::render::params::{Camera, Lighting, MaterialTerms};
-    use crate::render::{Method, Placement};
+    use crate::render::{LightingMethod, Placement};
     use glam::{Quat, Vec4};
     use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -137,7 +137,7 @@ mod tests {
     fn scene(scale: f32) -> (FrameParams, FrameContext) {
         let p = FrameParams {
             camera: Camera { pose: Quat::IDENTITY, position: Vec3::ZERO, vfov: FRAC_PI_2 },
-            method: Method::CubeRefraction,
+            method: LightingMethod::CubeRefraction,
             lighting: Lighting {
                 sun_dir: Vec3::new(0.0, 0.0, 2.0),
                 sunlight: 0.7,
@@ -270,7 +270,7 @@ mod tests {
         let stats = ColourStats::from_linear(&[[0.2, 0.3, 0.4], [0.5, 0.5, 0.5]]).unwrap();
         let none = colour_correction(ColourSettings::NONE, &stats, &Err("all masked".into())).unwrap();
         assert_eq!(bytemuck::bytes_of(&none), bytemuck::bytes_of(&ColourCorrection::identity()));
-        let on = ColourSettings { method: ColourMethod::ALL[1], strength: 1.0 };
+        let on = ColourSettings { method: TransferMethod::ALL[1], strength: 1.0 };
         let err = colour_correction(on, &stats, &Err("all masked".into())).unwrap_err();
         assert!(format!("{err:#}").contains("all masked"), "{err:#}");
     }

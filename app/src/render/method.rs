@@ -1,12 +1,12 @@
 //! The lighting method: a run-time choice, so new methods slot in and the benchmark iterates
 //! over all of them. The numbers are the values of the model shader's `METHOD` override constant
-//! (one model pipeline per method); the shader knows them by name through [`Method::wgsl_consts`].
+//! (one model pipeline per method); the shader knows them by name through [`LightingMethod::wgsl_consts`].
 
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum Method {
+pub enum LightingMethod {
     /// Modified Blinn-Phong (seed 000 Eq. 3) with a constant ambient (daylight) term.
     BlinnPhong,
     /// Blinn-Phong with hemisphere lighting (Eq. 6) as the ambient term: sky and ground colours
@@ -25,15 +25,15 @@ pub enum Method {
     LiveRefraction,
 }
 
-impl Method {
-    pub const ALL: [Method; 7] = [
-        Method::BlinnPhong,
-        Method::Hemisphere,
-        Method::HemisphereOcclusion,
-        Method::CubeReflection,
-        Method::CubeRefraction,
-        Method::LiveReflection,
-        Method::LiveRefraction,
+impl LightingMethod {
+    pub const ALL: [LightingMethod; 7] = [
+        LightingMethod::BlinnPhong,
+        LightingMethod::Hemisphere,
+        LightingMethod::HemisphereOcclusion,
+        LightingMethod::CubeReflection,
+        LightingMethod::CubeRefraction,
+        LightingMethod::LiveReflection,
+        LightingMethod::LiveRefraction,
     ];
 
     /// Whether the method reflects or refracts the view ray off the surface: its image follows
@@ -42,7 +42,13 @@ impl Method {
     /// p99 FLIP 0.31 vs the full mesh, over the goldens' 0.3), so these methods draw the model
     /// as loaded.
     pub fn bends_rays(self) -> bool {
-        matches!(self, Method::CubeReflection | Method::CubeRefraction | Method::LiveReflection | Method::LiveRefraction)
+        matches!(
+            self,
+            LightingMethod::CubeReflection
+                | LightingMethod::CubeRefraction
+                | LightingMethod::LiveReflection
+                | LightingMethod::LiveRefraction
+        )
     }
 
     /// The value of the `METHOD` override constant in shaders/model.wgsl.
@@ -58,19 +64,19 @@ impl Method {
     /// `const METHOD_…: u32 = id;` for every method: the WGSL side of the ids, generated here
     /// so that they are declared once.
     pub fn wgsl_consts() -> String {
-        Method::ALL.iter().map(|m| format!("const {}: u32 = {}u;\n", m.wgsl_const(), m.shader_id())).collect()
+        LightingMethod::ALL.iter().map(|m| format!("const {}: u32 = {}u;\n", m.wgsl_const(), m.shader_id())).collect()
     }
 
     /// The name used on the command line and in scene files.
     pub fn name(self) -> &'static str {
         match self {
-            Method::BlinnPhong => "blinn-phong",
-            Method::Hemisphere => "hemisphere",
-            Method::HemisphereOcclusion => "hemisphere-occlusion",
-            Method::CubeReflection => "cube-reflection",
-            Method::CubeRefraction => "cube-refraction",
-            Method::LiveReflection => "live-reflection",
-            Method::LiveRefraction => "live-refraction",
+            LightingMethod::BlinnPhong => "blinn-phong",
+            LightingMethod::Hemisphere => "hemisphere",
+            LightingMethod::HemisphereOcclusion => "hemisphere-occlusion",
+            LightingMethod::CubeReflection => "cube-reflection",
+            LightingMethod::CubeRefraction => "cube-refraction",
+            LightingMethod::LiveReflection => "live-reflection",
+            LightingMethod::LiveRefraction => "live-refraction",
         }
     }
 }
@@ -82,15 +88,15 @@ mod tests {
     #[test]
     fn the_model_shader_names_every_method_and_no_id() {
         let wgsl = include_str!("../../../shaders/model.wgsl");
-        assert!(Method::wgsl_consts().contains("const METHOD_HEMISPHERE_OCCLUSION: u32 = 2u;\n"));
-        for m in Method::ALL {
+        assert!(LightingMethod::wgsl_consts().contains("const METHOD_HEMISPHERE_OCCLUSION: u32 = 2u;\n"));
+        for m in LightingMethod::ALL {
             // Every method but the default Blinn-Phong path is branched on by name...
             assert!(wgsl.contains(&m.wgsl_const()), "model.wgsl never uses {}", m.wgsl_const());
-            let parsed: Method = clap::ValueEnum::from_str(m.name(), false).unwrap();
+            let parsed: LightingMethod = clap::ValueEnum::from_str(m.name(), false).unwrap();
             assert_eq!(parsed, m);
         }
         // ...and never by number.
-        for id in 0..Method::ALL.len() {
+        for id in 0..LightingMethod::ALL.len() {
             assert!(!wgsl.contains(&format!("method == {id}u")), "model.wgsl compares the method with the literal {id}u");
         }
     }

@@ -15,6 +15,6 @@ pub mod view;
 
 pub use compositor::{Compositor, Rendered, Timings};
 pub use frame::FrameData;
-pub use method::Method;
+pub use method::LightingMethod;
 pub use params::{Camera, ColourSettings, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms};
 pub use view::Placement;

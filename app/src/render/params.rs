@@ -1,9 +1,9 @@
 //! What a frame is made of, as the caller sets it: camera, lighting, placement, colour
 //! correction and the method. Plain data; the frame maths is in [`super::frame`].
 
-use super::Method;
+use super::LightingMethod;
 use super::view::Placement;
-use crate::colour::transfer::Method as ColourMethod;
+use crate::colour::transfer::TransferMethod;
 use crate::priors::EnvironmentPriors;
 use glam::{Quat, Vec3};
 
@@ -39,13 +39,13 @@ impl HemispherePriors {
 /// Colour correction of the model towards the environment (seed §5.6): which method, how much.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ColourSettings {
-    pub method: ColourMethod,
+    pub method: TransferMethod,
     /// 0..1 (the seed's CC slider).
     pub strength: f32,
 }
 
 impl ColourSettings {
-    pub const NONE: ColourSettings = ColourSettings { method: ColourMethod::None, strength: 0.0 };
+    pub const NONE: ColourSettings = ColourSettings { method: TransferMethod::None, strength: 0.0 };
 }
 
 /// The Blinn-Phong material terms of Eq. 3 (scalars; colour comes from the material/texture).
@@ -96,7 +96,7 @@ pub struct Camera {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameParams {
     pub camera: Camera,
-    pub method: Method,
+    pub method: LightingMethod,
     pub lighting: Lighting,
     pub placement: Placement,
     pub colour: ColourSettings,

@@ -33,7 +33,12 @@ pub const FRAME_WGSL: &str = include_str!("../../../shaders/frame.wgsl");
 pub fn source(t: Technique) -> String {
     let own = match t {
         Technique::Model => {
-            format!("{FRAME_WGSL}\n{}\n{}\n{}", super::Method::wgsl_consts(), crate::colour::correction::COLOUR_CORRECT_WGSL, t.file())
+            format!(
+                "{FRAME_WGSL}\n{}\n{}\n{}",
+                super::LightingMethod::wgsl_consts(),
+                crate::colour::correction::COLOUR_CORRECT_WGSL,
+                t.file()
+            )
         }
         _ => format!("{FRAME_WGSL}\n{}", t.file()),
     };

@@ -6,8 +6,8 @@ use anyhow::{Context, Result, anyhow, bail};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
-use crate::colour::transfer::Method as ColourMethod;
-use crate::render::Method;
+use crate::colour::transfer::TransferMethod;
+use crate::render::LightingMethod;
 
 /// A complete, validated scene description. Paths are resolved against the scene file's folder.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -24,7 +24,7 @@ pub struct Scene {
     pub width: u32,
     pub height: u32,
     /// Lighting method.
-    pub method: Method,
+    pub method: LightingMethod,
     pub camera: CameraSection,
     pub sun: SunSection,
     pub material: MaterialSection,
@@ -120,14 +120,14 @@ pub struct EffectsSection {
 pub struct ColourSection {
     /// Colour correction of the model towards the environment's horizontal faces (seed §5.6):
     /// none, brightness-contrast, reinhard, cielab-approx or mkl.
-    pub correction: ColourMethod,
+    pub correction: TransferMethod,
     /// 0..1: how much of the correction is applied (the seed's CC slider).
     pub strength: f64,
 }
 
 impl Default for ColourSection {
     fn default() -> Self {
-        ColourSection { correction: ColourMethod::None, strength: 1.0 }
+        ColourSection { correction: TransferMethod::None, strength: 1.0 }
     }
 }
 
@@ -140,7 +140,7 @@ impl Default for Scene {
             output: PathBuf::from("composite.png"),
             width: 960,
             height: 640,
-            method: Method::Hemisphere,
+            method: LightingMethod::Hemisphere,
             camera: CameraSection::default(),
             sun: SunSection::default(),
             material: MaterialSection::default(),
@@ -355,7 +355,7 @@ mod tests {
         assert_eq!(s.height, 640);
         assert_eq!(s.camera.heading, 45.0);
         assert_eq!(s.sun.direction, Some([1.0, 0.0, 1.0]));
-        assert_eq!(s.method, Method::CubeReflection);
+        assert_eq!(s.method, LightingMethod::CubeReflection);
         assert_eq!(s.model.as_deref(), Some(Path::new("/scenes/bunny.obj")));
     }
 

@@ -12,7 +12,7 @@
 use crate::light::measure::{MeasureOptions, MeasuredLight, SunSource, measure};
 use crate::light::samples::from_cube;
 use crate::light::sun_finder;
-use crate::render::{HemispherePriors, Method};
+use crate::render::{HemispherePriors, LightingMethod};
 use crate::scene::CubeMap;
 use crate::scene::file::Scene;
 use glam::Vec3;
@@ -74,8 +74,8 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
     let up = lum(light.sky.irradiance(Vec3::Z)) * exposure / pi;
     let down = lum(light.sky.irradiance(-Vec3::Z)) * exposure / pi;
     let reference = match scene.method {
-        Method::BlinnPhong => 1.0,
-        Method::HemisphereOcclusion => 0.5 * (priors.light + priors.shadow),
+        LightingMethod::BlinnPhong => 1.0,
+        LightingMethod::HemisphereOcclusion => 0.5 * (priors.light + priors.shadow),
         _ => 0.5 * (lum(priors.sky) + lum(priors.ground)),
     };
     let daylight = if reference > 0.0 { 0.5 * (up + down) / reference } else { 0.0 };

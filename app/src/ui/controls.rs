@@ -9,7 +9,7 @@
 //! ([`drag_on_ground`]: the model follows the ground point under the finger), two fingers pinch
 //! to scale and twist to turn it about the vertical ([`pinch_twist`]).
 
-use crate::render::{FrameParams, Method};
+use crate::render::{FrameParams, LightingMethod};
 use glam::{Quat, Vec2, Vec3};
 
 /// The panel's values (what the user set), applied to every frame.
@@ -32,7 +32,7 @@ pub struct Controls {
     pub gloss: f32,
     /// X, Y, Z: the model's rotations, degrees.
     pub rotation_deg: [f32; 3],
-    pub method: Method,
+    pub method: LightingMethod,
 }
 
 impl Controls {
@@ -99,7 +99,7 @@ impl Controls {
                     ui.add(egui::Slider::new(v, -180.0..=180.0).suffix("°").text(label));
                 }
                 egui::ComboBox::from_label("method").selected_text(self.method.name()).show_ui(ui, |ui| {
-                    for m in Method::ALL {
+                    for m in LightingMethod::ALL {
                         ui.selectable_value(&mut self.method, m, m.name());
                     }
                 });
@@ -256,7 +256,7 @@ mod tests {
         use crate::render::{Camera, ColourSettings, Lighting, MaterialTerms, Placement};
         FrameParams {
             camera: Camera { pose: Quat::IDENTITY, position: Vec3::ZERO, vfov: 1.0 },
-            method: Method::BlinnPhong,
+            method: LightingMethod::BlinnPhong,
             lighting: Lighting {
                 sun_dir: Vec3::Z,
                 sunlight: 1.0,

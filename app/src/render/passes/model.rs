@@ -7,7 +7,7 @@ use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::gpu::{Gpu, build};
 use crate::priors;
-use crate::render::Method;
+use crate::render::LightingMethod;
 use crate::render::params::MaterialTerms;
 use crate::render::pipelines::{COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
@@ -27,7 +27,7 @@ pub struct ModelPipelines {
     pub layout: wgpu::BindGroupLayout,
     /// Bind group 1: one per material.
     pub material_layout: wgpu::BindGroupLayout,
-    /// One pipeline per method, indexed by [`Method::shader_id`]: the shader's `METHOD` is a
+    /// One pipeline per method, indexed by [`LightingMethod::shader_id`]: the shader's `METHOD` is a
     /// pipeline-override constant, so each compiles only its own branches.
     pub by_method: Vec<wgpu::RenderPipeline>,
 }
@@ -62,7 +62,7 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
         attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
     };
     let module = build::shader(device, "model", source(Technique::Model));
-    let by_method = Method::ALL
+    let by_method = LightingMethod::ALL
         .iter()
         .map(|m| {
             let constants = [("METHOD", f64::from(m.shader_id()))];
@@ -157,7 +157,7 @@ impl ModelGpu {
 }
 
 pub struct ModelPass {
-    /// Indexed by [`Method::shader_id`].
+    /// Indexed by [`LightingMethod::shader_id`].
     by_method: Vec<wgpu::RenderPipeline>,
     layout: wgpu::BindGroupLayout,
     material_layout: wgpu::BindGroupLayout,
@@ -304,7 +304,7 @@ impl ModelPass {
     }
 
     /// Draw `model` with `method`'s pipeline at level of detail `level`.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: Method, level: usize) -> Result<()> {
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: LightingMethod, level: usize) -> Result<()> {
         let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         pass.set_pipeline(&self.by_method[method.shader_id() as usize]);
         pass.set_bind_group(0, bind_group, &[]);

@@ -2,15 +2,15 @@
 //! the stitch mode's extra aims): aim at the front and tap, then turn to the nearest target
 //! not yet visited — what the on-screen guidance points at — hold it, and so on.
 //!
-//! The motion model is the one of [`crate::pose::user_path`] (minimum-jerk turns with an
+//! The motion model is the one of [`crate::pose::hand_motion`] (minimum-jerk turns with an
 //! over/undershoot and a corrective movement, held aims off the target by up to
 //! `aim_error_deg` per axis, a slight roll, hand tremor and sway), generalised from the six
 //! fixed faces to arbitrary targets.
 
 use super::targets::Target;
 use crate::pose::frames::{heading_difference_deg, wrap_degrees_360};
+use crate::pose::hand_motion::{HandShake, Hpr, Timeline, UserPathParams, uniform};
 use crate::pose::trace::TruthSample;
-use crate::pose::user_path::{HandShake, Hpr, Timeline, UserPathParams, uniform};
 use anyhow::{Result, bail};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

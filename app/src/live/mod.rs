@@ -15,8 +15,10 @@
 //! The simulated user stands still and looks at the model, panning slowly left and right and
 //! up and down with a hand-held shake ([`look_around_path`]).
 
+#[cfg(target_os = "android")]
+pub mod android;
 pub mod export;
-#[cfg(not(any(target_os = "android", target_os = "ios")))]
+#[cfg(not(target_os = "ios"))]
 pub mod window;
 
 #[cfg(test)]
@@ -198,6 +200,8 @@ pub struct LiveSession {
     unit_light: LightTerms,
     /// The scene the session was made from (model, environment, size), for the export.
     scene: Scene,
+    /// Camera and sensors stopped ([`LiveSession::suspend`]).
+    suspended: bool,
 }
 
 impl LiveSession {
@@ -226,6 +230,7 @@ impl LiveSession {
             camera_image: None,
             unit_light,
             scene: scene.clone(),
+            suspended: false,
         })
     }
 
@@ -239,7 +244,11 @@ impl LiveSession {
 
     /// Advance to the next camera frame: camera image (uploaded), sensors, pose, sun. `None`
     /// when the camera stream ends.
+    /// An error while suspended: the camera and the sensors are stopped.
     pub fn advance(&mut self, gpu: &Gpu) -> Result<Option<LiveFrame>> {
+        if self.suspended {
+            bail!("the live session is suspended (camera and sensors stopped); resume it first");
+        }
         let t0 = std::time::Instant::now();
         let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
         let t = frame.t;
@@ -276,6 +285,34 @@ impl LiveSession {
         };
         let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
         Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight, camera_ms: ms(t0, t1), pose_ms: ms(t1, t2), sun_ms: ms(t2, t3) }))
+    }
+
+    /// The app went to the background (another app, the screen locked): stop the camera and the
+    /// sensors. Everything else is kept (scene, placement, controls, the filter's attitude) and
+    /// [`LiveSession::resume`] carries on from it. Suspending twice is the same as once.
+    pub fn suspend(&mut self) -> Result<()> {
+        if self.suspended {
+            return Ok(());
+        }
+        self.sources.camera.pause()?;
+        self.sources.sensors.pause()?;
+        self.suspended = true;
+        Ok(())
+    }
+
+    /// Start the camera and the sensors again after [`LiveSession::suspend`].
+    pub fn resume(&mut self) -> Result<()> {
+        if !self.suspended {
+            return Ok(());
+        }
+        self.sources.sensors.resume()?;
+        self.sources.camera.resume()?;
+        self.suspended = false;
+        Ok(())
+    }
+
+    pub fn is_suspended(&self) -> bool {
+        self.suspended
     }
 
     /// Draw the current frame into [`Compositor::target_view`] (no readback). Returns the CPU

@@ -8,6 +8,7 @@ pub mod params;
 pub mod passes;
 pub mod pipelines;
 pub mod shaders;
+pub mod shadow_fit;
 pub mod targets;
 pub mod uniforms;
 pub mod view;

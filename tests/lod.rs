@@ -24,6 +24,7 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let render = |model| {
         let i = Inputs { model, env: full.env.clone(), background: None };
         let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+        c.set_full_detail(true);
         rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba)
     };
     let reference = render(full.model.clone());
@@ -38,6 +39,20 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let coarsest = chain.len() - 1;
     let coarse_flip = flip(coarsest);
     assert!(coarse_flip > chosen_flip, "level {coarsest}: {coarse_flip} vs level {chosen}: {chosen_flip}");
+    // The compositor draws that level by itself (all levels uploaded once, chosen per frame),
+    // and what it draws is the chosen level's image.
+    let (mut c, p) = prepare(gpu(), &s, &full).unwrap();
+    let drawn = rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba);
+    assert_eq!(c.lod_level(), chosen);
+    assert_eq!(c.lod_triangles().unwrap(), &chain.triangles[..]);
+    let drawn_flip = previz::capture::replay::mean_flip(&reference, &drawn, 320, 240).unwrap();
+    assert!((drawn_flip - chosen_flip).abs() < 1e-6, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
+    // Moved twice as far away, it draws a coarser level.
+    let mut far = p;
+    let toward = far.placement.position - far.camera.position;
+    far.placement.position += toward;
+    c.render(gpu(), &far, Layer::Composite).unwrap();
+    assert!(c.lod_level() > chosen, "level {} at twice the distance vs {chosen}", c.lod_level());
 }
 
 /// Computed (crease-split) normals are no seam: the 100k dragon, whose normals the loader

@@ -7,6 +7,7 @@ use super::view;
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::colour::transfer::Method as ColourMethod;
+use crate::scene::lod;
 use anyhow::{Result, bail};
 use glam::{Mat4, Vec3};
 
@@ -35,6 +36,8 @@ pub struct FrameData {
     pub instance: InstanceUniforms,
     pub ground: InstanceUniforms,
     pub colour: ColourCorrection,
+    /// The level of detail drawn (0: the model as loaded).
+    pub level: usize,
 }
 
 fn mat(m: Mat4) -> [[f32; 4]; 4] {
@@ -83,13 +86,26 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
         live_depth: p.lighting.live_depth,
         tan_half_vfov: (0.5 * p.camera.vfov).tan(),
         aspect,
-        method: p.method.shader_id(),
         shadow_map_size: c.shadow_map_size,
-        _padding: 0,
+        _padding: [0; 2],
     };
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
     (frame, instance, ground)
+}
+
+/// The level of detail the half-pixel rule draws (`scene::lod::select_level`) for a model with
+/// model-space `bounds` and a chain with `errors` (model units), placed and seen as in `p`,
+/// rendered `height_px` rows high; also the distance to the model's bounding sphere (world
+/// units) and the focal length in pixels.
+pub fn lod_level(errors: &[f32], bounds: (Vec3, Vec3), p: &FrameParams, height_px: u32) -> (usize, f32, f32) {
+    let m = view::model_matrix(bounds, &p.placement);
+    let centre = m.transform_point3(0.5 * (bounds.0 + bounds.1));
+    let radius = 0.5 * (bounds.1 - bounds.0).length() * p.placement.scale;
+    let distance = lod::sphere_distance(p.camera.position, centre, radius);
+    let focal = lod::focal_px(p.camera.vfov, height_px);
+    let world: Vec<f32> = errors.iter().map(|e| e * p.placement.scale).collect();
+    (lod::select_level(&world, distance, focal, lod::MAX_SCREEN_ERROR_PX), distance, focal)
 }
 
 /// The colour correction of a frame: from the environment's statistics (`source`) towards the
@@ -204,7 +220,6 @@ mod tests {
         assert!(f.env_rotation[0].abs() < 1e-6 && (f.env_rotation[1] - 1.0).abs() < 1e-6);
         // eta = 1 / ior = 1 / 1.5.
         assert!((f.eta - 2.0 / 3.0).abs() < 1e-6);
-        assert_eq!(f.method, Method::CubeRefraction.shader_id());
         assert_eq!((f.shadow_map_size, f.env_exposure), (1024, 2.0));
         assert_eq!((f.sunlight, f.daylight, f.reflection, f.shadow_opacity, f.live_depth), (0.7, 0.3, 0.25, 0.6, 2.0));
         assert_eq!((f.sky, f.ground, f.occlusion_light, f.occlusion_shadow), ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], 0.9, 0.05));
@@ -231,6 +246,23 @@ mod tests {
         let side = 40.0 * 2.0 * 3f32.sqrt();
         assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(side, side, -10.0), 1e-3));
         assert_eq!(ground.normal, Mat4::IDENTITY.to_cols_array_2d());
+    }
+
+    #[test]
+    fn the_level_follows_the_distance_and_the_scale() {
+        // Camera at the origin, 90° vertical field of view, 200 rows: focal = 100 px. The 2 m
+        // cube's sphere (r = √3) is centred 9 m away: distance 9 − √3 = 7.27 m at scale 1.
+        let (p, c) = scene(1.0);
+        let errors = [0.0, 0.01, 0.03, 0.1];
+        let (level, distance, focal) = lod_level(&errors, c.bounds, &p, 200);
+        assert!((focal - 100.0).abs() < 1e-3 && (distance - (9.0 - 3f32.sqrt())).abs() < 1e-4);
+        // 0.03 * 100 / 7.27 = 0.41 px < 0.5; 0.1 → 1.38 px.
+        assert_eq!(level, 2);
+        // Scale 2: the errors double (0.06 m → 0.0 ...) and the sphere is nearer (its centre at
+        // 8 m, r = 2√3): 0.02 * 100 / 4.54 = 0.44 px, 0.06 → 1.3 px.
+        assert_eq!(lod_level(&errors, c.bounds, &scene(2.0).0, 200).0, 1);
+        // Twice the rows: twice the focal length, one level finer.
+        assert_eq!(lod_level(&errors, c.bounds, &p, 400).0, 1);
     }
 
     #[test]

@@ -264,7 +264,7 @@ impl Compositor {
         self.passes_run =
             PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        self.encode_frame(&mut encoder, layer)?;
+        self.encode_frame(&mut encoder, layer, p.method)?;
         Ok(encoder)
     }
 
@@ -272,7 +272,7 @@ impl Compositor {
     /// uploaded by `set_background`; nothing here allocates GPU resources. Each pass's commands
     /// are a debug group inside its render pass: groups on the encoder around a pass crash
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
-    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer) -> Result<()> {
+    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::Method) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         // The shadow is not needed for the background alone.
         let shadows = self.passes_run.shadow;
@@ -305,7 +305,7 @@ impl Compositor {
         }
         // 5. Model pass: shading, reflection/refraction and colour correction.
         if layer != Layer::Background {
-            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, self.level))?;
+            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, self.level))?;
         }
         Ok(())
     }

@@ -94,9 +94,8 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
         live_depth: p.lighting.live_depth,
         tan_half_vfov: (0.5 * p.camera.vfov).tan(),
         aspect,
-        method: p.method.shader_id(),
         shadow_map_size: c.shadow_map_size,
-        _padding: 0,
+        _padding: [0; 2],
     };
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
@@ -255,7 +254,6 @@ mod tests {
         assert!(f.env_rotation[0].abs() < 1e-6 && (f.env_rotation[1] - 1.0).abs() < 1e-6);
         // eta = 1 / ior = 1 / 1.5.
         assert!((f.eta - 2.0 / 3.0).abs() < 1e-6);
-        assert_eq!(f.method, Method::CubeRefraction.shader_id());
         assert_eq!((f.shadow_map_size, f.env_exposure), (1024, 2.0));
         assert_eq!((f.sunlight, f.daylight, f.reflection, f.shadow_opacity, f.live_depth), (0.7, 0.3, 0.25, 0.6, 2.0));
         assert_eq!((f.sky, f.ground, f.occlusion_light, f.occlusion_shadow), ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], 0.9, 0.05));

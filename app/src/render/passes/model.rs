@@ -7,9 +7,10 @@ use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::gpu::{Gpu, build};
 use crate::priors;
+use crate::render::Method;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, Vertex, depth_state, pipeline as make};
-use crate::render::shaders::Technique;
+use crate::render::pipelines::{COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
+use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
 use crate::scene::lod::{IndexRange, LodChain};
 use crate::scene::{Mesh, Model};
@@ -20,8 +21,19 @@ use wgpu::ShaderStages;
 use wgpu::TextureViewDimension::{Cube, D2};
 use wgpu::util::DeviceExt;
 
-/// The model pipeline and its material layout (bind group 1).
-pub fn pipeline(device: &wgpu::Device) -> (PassPipeline, wgpu::BindGroupLayout) {
+/// What the model pass's pipelines share.
+pub struct ModelPipelines {
+    /// Bind group 0: frame, instance, environment, background, shadow map, colour correction.
+    pub layout: wgpu::BindGroupLayout,
+    /// Bind group 1: one per material.
+    pub material_layout: wgpu::BindGroupLayout,
+    /// One pipeline per method, indexed by [`Method::shader_id`]: the shader's `METHOD` is a
+    /// pipeline-override constant, so each compiles only its own branches.
+    pub by_method: Vec<wgpu::RenderPipeline>,
+}
+
+/// The model pipelines (one per method) and their layouts.
+pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
@@ -49,18 +61,31 @@ pub fn pipeline(device: &wgpu::Device) -> (PassPipeline, wgpu::BindGroupLayout) 
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
     };
-    let pipeline = make(
-        device,
-        PipelineSpec {
-            technique: Technique::Model,
-            layouts: &[&layout, &material_layout],
-            vertex_buffers: &[Some(vertex_layout)],
-            depth: depth_state(true, wgpu::DepthBiasState::default()),
-            samples: SAMPLES,
-            blend: Some(Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING)),
-        },
-    );
-    (PassPipeline { layout, pipeline }, material_layout)
+    let module = build::shader(device, "model", source(Technique::Model));
+    let by_method = Method::ALL
+        .iter()
+        .map(|m| {
+            let constants = [("METHOD", f64::from(m.shader_id()))];
+            build::render_pipeline(
+                device,
+                build::PipelineSpec {
+                    label: m.name(),
+                    module: &module,
+                    layouts: &[&layout, &material_layout],
+                    vertex_buffers: &[Some(vertex_layout.clone())],
+                    colour: Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    depth: depth_state(true, wgpu::DepthBiasState::default()),
+                    samples: SAMPLES,
+                    constants: &constants,
+                },
+            )
+        })
+        .collect();
+    ModelPipelines { layout, material_layout, by_method }
 }
 
 /// A mesh's vertices interleaved for the vertex buffer, after checking that its attribute
@@ -132,7 +157,8 @@ impl ModelGpu {
 }
 
 pub struct ModelPass {
-    pipeline: wgpu::RenderPipeline,
+    /// Indexed by [`Method::shader_id`].
+    by_method: Vec<wgpu::RenderPipeline>,
     layout: wgpu::BindGroupLayout,
     material_layout: wgpu::BindGroupLayout,
     linear_sampler: wgpu::Sampler,
@@ -150,9 +176,9 @@ impl ModelPass {
     pub fn new(gpu: &Gpu, pipelines: &Pipelines) -> ModelPass {
         let device = &gpu.device;
         ModelPass {
-            pipeline: pipelines.model.pipeline.clone(),
+            by_method: pipelines.model.by_method.clone(),
             layout: pipelines.model.layout.clone(),
-            material_layout: pipelines.material_layout.clone(),
+            material_layout: pipelines.model.material_layout.clone(),
             linear_sampler: pipelines.linear_sampler.clone(),
             repeat_sampler: pipelines.repeat_sampler.clone(),
             shadow_sampler: pipelines.shadow_sampler.clone(),
@@ -277,10 +303,10 @@ impl ModelPass {
         }
     }
 
-    /// Draw `model` at level of detail `level`.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, level: usize) -> Result<()> {
+    /// Draw `model` with `method`'s pipeline at level of detail `level`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: Method, level: usize) -> Result<()> {
         let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.by_method[method.shader_id() as usize]);
         pass.set_bind_group(0, bind_group, &[]);
         model.draw_meshes(pass, Some(1), level);
         Ok(())

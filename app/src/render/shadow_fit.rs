@@ -118,7 +118,7 @@ pub fn screen_rect(points: &[Vec3], view_proj: Mat4, (width, height): (u32, u32)
     {
         return None;
     }
-    if clip.iter().any(|c| !(c.w > 1e-6)) {
+    if clip.iter().any(|c| c.w.is_nan() || c.w <= 1e-6) {
         return Some((Vec2::ZERO, size));
     }
     let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));

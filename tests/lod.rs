@@ -69,3 +69,31 @@ fn the_dragon_chain_reaches_a_few_thousand_triangles() {
         assert!(w[1] >= w[0], "errors must not decrease: {:?}", chain.errors);
     }
 }
+
+/// The shadow and ground passes run only when they have something to do: with the sun up and
+/// the model in view both run; with no measured sun neither; with the sun below the horizon the
+/// ground pass is skipped (the model still samples the map); looking away, neither.
+#[test]
+fn shadow_and_ground_passes_run_only_when_needed() {
+    let s = scene("width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n");
+    let i = inputs(&s);
+    let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+    let run = |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| {
+        c.render(gpu(), p, Layer::Composite).unwrap();
+        (c.passes_run(),)
+    };
+    let mut up = p;
+    up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
+    up.lighting.sunlight = 1.0;
+    up.lighting.shadow_opacity = 0.6;
+    assert_eq!(run(&mut c, &up).0, previz::render::PassesRun { shadow: true, ground: true });
+    let mut overcast = up;
+    overcast.lighting.sunlight = 0.0;
+    assert_eq!(run(&mut c, &overcast).0, previz::render::PassesRun { shadow: false, ground: false });
+    let mut down = up;
+    down.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, -0.2);
+    assert_eq!(run(&mut c, &down).0, previz::render::PassesRun { shadow: true, ground: false });
+    let mut away = up;
+    away.camera.pose *= glam::Quat::from_rotation_y(std::f32::consts::PI);
+    assert_eq!(run(&mut c, &away).0, previz::render::PassesRun { shadow: false, ground: false });
+}

@@ -5,7 +5,7 @@
 //! so per-frame work allocates no GPU resources.
 
 use super::environment::{self, Environment};
-use super::frame::{FrameContext, FrameData, colour_correction, frame_uniforms, lod_level};
+use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, lod_level};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::GroundPass;
@@ -61,6 +61,15 @@ pub struct Compositor {
     full_detail: bool,
     /// The level of detail the last prepared frame drew.
     level: usize,
+    /// Whether the last prepared frame ran the shadow and ground passes.
+    passes_run: PassesRun,
+}
+
+/// Which of the optional passes a frame ran.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PassesRun {
+    pub shadow: bool,
+    pub ground: bool,
 }
 
 impl Compositor {
@@ -96,6 +105,7 @@ impl Compositor {
             pipelines,
             full_detail: false,
             level: 0,
+            passes_run: PassesRun::default(),
         })
     }
 
@@ -155,6 +165,11 @@ impl Compositor {
         self.level
     }
 
+    /// Which optional passes the last rendered frame ran.
+    pub fn passes_run(&self) -> PassesRun {
+        self.passes_run
+    }
+
     /// The loaded model's bounds in model space.
     pub fn model_bounds(&self) -> Option<(Vec3, Vec3)> {
         self.model.as_ref().map(|m| m.bounds)
@@ -185,7 +200,12 @@ impl Compositor {
         let colour = colour_correction(p.colour, &env.colour, &model.colour)?;
         let level =
             if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(&model.lod_errors, model.bounds, p, self.height).0 };
-        Ok(FrameData { frame, instance, ground, colour, level })
+        let shadow = fit_shadow(p, &context);
+        // The model shades with the sun (and samples the map) even when the sun is below the
+        // horizon, so only the ground pass also needs the sun up.
+        let shadow_pass = p.lighting.sunlight > 0.0 && shadow.footprint.is_some();
+        let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
+        Ok(FrameData { frame, instance, ground, colour, level, shadow_pass, ground_pass })
     }
 
     /// Render one image of `layer` and read it back.
@@ -240,6 +260,9 @@ impl Compositor {
         self.ground.write(queue, &data.ground);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
+        let composite = layer == Layer::Composite;
+        self.passes_run =
+            PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         self.encode_frame(&mut encoder, layer, p.method)?;
         Ok(encoder)
@@ -252,7 +275,7 @@ impl Compositor {
     fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::LightingMethod) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         // The shadow is not needed for the background alone.
-        let shadows = layer != Layer::Background;
+        let shadows = self.passes_run.shadow;
         // The first pass recorded writes the start timestamp, the composite pass the end.
         let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(0, begin, end));
 
@@ -277,7 +300,7 @@ impl Compositor {
             in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
         }
         // 4. Ground pass: the shadow catcher darkens the background under the model.
-        if layer == Layer::Composite {
+        if self.passes_run.ground {
             in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass));
         }
         // 5. Model pass: shading, reflection/refraction and colour correction.

@@ -2,6 +2,7 @@
 //! values every pass reads. Pure functions, no GPU access.
 
 use super::params::{ColourSettings, FrameParams, HemispherePriors};
+use super::shadow_fit;
 use super::uniforms::{FrameUniforms, InstanceUniforms};
 use super::view;
 use crate::colour::correction::ColourCorrection;
@@ -38,6 +39,12 @@ pub struct FrameData {
     pub colour: ColourCorrection,
     /// The level of detail drawn (0: the model as loaded).
     pub level: usize,
+    /// Whether the shadow pass has anything to do: sunlight to block and the model or its
+    /// shadow on screen (render::shadow_fit::shadow_needed).
+    pub shadow_pass: bool,
+    /// Whether the ground pass has a shadow to catch: the above, with the sun above the
+    /// horizon and a shadow opacity above zero.
+    pub ground_pass: bool,
 }
 
 fn mat(m: Mat4) -> [[f32; 4]; 4] {
@@ -61,9 +68,10 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
     let proj = view::projection(p.camera.vfov, aspect, near, far);
     let view_m = view::view_matrix(p.camera.pose, p.camera.position);
     let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
-    let light = view::sun_view_proj(sun, centre, radius);
-    // The ground plane: a square under the model, large enough for long low-sun shadows.
-    let ground = Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::new(40.0 * radius, 40.0 * radius, 1.0));
+    let shadow = fit_shadow(p, c);
+    let light = shadow.light_view_proj;
+    // The ground plane: where the shadow can fall (nothing when the sun is down).
+    let ground = shadow.receiver.map_or(Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::ZERO), |r| r.matrix());
     let (hs, hc) = c.env_heading.sin_cos();
     let priors = &c.priors;
     let frame = FrameUniforms {
@@ -92,6 +100,31 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
     (frame, instance, ground)
+}
+
+/// The frame's shadow: the shadow camera fitted to the model, the ground quad where its shadow
+/// can fall, its footprint on screen, and whether the shadow and ground passes have anything
+/// to do (see `render::shadow_fit`).
+pub fn fit_shadow(p: &FrameParams, c: &FrameContext) -> shadow_fit::ShadowFit {
+    let (width, height) = c.size;
+    let bounds = c.bounds;
+    let model = view::model_matrix(bounds, &p.placement);
+    let centre = model.transform_point3(0.5 * (bounds.0 + bounds.1));
+    let radius = (0.5 * (bounds.1 - bounds.0).length() * p.placement.scale).max(1e-4);
+    let distance = (centre - p.camera.position).length();
+    let near = (distance - 4.0 * radius).max(distance * 1e-3).max(1e-3);
+    let far = (distance + 50.0 * radius).max(near * 2.0);
+    let view_proj =
+        view::projection(p.camera.vfov, width as f32 / height as f32, near, far) * view::view_matrix(p.camera.pose, p.camera.position);
+    let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
+    shadow_fit::fit(
+        bounds,
+        model,
+        (p.placement.position, centre, radius),
+        (sun, p.lighting.sunlight),
+        (view_proj, c.size),
+        &[c.shadow_map_size],
+    )
 }
 
 /// The level of detail the half-pixel rule draws (`scene::lod::select_level`) for a model with
@@ -197,15 +230,16 @@ mod tests {
         // The sun direction (0, 0, 2) is normalised.
         assert_eq!(f.sun_dir, [0.0, 0.0, 1.0]);
         // Orthographic from 2r above the centre (0, 0, −9), depth r..3r: the centre is at depth
-        // 0.5, the sphere's top at 0 and its bottom at 1; r to the East is the right edge
+        // 0.5, the sphere's top at 0 and its bottom at 1. Across the sun the map fits the box,
+        // not the sphere: the box's side 1 m to the East is the right edge, 1 m North the top
         // (looking down with North up).
         let r = 3f32.sqrt();
         let centre = Vec3::new(0.0, 0.0, -9.0);
         assert!(close(clip(f.light_view_proj, centre), Vec3::new(0.0, 0.0, 0.5), 1e-5));
         assert!(close(clip(f.light_view_proj, centre + Vec3::Z * r), Vec3::ZERO, 1e-5));
         assert!(close(clip(f.light_view_proj, centre - Vec3::Z * r), Vec3::Z, 1e-5));
-        assert!(close(clip(f.light_view_proj, centre + Vec3::X * r), Vec3::new(1.0, 0.0, 0.5), 1e-5));
-        assert!(close(clip(f.light_view_proj, centre + Vec3::Y * r), Vec3::new(0.0, 1.0, 0.5), 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::X), Vec3::new(1.0, 0.0, 0.5), 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::Y), Vec3::new(0.0, 1.0, 0.5), 1e-5));
         // No sun direction at all falls back to straight overhead.
         let mut p0 = p;
         p0.lighting.sun_dir = Vec3::ZERO;
@@ -241,10 +275,18 @@ mod tests {
         // Normal matrix = inverse transpose: a uniform scale of 2 halves normals.
         let n = Mat4::from_cols_array_2d(&instance.normal);
         assert!(close(n.transform_vector3(Vec3::Y), Vec3::new(0.0, 0.0, 0.5), 1e-6));
-        // The ground: 40 sphere radii (r = 2√3) across, in the plane of the model's base.
+        // The ground: with the sun overhead the shadow falls on the box's own 4×4 m footprint,
+        // in the plane of the model's base.
         let g = Mat4::from_cols_array_2d(&ground.model);
-        let side = 40.0 * 2.0 * 3f32.sqrt();
-        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(side, side, -10.0), 1e-3));
+        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(2.0, 2.0, -10.0), 1e-5));
+        assert!(close(g.transform_point3(Vec3::new(-1.0, -1.0, 0.0)), Vec3::new(-2.0, -2.0, -10.0), 1e-5));
+        // A sun 45° up in the South (direction (0, −1, 1)/√2): the 4 m tall box's shadow reaches
+        // 4 m further North.
+        let mut south = p;
+        south.lighting.sun_dir = Vec3::new(0.0, -1.0, 1.0);
+        let g = Mat4::from_cols_array_2d(&frame_uniforms(&south, &c).2.model);
+        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(2.0, 6.0, -10.0), 1e-4));
+        assert!(close(g.transform_point3(Vec3::new(-1.0, -1.0, 0.0)), Vec3::new(-2.0, -2.0, -10.0), 1e-4));
         assert_eq!(ground.normal, Mat4::IDENTITY.to_cols_array_2d());
     }
 

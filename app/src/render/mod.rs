@@ -13,7 +13,7 @@ pub mod targets;
 pub mod uniforms;
 pub mod view;
 
-pub use compositor::{Compositor, Rendered, Timings};
+pub use compositor::{Compositor, PassesRun, Rendered, Timings};
 pub use frame::FrameData;
 pub use method::LightingMethod;
 pub use params::{Camera, ColourSettings, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms};

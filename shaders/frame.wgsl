@@ -43,12 +43,10 @@ struct Frame {
     // tan(vfov / 2) and width / height of the target
     tan_half_vfov: f32,
     aspect: f32,
-    // the lighting method (METHOD_* constants, from render::Method)
-    method: u32,
     // side of the square shadow map in texels
     shadow_map_size: u32,
     // the struct's size is a multiple of 16 bytes (its alignment); the Rust mirror says so too
-    _padding: u32,
+    _padding: vec2<u32>,
 };
 
 // One model instance: model space -> world, and its normal matrix (inverse transpose, 3x3 in a 4x4).

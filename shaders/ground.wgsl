@@ -32,8 +32,9 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
         return vec4<f32>(0.0);
     }
     let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world);
-    // The shadow removes the sun's share of the light; opacity says how large that share is.
-    let sun_up = select(0.0, 1.0, frame.sun_dir.z > 0.0) * min(frame.sunlight, 1.0);
+    // The shadow removes the sun's share of the ground's light: shadow_opacity is that share
+    // (measured from the environment by setup::light), none when there is no sunlight.
+    let sun_up = select(0.0, 1.0, frame.sun_dir.z > 0.0 && frame.sunlight > 0.0);
     let alpha = frame.shadow_opacity * sun_up * (1.0 - visibility);
     return vec4<f32>(0.0, 0.0, 0.0, alpha);
 }

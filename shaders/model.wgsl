@@ -1,7 +1,10 @@
-// Model pass: one fragment shader for every lighting method (seed 000 §5.3-5.5, Appendix D/E),
-// chosen at run time by frame.method. All lighting happens in world space (ENU), in linear light.
+// Model pass: one fragment shader for every lighting method (seed 000 §5.3-5.5, Appendix D/E).
+// All lighting happens in world space (ENU), in linear light.
 //
 // The METHOD_* constants are generated from render::Method (prepended by render::shaders).
+// METHOD is a pipeline-override constant: each method has its own pipeline, which compiles only
+// its own branches (measured faster on lavapipe than a uniform switch: docs/PERFORMANCE.md).
+override METHOD: u32;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -83,7 +86,7 @@ fn specular_factor(n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> f32 {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    let method = frame.method;
+    let method = METHOD;
     var n = normalize(in.normal);
     let e = normalize(frame.camera_pos - in.world); // towards the camera
     let l = frame.sun_dir;                               // towards the sun

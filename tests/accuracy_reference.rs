@@ -4,6 +4,7 @@
 //! A change that makes the default method's mean FLIP in the region of interest (model + its
 //! shadow) worse than measured turns this red. The bounds are today's measurements plus 0.01
 //! (docs/accuracy.md), NOT the goal of 0.06: the default method does not reach it yet.
+//! Light comes from the environment (setup::light: the map's sun, SH9 sky, measured shadow).
 
 mod common;
 
@@ -14,8 +15,9 @@ use previz::setup::load_inputs;
 use std::path::Path;
 
 /// (scene, largest allowed mean FLIP over the region of interest).
-/// Measured 2026-11-30 with the default `hemisphere` method: 0.469, 0.209, 0.264, 0.361.
-const BOUNDS: [(&str, f32); 4] = [("quarry_bunny", 0.48), ("blouberg_teapot", 0.22), ("courtyard_dragon", 0.28), ("city_spot", 0.38)];
+/// Measured 2026-11-30 with the default `hemisphere` method and light measured in the
+/// environment: 0.237, 0.146, 0.281, 0.279 (constant light before: 0.469, 0.209, 0.264, 0.361).
+const BOUNDS: [(&str, f32); 4] = [("quarry_bunny", 0.25), ("blouberg_teapot", 0.16), ("courtyard_dragon", 0.29), ("city_spot", 0.29)];
 
 #[test]
 fn default_method_against_path_traced_references() {

@@ -48,7 +48,45 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     ] {
         assert_eq!(a.read(), b.read(), "{name} changed across frames");
     }
+    lod_switches_allocate_nothing();
     a_second_composite_reuses_the_pipelines();
+}
+
+/// Called from the one test: a model moving away switches level of detail frame by frame
+/// (every level was uploaded at set_model) without allocating.
+fn lod_switches_allocate_nothing() {
+    let s = scene(
+        "width = 320
+height = 240
+[placement]
+fill = 0.8
+",
+    );
+    let model = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();
+    let inputs = Inputs { model, env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
+    assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
+    compositor.render(gpu(), &params, Layer::Composite).unwrap();
+    let before = gpu().device.get_internal_counters().hal;
+    let mut levels = Vec::new();
+    for i in 0..8 {
+        let mut p = params;
+        let toward = p.placement.position - p.camera.position;
+        p.placement.position = p.camera.position + toward * 2f32.powi(i);
+        compositor.render(gpu(), &p, Layer::Composite).unwrap();
+        levels.push(compositor.lod_level());
+    }
+    let after = gpu().device.get_internal_counters().hal;
+    levels.dedup();
+    assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
+    for (name, a, b) in [
+        ("buffers", &before.buffers, &after.buffers),
+        ("textures", &before.textures, &after.textures),
+        ("texture views", &before.texture_views, &after.texture_views),
+        ("bind groups", &before.bind_groups, &after.bind_groups),
+    ] {
+        assert_eq!(a.read(), b.read(), "{name} changed across level switches");
+    }
 }
 
 /// Called from the one test: the counters are per device and tests run in parallel.

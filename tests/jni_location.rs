@@ -8,6 +8,7 @@ use jni::vm::{InitArgsBuilder, JavaVM};
 use jni::{Env, JValue, jni_sig, jni_str};
 use previz::pose::DisplayRotation;
 use previz::sensors::jni_location::{self, LocationBridge, LocationState};
+use previz::sensors::permissions::{self, Answer, Permission, PermissionFlow};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
@@ -201,6 +202,81 @@ fn display_rotation_and_package_name() {
         call(env, &activity, jni_str!("testSetRotation"), "(I)V", &[JValue::Int(7)]);
         assert!(jni_location::display_rotation(env, &activity).is_err());
         assert_eq!(jni_location::package_name(env, &activity)?, "org.previz.app");
+        Ok(())
+    });
+}
+
+/// The first-start permission flow (sensors::permissions) with the user's answer scripted in the
+/// Activity double: `answer` 1 allow, 2 deny, 3 deny + don't ask again.
+fn flow_with_answer<'l>(env: &mut Env<'l>, answer: i32) -> anyhow::Result<(JObject<'l>, PermissionFlow)> {
+    let activity = new_activity(env);
+    call(env, &activity, jni_str!("testSetAnswer"), "(I)V", &[JValue::Int(answer)]);
+    let mut flow = PermissionFlow::default();
+    assert_eq!(flow.answer(Permission::Camera), Answer::Pending, "before the dialog");
+    flow.start(env, &activity)?;
+    // One dialog for both, with the three names.
+    assert_eq!(call(env, &activity, jni_str!("testRequestCount"), "()I", &[]).i()?, 1);
+    let v = call(env, &activity, jni_str!("testLastRequested"), "()Ljava/lang/String;", &[]);
+    assert_eq!(java_string(env, v), format!("{},{},{}", permissions::CAMERA, jni_location::FINE_LOCATION, jni_location::COARSE_LOCATION));
+    assert_eq!(call(env, &activity, jni_str!("testLastRequestCode"), "()I", &[]).i()?, permissions::REQUEST_CODE);
+    // Asking again before the answer is read does not open a second dialog.
+    flow.start(env, &activity)?;
+    assert_eq!(call(env, &activity, jni_str!("testRequestCount"), "()I", &[]).i()?, 1);
+    // The dialog closed (the activity has focus again): read the answers.
+    flow.refresh(env, &activity)?;
+    Ok((activity, flow))
+}
+
+#[test]
+fn permission_flow_granted() {
+    with_env(|env| {
+        let (_, flow) = flow_with_answer(env, 1)?;
+        assert_eq!(flow.answer(Permission::Camera), Answer::Granted);
+        assert_eq!(flow.answer(Permission::Location), Answer::Granted);
+        assert_eq!(permissions::refusal_message(Permission::Camera, flow.answer(Permission::Camera)), None);
+        Ok(())
+    });
+}
+
+#[test]
+fn permission_flow_denied_can_ask_again() {
+    with_env(|env| {
+        let (activity, mut flow) = flow_with_answer(env, 2)?;
+        assert_eq!(flow.answer(Permission::Camera), Answer::Denied);
+        assert_eq!(flow.answer(Permission::Location), Answer::Denied);
+        let msg = permissions::refusal_message(Permission::Camera, Answer::Denied).unwrap();
+        assert!(msg.contains("Ask again"), "{msg}");
+        // "Ask again": a second dialog; this time the user allows.
+        call(env, &activity, jni_str!("testSetAnswer"), "(I)V", &[JValue::Int(1)]);
+        flow.ask_again(env, &activity)?;
+        assert_eq!(call(env, &activity, jni_str!("testRequestCount"), "()I", &[]).i()?, 2);
+        flow.refresh(env, &activity)?;
+        assert_eq!(flow.answer(Permission::Camera), Answer::Granted);
+        assert_eq!(flow.answer(Permission::Location), Answer::Granted);
+        Ok(())
+    });
+}
+
+#[test]
+fn permission_flow_denied_forever_points_to_the_settings() {
+    with_env(|env| {
+        let (activity, mut flow) = flow_with_answer(env, 3)?;
+        assert_eq!(flow.answer(Permission::Camera), Answer::DeniedForever);
+        assert_eq!(flow.answer(Permission::Location), Answer::DeniedForever);
+        let msg = permissions::refusal_message(Permission::Camera, Answer::DeniedForever).unwrap();
+        assert!(msg.contains("Settings → Apps → Previz → Permissions → Camera"), "{msg}");
+        let loc = permissions::refusal_message(Permission::Location, Answer::DeniedForever).unwrap();
+        assert!(loc.contains("place and time set in the panel"), "{loc}");
+        // Asking again shows nothing (Android will not ask) and the answer stays.
+        call(env, &activity, jni_str!("testSetAnswer"), "(I)V", &[JValue::Int(1)]);
+        flow.ask_again(env, &activity)?;
+        flow.refresh(env, &activity)?;
+        assert_eq!(flow.answer(Permission::Camera), Answer::DeniedForever);
+        // The user allows it in the settings; the next refresh (on resume) sees it.
+        call(env, &activity, jni_str!("testSetGranted"), "(Z)V", &[JValue::Bool(true)]);
+        flow.refresh(env, &activity)?;
+        assert_eq!(flow.answer(Permission::Location), Answer::Granted);
+        assert_eq!(flow.answer(Permission::Camera), Answer::DeniedForever);
         Ok(())
     });
 }

@@ -8,7 +8,7 @@
 
 use crate::render::view;
 use crate::scene::file::Scene;
-use crate::setup::{Inputs, exposure, frame_params};
+use crate::setup::{Inputs, camera_and_placement, exposure};
 use anyhow::{Context, Result, anyhow, bail};
 use glam::{Mat3, Vec3};
 use serde::Serialize;
@@ -60,8 +60,8 @@ pub fn export_reference_scene(scene: &Scene, inputs: &Inputs, dir: &Path) -> Res
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let bounds = inputs.model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
-    let params = frame_params(scene, bounds);
-    let model = view::model_matrix(bounds, &params.placement);
+    let (cam, placement) = camera_and_placement(scene, bounds);
+    let model = view::model_matrix(bounds, &placement);
     let normal = Mat3::from_mat4(model).inverse().transpose();
     let mut meshes = Vec::new();
     for (i, mesh) in inputs.model.meshes.iter().enumerate() {
@@ -80,9 +80,8 @@ pub fn export_reference_scene(scene: &Scene, inputs: &Inputs, dir: &Path) -> Res
         };
         meshes.push(ExportedMesh { ply, albedo: material.diffuse, texture });
     }
-    let cam = &params.camera;
     let forward = cam.pose * -Vec3::Z;
-    let radius = 0.5 * (bounds.1 - bounds.0).length() * params.placement.scale;
+    let radius = 0.5 * (bounds.1 - bounds.0).length() * placement.scale;
     let frame = ExportedFrame {
         width: scene.width,
         height: scene.height,
@@ -93,7 +92,7 @@ pub fn export_reference_scene(scene: &Scene, inputs: &Inputs, dir: &Path) -> Res
         environment: std::path::absolute(env_path).unwrap_or_else(|_| PathBuf::from(env_path)).display().to_string(),
         env_heading_deg: scene.env.heading as f32,
         exposure: exposure(scene, &inputs.env),
-        ground_z: params.placement.position.z,
+        ground_z: placement.position.z,
         model_radius: radius,
         meshes,
     };

@@ -7,7 +7,7 @@ use crate::capture::replay::mean_flip;
 use crate::gpu::Gpu;
 use crate::render::{FrameParams, Layer};
 use crate::scene::file::Scene;
-use crate::scene::lod::{self, LodChain, MAX_SCREEN_ERROR_PX};
+use crate::scene::lod::LodChain;
 use crate::scene::{Mesh, Model};
 use crate::setup::{Inputs, compositor_for};
 use anyhow::Result;
@@ -51,13 +51,7 @@ pub fn model_at_level(model: &Model, chain: &LodChain, k: usize) -> Model {
 /// with `params` into an image `height_px` rows high; also the model's distance and the focal
 /// length in pixels.
 pub fn screen_level(chain: &LodChain, bounds: (Vec3, Vec3), params: &FrameParams, height_px: u32) -> (usize, f32, f32) {
-    let m = crate::render::view::model_matrix(bounds, &params.placement);
-    let centre = m.transform_point3(0.5 * (bounds.0 + bounds.1));
-    let radius = 0.5 * (bounds.1 - bounds.0).length() * params.placement.scale;
-    let distance = lod::sphere_distance(params.camera.position, centre, radius);
-    let focal = lod::focal_px(params.camera.vfov, height_px);
-    let world: Vec<f32> = chain.errors.iter().map(|e| e * params.placement.scale).collect();
-    (lod::select_level(&world, distance, focal, MAX_SCREEN_ERROR_PX), distance, focal)
+    crate::render::frame::lod_level(&chain.errors, bounds, params, height_px)
 }
 
 /// Build the chain of `inputs.model`, render every level `frames` times, interleaved frame by
@@ -71,6 +65,8 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &
     for k in 0..chain.len() {
         let (mut c, params) = compositor_for(gpu, scene, &inputs.env, &model_at_level(&inputs.model, &chain, k))?;
         c.set_background(gpu, inputs.background.as_ref())?;
+        // Each compositor draws exactly its level, not a coarser one its own chain allows.
+        c.set_full_detail(true);
         compositors.push((c, params));
     }
     let params = compositors[0].1;

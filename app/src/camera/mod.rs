@@ -4,10 +4,16 @@
 //! - [`file`]: a still image or a folder of numbered images.
 //! - [`yuv`]: camera YUV 4:2:0 planes converted to R'G'B' on the GPU (the phone cameras' format).
 //!
-//! Phone backends (Android, iOS) implement the same trait.
+//! - `android`: the back camera through the NDK Camera2 API (Android only).
+//! - [`platform`]: the phone cameras' chroma layout and field of view (pure, host-tested).
+//!
+//! Phone backends implement the same trait.
 
+#[cfg(target_os = "android")]
+pub mod android;
 pub mod exposure;
 pub mod file;
+pub mod platform;
 pub mod sim;
 pub mod yuv;
 
@@ -27,4 +33,15 @@ pub trait FrameSource {
     /// The next frame; `Ok(None)` at the end of the stream. Errors name what failed (the file,
     /// the invalid pose, ...).
     fn next_frame(&mut self) -> Result<Option<Frame>>;
+
+    /// Stop the camera (the app went to the background): no frame is captured or queued until
+    /// [`FrameSource::resume`]. Files and the simulator have nothing to stop.
+    fn pause(&mut self) -> Result<()> {
+        Ok(())
+    }
+
+    /// Start the camera again after [`FrameSource::pause`].
+    fn resume(&mut self) -> Result<()> {
+        Ok(())
+    }
 }

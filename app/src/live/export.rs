@@ -27,9 +27,15 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
     let l = &p.lighting;
     let sun_dir = l.sun_dir.normalize();
     let fade = crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
-    // The scene's sunlight is the full-daylight intensity; composite fades it by the sun's
-    // elevation again.
-    let sunlight = if fade > 0.0 { l.sunlight / fade } else { 0.0 };
+    // The scene's sunlight, daylight and shadow opacity are multipliers on the light measured
+    // in the environment (setup::light); composite fades the sunlight by the sun's elevation
+    // again. (The shadow's measured share depends on the sunlight and daylight multipliers:
+    // with both at 1 the round trip is exact.)
+    let unit = session.unit_light();
+    let ratio = |v: f32, of: f32| if of > 0.0 { v / of } else { 0.0 };
+    let sunlight = if fade > 0.0 { ratio(l.sunlight / fade, unit.sunlight) } else { 0.0 };
+    let daylight = ratio(l.daylight, unit.daylight);
+    let shadow_opacity = ratio(l.shadow_opacity, unit.shadow_opacity).min(1.0);
     let f = |v: f32| Value::Float(f64::from(v));
     let v3 = |v: glam::Vec3| Value::Array(vec![f(v.x), f(v.y), f(v.z)]);
     let table = |entries: Vec<(&str, Value)>| Value::Table(entries.into_iter().map(|(k, v)| (k.to_string(), v)).collect());
@@ -57,7 +63,7 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
             ("height", f(p.camera.position.z)),
         ]),
     );
-    top.insert("sun".into(), table(vec![("direction", v3(sun_dir)), ("sunlight", f(sunlight)), ("daylight", f(l.daylight))]));
+    top.insert("sun".into(), table(vec![("direction", v3(sun_dir)), ("sunlight", f(sunlight)), ("daylight", f(daylight))]));
     let mut material = vec![("ambient", f(l.material.ambient)), ("diffuse", f(l.material.diffuse)), ("specular", f(l.material.specular))];
     if let Some(g) = l.material.gloss {
         material.push(("gloss", f(g)));
@@ -78,7 +84,7 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
         table(vec![
             ("reflection", f(l.reflection)),
             ("ior", f(l.ior)),
-            ("shadow_opacity", f(l.shadow_opacity)),
+            ("shadow_opacity", f(shadow_opacity)),
             ("live_depth", f(l.live_depth)),
         ]),
     );

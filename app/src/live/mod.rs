@@ -15,8 +15,10 @@
 //! The simulated user stands still and looks at the model, panning slowly left and right and
 //! up and down with a hand-held shake ([`look_around_path`]).
 
+#[cfg(target_os = "android")]
+pub mod android;
 pub mod export;
-#[cfg(not(any(target_os = "android", target_os = "ios")))]
+#[cfg(not(target_os = "ios"))]
 pub mod window;
 
 #[cfg(test)]
@@ -45,7 +47,7 @@ use crate::scene::file::Scene;
 use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
-use crate::setup::{compositor_for, exposure};
+use crate::setup::{LightTerms, compositor_and_light, exposure};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
 use crate::ui::controls::Controls;
 use anyhow::{Result, bail};
@@ -193,8 +195,13 @@ pub struct LiveSession {
     sun_intensity: f32,
     /// The current camera image (the background of the frame).
     camera_image: Option<crate::scene::Rgba8Image>,
+    /// The light measured in the environment with the scene's multipliers at 1 (unfaded): the
+    /// export writes the frame's light as multipliers of it.
+    unit_light: LightTerms,
     /// The scene the session was made from (model, environment, size), for the export.
     scene: Scene,
+    /// Camera and sensors stopped ([`LiveSession::suspend`]).
+    suspended: bool,
 }
 
 impl LiveSession {
@@ -204,7 +211,7 @@ impl LiveSession {
     /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
     pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let (compositor, params) = compositor_for(gpu, scene, env, model)?;
+        let (compositor, params, unit_light) = compositor_and_light(gpu, scene, env, model)?;
         // True north from the first GPS fix and the World Magnetic Model for the date.
         let mut filter = OrientationFilter::new(FusionConfig::default());
         filter.set_date(magnetic_model_date(cfg.start.date_naive()));
@@ -214,14 +221,16 @@ impl LiveSession {
             filter,
             params,
             layer: Layer::Composite,
-            full_sunlight: scene.sun.sunlight as f32,
+            full_sunlight: scene.sun.sunlight as f32 * unit_light.sunlight,
             location: (cfg.lat_deg, cfg.lon_deg),
             cfg,
             readings: Vec::new(),
             controls: None,
-            sun_intensity: scene.sun.sunlight as f32,
+            sun_intensity: scene.sun.sunlight as f32 * unit_light.sunlight,
             camera_image: None,
+            unit_light,
             scene: scene.clone(),
+            suspended: false,
         })
     }
 
@@ -235,7 +244,11 @@ impl LiveSession {
 
     /// Advance to the next camera frame: camera image (uploaded), sensors, pose, sun. `None`
     /// when the camera stream ends.
+    /// An error while suspended: the camera and the sensors are stopped.
     pub fn advance(&mut self, gpu: &Gpu) -> Result<Option<LiveFrame>> {
+        if self.suspended {
+            bail!("the live session is suspended (camera and sensors stopped); resume it first");
+        }
         let t0 = std::time::Instant::now();
         let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
         let t = frame.t;
@@ -274,6 +287,34 @@ impl LiveSession {
         Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight, camera_ms: ms(t0, t1), pose_ms: ms(t1, t2), sun_ms: ms(t2, t3) }))
     }
 
+    /// The app went to the background (another app, the screen locked): stop the camera and the
+    /// sensors. Everything else is kept (scene, placement, controls, the filter's attitude) and
+    /// [`LiveSession::resume`] carries on from it. Suspending twice is the same as once.
+    pub fn suspend(&mut self) -> Result<()> {
+        if self.suspended {
+            return Ok(());
+        }
+        self.sources.camera.pause()?;
+        self.sources.sensors.pause()?;
+        self.suspended = true;
+        Ok(())
+    }
+
+    /// Start the camera and the sensors again after [`LiveSession::suspend`].
+    pub fn resume(&mut self) -> Result<()> {
+        if !self.suspended {
+            return Ok(());
+        }
+        self.sources.sensors.resume()?;
+        self.sources.camera.resume()?;
+        self.suspended = false;
+        Ok(())
+    }
+
+    pub fn is_suspended(&self) -> bool {
+        self.suspended
+    }
+
     /// Draw the current frame into [`Compositor::target_view`] (no readback). Returns the CPU
     /// encode time, ms.
     pub fn draw(&mut self, gpu: &Gpu) -> Result<f64> {
@@ -310,6 +351,11 @@ impl LiveSession {
     pub fn set_controls(&mut self, c: Controls) {
         c.apply(&mut self.params, self.sun_intensity);
         self.controls = Some(c);
+    }
+
+    /// The light measured in the environment with the scene's multipliers at 1 (unfaded).
+    pub fn unit_light(&self) -> &LightTerms {
+        &self.unit_light
     }
 
     /// The scene the session was made from.

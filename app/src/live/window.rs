@@ -5,8 +5,9 @@
 //! step 6).
 //!
 //! Lifecycle: `suspended` (the app went to the background, the phone's screen locked, Android
-//! destroyed the native window) drops the surface and stops drawing; `resumed` creates a new
-//! surface for the window and carries on with the same session (GPU device, scene, filter).
+//! destroyed the native window) drops the surface, stops drawing and stops the camera and the
+//! sensors ([`LiveSession::suspend`]); `resumed` starts them again, creates a new surface for the
+//! window and carries on with the same session (GPU device, scene, filter).
 
 use super::{LiveFrame, LiveSession};
 use crate::gpu::Gpu;
@@ -153,9 +154,13 @@ impl ApplicationHandler for App {
         }
     }
 
-    fn suspended(&mut self, _el: &ActiveEventLoop) {
+    fn suspended(&mut self, el: &ActiveEventLoop) {
         if let Some(state) = &mut self.state {
             state.surface = None;
+            if let Err(e) = state.session.suspend() {
+                self.error = Some(e);
+                el.exit();
+            }
         }
     }
 
@@ -245,8 +250,10 @@ impl State {
         Ok(dir)
     }
 
-    /// A new surface for the window after a suspension (the session is kept).
+    /// A new surface for the window after a suspension, and the camera and sensors started again
+    /// (the session is kept).
     fn resume(&mut self) -> Result<()> {
+        self.session.resume()?;
         if self.surface.is_none() {
             let surface = self.gpu.instance.create_surface(self.window.clone()).context("cannot recreate the GPU surface")?;
             let size = self.window.inner_size();

@@ -18,6 +18,14 @@
 //! magnetic disturbance: heading then comes from the gyroscope alone until readings have agreed
 //! with the model again for `recover_after_s`. The magnetometer's hard-iron offset is learnt
 //! online ([`super::hard_iron`]) from readings taken as the phone turns.
+//!
+//! A capture (a few seconds of turning to known directions) needs the heading of each shot
+//! *relative to the first* more than the absolute one:
+//! - **Heading hold** ([`OrientationFilter::hold_heading`]): the magnetometer's heading
+//!   correction is suspended and the heading propagates on the gyroscope alone, as Android's
+//!   game rotation vector does for panoramas. The compass's error changes with heading (residual
+//!   hard iron) and with small undetected disturbances — at `phone` noise by up to 10° within
+//!   one capture — while a gyroscope with a learnt bias drifts a fraction of a degree in it.
 
 use super::frames::{DisplayRotation, angle_difference, camera_pose_from_device};
 use super::hard_iron::HardIronCalibrator;
@@ -173,6 +181,8 @@ pub struct OrientationFilter {
     carried_tilt_sigma: f64,
     /// Seconds of magnetometer-corrected running after start-up (bias learning time).
     mag_time: f64,
+    /// Heading hold: since when, and the heading 1σ then (radians).
+    hold: Option<(f64, f64)>,
 }
 
 impl OrientationFilter {
@@ -208,7 +218,28 @@ impl OrientationFilter {
             carried_heading_sigma: 0.0,
             carried_tilt_sigma: 0.0,
             mag_time: 0.0,
+            hold: None,
         }
+    }
+
+    /// Heading hold on or off at time `t` (see the module documentation): while on, the
+    /// magnetometer does not correct the heading and the heading's 1σ grows with the
+    /// gyroscope's drift from its value at `t`. A capture turns it on at the tap and off when
+    /// complete.
+    pub fn hold_heading(&mut self, t: f64, on: bool) {
+        match (on, self.hold) {
+            (true, None) => self.hold = Some((t, self.heading_sigma())),
+            (false, Some(_)) => {
+                self.carried_heading_sigma = self.heading_sigma();
+                self.hold = None;
+            }
+            _ => {}
+        }
+    }
+
+    /// Whether the heading is held ([`OrientationFilter::hold_heading`]).
+    pub fn heading_held(&self) -> bool {
+        self.hold.is_some()
     }
 
     pub fn config(&self) -> &FusionConfig {
@@ -412,6 +443,7 @@ impl OrientationFilter {
 
         if self.heading_known
             && !self.disturbed
+            && self.hold.is_none()
             && let Some((tm, m)) = self.mag
             && t - tm < FRESH_S
         {
@@ -475,12 +507,13 @@ impl OrientationFilter {
         if !self.heading_known {
             return std::f64::consts::PI;
         }
-        match self.gyro_only_since {
-            Some(t0) => {
-                let drift = self.cfg.gyro_drift + self.cfg.initial_gyro_bias * (-self.mag_time / 60.0).exp();
-                (self.heading_sigma_at_loss + drift * (self.t - t0)).min(std::f64::consts::PI)
-            }
-            None => self.heading_sigma_mag(),
+        let drift = self.cfg.gyro_drift + self.cfg.initial_gyro_bias * (-self.mag_time / 60.0).exp();
+        let gyro = |t0: f64, sigma0: f64| (sigma0 + drift * (self.t - t0)).min(std::f64::consts::PI);
+        match (self.gyro_only_since, self.hold) {
+            (Some(t0), Some((th, sh))) if th < t0 => gyro(th, sh),
+            (Some(t0), _) => gyro(t0, self.heading_sigma_at_loss),
+            (None, Some((th, sh))) => gyro(th, sh),
+            (None, None) => self.heading_sigma_mag(),
         }
     }
 
@@ -704,6 +737,33 @@ mod tests {
         feed_rotation(&mut f, q, DVec3::ZERO, 2.0, 10.0, FIELD + DVec3::new(25.0, 0.0, 0.0));
         assert!(!f.magnetic_disturbance());
         assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() > 20.0);
+    }
+
+    #[test]
+    fn heading_hold_ignores_a_compass_error_that_the_disturbance_test_cannot_see() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        let q = DQuat::IDENTITY;
+        feed_rotation(&mut f, q, DVec3::ZERO, 0.0, 5.0, FIELD);
+        let before = f.pose(DisplayRotation::R0).unwrap().heading_accuracy_deg;
+        f.hold_heading(5.0, true);
+        assert!(f.heading_held());
+        // The field turned by 8° about the vertical: same magnitude and dip, so no disturbance
+        // is detected (a residual hard-iron offset does this as the phone turns).
+        let turned = DQuat::from_rotation_z(8f64.to_radians()) * FIELD;
+        feed_rotation(&mut f, q, DVec3::ZERO, 5.0, 10.0, turned);
+        assert!(!f.magnetic_disturbance());
+        // Exact gyroscope, held heading: still the true orientation.
+        assert!(angle_between(f.device_orientation().unwrap(), q).to_degrees() < 0.01);
+        // Its 1σ grows with the gyroscope's drift model (≥ 0.05°/s over the 10 s held).
+        let held = f.pose(DisplayRotation::R0).unwrap().heading_accuracy_deg;
+        assert!(held >= before + 0.5, "{before} -> {held}");
+        // Released: the compass pulls the heading towards the turned field (time constant 5 s:
+        // 1 − e⁻² = 86 % of 8° in 10 s).
+        f.hold_heading(15.0, false);
+        feed_rotation(&mut f, q, DVec3::ZERO, 15.0, 10.0, turned);
+        let moved = angle_between(f.device_orientation().unwrap(), q).to_degrees();
+        assert!(moved > 6.0 && moved < 8.5, "{moved}");
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! so per-frame work allocates no GPU resources.
 
 use super::environment::{self, Environment};
-use super::frame::{FrameContext, FrameData, colour_correction, frame_uniforms};
+use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, lod_level};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::GroundPass;
@@ -57,6 +57,19 @@ pub struct Compositor {
     model: Option<ModelGpu>,
     /// Slot 0: from the first pass's start to the composite pass's end.
     timer: Option<GpuTimer>,
+    /// Draw level 0 whatever the screen allows (a full-detail reference).
+    full_detail: bool,
+    /// The level of detail the last prepared frame drew.
+    level: usize,
+    /// Whether the last prepared frame ran the shadow and ground passes.
+    passes_run: PassesRun,
+}
+
+/// Which of the optional passes a frame ran.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PassesRun {
+    pub shadow: bool,
+    pub ground: bool,
 }
 
 impl Compositor {
@@ -90,6 +103,9 @@ impl Compositor {
             model: None,
             timer: GpuTimer::new(gpu, 1),
             pipelines,
+            full_detail: false,
+            level: 0,
+            passes_run: PassesRun::default(),
         })
     }
 
@@ -133,6 +149,27 @@ impl Compositor {
         Ok(())
     }
 
+    /// Draw the model as loaded (level 0) instead of the level the screen allows: for the
+    /// full-detail references that measure what the levels cost in accuracy.
+    pub fn set_full_detail(&mut self, on: bool) {
+        self.full_detail = on;
+    }
+
+    /// The loaded model's level-of-detail chain: per level, triangles (None before a model).
+    pub fn lod_triangles(&self) -> Option<&[usize]> {
+        self.model.as_ref().map(|m| m.lod_triangles.as_slice())
+    }
+
+    /// The level of detail the last rendered frame drew (0: the model as loaded).
+    pub fn lod_level(&self) -> usize {
+        self.level
+    }
+
+    /// Which optional passes the last rendered frame ran.
+    pub fn passes_run(&self) -> PassesRun {
+        self.passes_run
+    }
+
     /// The loaded model's bounds in model space.
     pub fn model_bounds(&self) -> Option<(Vec3, Vec3)> {
         self.model.as_ref().map(|m| m.bounds)
@@ -161,7 +198,14 @@ impl Compositor {
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
         let colour = colour_correction(p.colour, &env.colour, &model.colour)?;
-        Ok(FrameData { frame, instance, ground, colour })
+        let level =
+            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(&model.lod_errors, model.bounds, p, self.height).0 };
+        let shadow = fit_shadow(p, &context);
+        // The model shades with the sun (and samples the map) even when the sun is below the
+        // horizon, so only the ground pass also needs the sun up.
+        let shadow_pass = p.lighting.sunlight > 0.0 && shadow.footprint.is_some();
+        let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
+        Ok(FrameData { frame, instance, ground, colour, level, shadow_pass, ground_pass })
     }
 
     /// Render one image of `layer` and read it back.
@@ -215,8 +259,12 @@ impl Compositor {
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         self.ground.write(queue, &data.ground);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
+        self.level = data.level;
+        let composite = layer == Layer::Composite;
+        self.passes_run =
+            PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        self.encode_frame(&mut encoder, layer)?;
+        self.encode_frame(&mut encoder, layer, p.method)?;
         Ok(encoder)
     }
 
@@ -224,17 +272,17 @@ impl Compositor {
     /// uploaded by `set_background`; nothing here allocates GPU resources. Each pass's commands
     /// are a debug group inside its render pass: groups on the encoder around a pass crash
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
-    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer) -> Result<()> {
+    fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::Method) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         // The shadow is not needed for the background alone.
-        let shadows = layer != Layer::Background;
+        let shadows = self.passes_run.shadow;
         // The first pass recorded writes the start timestamp, the composite pass the end.
         let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(0, begin, end));
 
         // 2. Shadow pass: the model's depth seen from the sun.
         if shadows {
             let mut pass = self.shadow.begin(encoder, stamp(true, false));
-            in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model));
+            in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
 
         // 3a. The environment seen by the camera becomes the background when there is no image.
@@ -252,12 +300,12 @@ impl Compositor {
             in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
         }
         // 4. Ground pass: the shadow catcher darkens the background under the model.
-        if layer == Layer::Composite {
+        if self.passes_run.ground {
             in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass));
         }
         // 5. Model pass: shading, reflection/refraction and colour correction.
         if layer != Layer::Background {
-            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model))?;
+            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, self.level))?;
         }
         Ok(())
     }

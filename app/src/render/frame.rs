@@ -2,11 +2,13 @@
 //! values every pass reads. Pure functions, no GPU access.
 
 use super::params::{ColourSettings, FrameParams, HemispherePriors};
+use super::shadow_fit;
 use super::uniforms::{FrameUniforms, InstanceUniforms};
 use super::view;
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::colour::transfer::Method as ColourMethod;
+use crate::scene::lod;
 use anyhow::{Result, bail};
 use glam::{Mat4, Vec3};
 
@@ -35,6 +37,14 @@ pub struct FrameData {
     pub instance: InstanceUniforms,
     pub ground: InstanceUniforms,
     pub colour: ColourCorrection,
+    /// The level of detail drawn (0: the model as loaded).
+    pub level: usize,
+    /// Whether the shadow pass has anything to do: sunlight to block and the model or its
+    /// shadow on screen (render::shadow_fit::shadow_needed).
+    pub shadow_pass: bool,
+    /// Whether the ground pass has a shadow to catch: the above, with the sun above the
+    /// horizon and a shadow opacity above zero.
+    pub ground_pass: bool,
 }
 
 fn mat(m: Mat4) -> [[f32; 4]; 4] {
@@ -58,9 +68,10 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
     let proj = view::projection(p.camera.vfov, aspect, near, far);
     let view_m = view::view_matrix(p.camera.pose, p.camera.position);
     let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
-    let light = view::sun_view_proj(sun, centre, radius);
-    // The ground plane: a square under the model, large enough for long low-sun shadows.
-    let ground = Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::new(40.0 * radius, 40.0 * radius, 1.0));
+    let shadow = fit_shadow(p, c);
+    let light = shadow.light_view_proj;
+    // The ground plane: where the shadow can fall (nothing when the sun is down).
+    let ground = shadow.receiver.map_or(Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::ZERO), |r| r.matrix());
     let (hs, hc) = c.env_heading.sin_cos();
     let priors = &c.priors;
     let frame = FrameUniforms {
@@ -83,13 +94,51 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
         live_depth: p.lighting.live_depth,
         tan_half_vfov: (0.5 * p.camera.vfov).tan(),
         aspect,
-        method: p.method.shader_id(),
         shadow_map_size: c.shadow_map_size,
-        _padding: 0,
+        _padding: [0; 2],
     };
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
     (frame, instance, ground)
+}
+
+/// The frame's shadow: the shadow camera fitted to the model, the ground quad where its shadow
+/// can fall, its footprint on screen, and whether the shadow and ground passes have anything
+/// to do (see `render::shadow_fit`).
+pub fn fit_shadow(p: &FrameParams, c: &FrameContext) -> shadow_fit::ShadowFit {
+    let (width, height) = c.size;
+    let bounds = c.bounds;
+    let model = view::model_matrix(bounds, &p.placement);
+    let centre = model.transform_point3(0.5 * (bounds.0 + bounds.1));
+    let radius = (0.5 * (bounds.1 - bounds.0).length() * p.placement.scale).max(1e-4);
+    let distance = (centre - p.camera.position).length();
+    let near = (distance - 4.0 * radius).max(distance * 1e-3).max(1e-3);
+    let far = (distance + 50.0 * radius).max(near * 2.0);
+    let view_proj =
+        view::projection(p.camera.vfov, width as f32 / height as f32, near, far) * view::view_matrix(p.camera.pose, p.camera.position);
+    let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
+    shadow_fit::fit(
+        bounds,
+        model,
+        (p.placement.position, centre, radius),
+        (sun, p.lighting.sunlight),
+        (view_proj, c.size),
+        &[c.shadow_map_size],
+    )
+}
+
+/// The level of detail the half-pixel rule draws (`scene::lod::select_level`) for a model with
+/// model-space `bounds` and a chain with `errors` (model units), placed and seen as in `p`,
+/// rendered `height_px` rows high; also the distance to the model's bounding sphere (world
+/// units) and the focal length in pixels.
+pub fn lod_level(errors: &[f32], bounds: (Vec3, Vec3), p: &FrameParams, height_px: u32) -> (usize, f32, f32) {
+    let m = view::model_matrix(bounds, &p.placement);
+    let centre = m.transform_point3(0.5 * (bounds.0 + bounds.1));
+    let radius = 0.5 * (bounds.1 - bounds.0).length() * p.placement.scale;
+    let distance = lod::sphere_distance(p.camera.position, centre, radius);
+    let focal = lod::focal_px(p.camera.vfov, height_px);
+    let world: Vec<f32> = errors.iter().map(|e| e * p.placement.scale).collect();
+    (lod::select_level(&world, distance, focal, lod::MAX_SCREEN_ERROR_PX), distance, focal)
 }
 
 /// The colour correction of a frame: from the environment's statistics (`source`) towards the
@@ -181,15 +230,16 @@ mod tests {
         // The sun direction (0, 0, 2) is normalised.
         assert_eq!(f.sun_dir, [0.0, 0.0, 1.0]);
         // Orthographic from 2r above the centre (0, 0, −9), depth r..3r: the centre is at depth
-        // 0.5, the sphere's top at 0 and its bottom at 1; r to the East is the right edge
+        // 0.5, the sphere's top at 0 and its bottom at 1. Across the sun the map fits the box,
+        // not the sphere: the box's side 1 m to the East is the right edge, 1 m North the top
         // (looking down with North up).
         let r = 3f32.sqrt();
         let centre = Vec3::new(0.0, 0.0, -9.0);
         assert!(close(clip(f.light_view_proj, centre), Vec3::new(0.0, 0.0, 0.5), 1e-5));
         assert!(close(clip(f.light_view_proj, centre + Vec3::Z * r), Vec3::ZERO, 1e-5));
         assert!(close(clip(f.light_view_proj, centre - Vec3::Z * r), Vec3::Z, 1e-5));
-        assert!(close(clip(f.light_view_proj, centre + Vec3::X * r), Vec3::new(1.0, 0.0, 0.5), 1e-5));
-        assert!(close(clip(f.light_view_proj, centre + Vec3::Y * r), Vec3::new(0.0, 1.0, 0.5), 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::X), Vec3::new(1.0, 0.0, 0.5), 1e-5));
+        assert!(close(clip(f.light_view_proj, centre + Vec3::Y), Vec3::new(0.0, 1.0, 0.5), 1e-5));
         // No sun direction at all falls back to straight overhead.
         let mut p0 = p;
         p0.lighting.sun_dir = Vec3::ZERO;
@@ -204,7 +254,6 @@ mod tests {
         assert!(f.env_rotation[0].abs() < 1e-6 && (f.env_rotation[1] - 1.0).abs() < 1e-6);
         // eta = 1 / ior = 1 / 1.5.
         assert!((f.eta - 2.0 / 3.0).abs() < 1e-6);
-        assert_eq!(f.method, Method::CubeRefraction.shader_id());
         assert_eq!((f.shadow_map_size, f.env_exposure), (1024, 2.0));
         assert_eq!((f.sunlight, f.daylight, f.reflection, f.shadow_opacity, f.live_depth), (0.7, 0.3, 0.25, 0.6, 2.0));
         assert_eq!((f.sky, f.ground, f.occlusion_light, f.occlusion_shadow), ([0.1, 0.2, 0.3], [0.4, 0.5, 0.6], 0.9, 0.05));
@@ -226,11 +275,36 @@ mod tests {
         // Normal matrix = inverse transpose: a uniform scale of 2 halves normals.
         let n = Mat4::from_cols_array_2d(&instance.normal);
         assert!(close(n.transform_vector3(Vec3::Y), Vec3::new(0.0, 0.0, 0.5), 1e-6));
-        // The ground: 40 sphere radii (r = 2√3) across, in the plane of the model's base.
+        // The ground: with the sun overhead the shadow falls on the box's own 4×4 m footprint,
+        // in the plane of the model's base.
         let g = Mat4::from_cols_array_2d(&ground.model);
-        let side = 40.0 * 2.0 * 3f32.sqrt();
-        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(side, side, -10.0), 1e-3));
+        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(2.0, 2.0, -10.0), 1e-5));
+        assert!(close(g.transform_point3(Vec3::new(-1.0, -1.0, 0.0)), Vec3::new(-2.0, -2.0, -10.0), 1e-5));
+        // A sun 45° up in the South (direction (0, −1, 1)/√2): the 4 m tall box's shadow reaches
+        // 4 m further North.
+        let mut south = p;
+        south.lighting.sun_dir = Vec3::new(0.0, -1.0, 1.0);
+        let g = Mat4::from_cols_array_2d(&frame_uniforms(&south, &c).2.model);
+        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(2.0, 6.0, -10.0), 1e-4));
+        assert!(close(g.transform_point3(Vec3::new(-1.0, -1.0, 0.0)), Vec3::new(-2.0, -2.0, -10.0), 1e-4));
         assert_eq!(ground.normal, Mat4::IDENTITY.to_cols_array_2d());
+    }
+
+    #[test]
+    fn the_level_follows_the_distance_and_the_scale() {
+        // Camera at the origin, 90° vertical field of view, 200 rows: focal = 100 px. The 2 m
+        // cube's sphere (r = √3) is centred 9 m away: distance 9 − √3 = 7.27 m at scale 1.
+        let (p, c) = scene(1.0);
+        let errors = [0.0, 0.01, 0.03, 0.1];
+        let (level, distance, focal) = lod_level(&errors, c.bounds, &p, 200);
+        assert!((focal - 100.0).abs() < 1e-3 && (distance - (9.0 - 3f32.sqrt())).abs() < 1e-4);
+        // 0.03 * 100 / 7.27 = 0.41 px < 0.5; 0.1 → 1.38 px.
+        assert_eq!(level, 2);
+        // Scale 2: the errors double (0.06 m → 0.0 ...) and the sphere is nearer (its centre at
+        // 8 m, r = 2√3): 0.02 * 100 / 4.54 = 0.44 px, 0.06 → 1.3 px.
+        assert_eq!(lod_level(&errors, c.bounds, &scene(2.0).0, 200).0, 1);
+        // Twice the rows: twice the focal length, one level finer.
+        assert_eq!(lod_level(&errors, c.bounds, &p, 400).0, 1);
     }
 
     #[test]

@@ -8,11 +8,12 @@ pub mod params;
 pub mod passes;
 pub mod pipelines;
 pub mod shaders;
+pub mod shadow_fit;
 pub mod targets;
 pub mod uniforms;
 pub mod view;
 
-pub use compositor::{Compositor, Rendered, Timings};
+pub use compositor::{Compositor, PassesRun, Rendered, Timings};
 pub use frame::FrameData;
 pub use method::Method;
 pub use params::{Camera, ColourSettings, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms};

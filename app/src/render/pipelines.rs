@@ -75,9 +75,7 @@ pub struct Pipelines {
     pub background: PassPipeline,
     pub shadow: PassPipeline,
     pub ground: PassPipeline,
-    pub model: PassPipeline,
-    /// The model pass's bind group 1: one per material.
-    pub material_layout: wgpu::BindGroupLayout,
+    pub model: model::ModelPipelines,
     pub linear_sampler: wgpu::Sampler,
     pub repeat_sampler: wgpu::Sampler,
     pub shadow_sampler: wgpu::Sampler,
@@ -91,14 +89,12 @@ impl Pipelines {
     }
 
     fn new(device: &wgpu::Device) -> Pipelines {
-        let (model, material_layout) = model::pipeline(device);
         Pipelines {
             env_view: background::env_view_pipeline(device),
             background: background::pipeline(device),
             shadow: shadow::pipeline(device),
             ground: ground::pipeline(device),
-            model,
-            material_layout,
+            model: model::pipelines(device),
             linear_sampler: build::linear_sampler(device, "clamp", wgpu::AddressMode::ClampToEdge),
             repeat_sampler: build::linear_sampler(device, "repeat", wgpu::AddressMode::Repeat),
             shadow_sampler: device.create_sampler(&wgpu::SamplerDescriptor {

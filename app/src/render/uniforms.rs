@@ -26,9 +26,8 @@ pub struct FrameUniforms {
     pub live_depth: f32,
     pub tan_half_vfov: f32,
     pub aspect: f32,
-    pub method: u32,
     pub shadow_map_size: u32,
-    pub _padding: u32,
+    pub _padding: [u32; 2],
 }
 
 /// Mirrors `struct Instance` in shaders/frame.wgsl.
@@ -80,7 +79,6 @@ mod tests {
                 live_depth,
                 tan_half_vfov,
                 aspect,
-                method,
                 shadow_map_size,
                 _padding
             ]

@@ -52,11 +52,13 @@ pub struct CameraSection {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SunSection {
-    /// Direction to the sun in ENU (need not be unit length).
-    pub direction: [f64; 3],
-    /// Sunlight intensity l_s at full daylight (faded to 0 through twilight as the sun sets).
+    /// Direction to the sun in ENU (need not be unit length); unset: the sun found in the
+    /// environment map (setup::light).
+    pub direction: Option<[f64; 3]>,
+    /// Multiplier on the sunlight measured in the environment (faded to 0 through twilight as
+    /// the sun sets).
     pub sunlight: f64,
-    /// Daylight (ambient) intensity l_d.
+    /// Multiplier on the daylight (sky without the sun) measured in the environment.
     pub daylight: f64,
 }
 
@@ -106,7 +108,8 @@ pub struct EffectsSection {
     pub reflection: f64,
     /// Refractive index of the model (refraction methods), 1..3.
     pub ior: f64,
-    /// Darkness of the model's shadow on the ground, 0..1.
+    /// Multiplier (0..1) on how dark the model's shadow makes the ground: by default the
+    /// sun's measured share of the ground's light.
     pub shadow_opacity: f64,
     /// Live-feed refraction: distance behind the surface where the refracted ray meets the scene (metres).
     pub live_depth: f64,
@@ -157,7 +160,7 @@ impl Default for CameraSection {
 
 impl Default for SunSection {
     fn default() -> Self {
-        SunSection { direction: [0.5, -0.5, 0.707], sunlight: 0.8, daylight: 0.5 }
+        SunSection { direction: None, sunlight: 1.0, daylight: 1.0 }
     }
 }
 
@@ -181,7 +184,7 @@ impl Default for EnvSection {
 
 impl Default for EffectsSection {
     fn default() -> Self {
-        EffectsSection { reflection: 0.8, ior: 1.5, shadow_opacity: 0.6, live_depth: 0.3 }
+        EffectsSection { reflection: 0.8, ior: 1.5, shadow_opacity: 1.0, live_depth: 0.3 }
     }
 }
 
@@ -288,11 +291,13 @@ impl Scene {
         check("camera.roll", c.roll, -180.0, 180.0)?;
         check("camera.vfov", c.vfov, 1.0, 179.0)?;
         check("camera.height", c.height, -1e4, 1e4)?;
-        for (i, v) in self.sun.direction.iter().enumerate() {
-            check(&format!("sun.direction[{i}]"), *v, -1e6, 1e6)?;
-        }
-        if self.sun.direction.iter().map(|v| v * v).sum::<f64>() < 1e-12 {
-            bail!("sun.direction must not be the zero vector");
+        if let Some(d) = &self.sun.direction {
+            for (i, v) in d.iter().enumerate() {
+                check(&format!("sun.direction[{i}]"), *v, -1e6, 1e6)?;
+            }
+            if d.iter().map(|v| v * v).sum::<f64>() < 1e-12 {
+                bail!("sun.direction must not be the zero vector");
+            }
         }
         check("sun.sunlight", self.sun.sunlight, 0.0, 100.0)?;
         check("sun.daylight", self.sun.daylight, 0.0, 100.0)?;
@@ -349,7 +354,7 @@ mod tests {
         assert_eq!(s.width, 320);
         assert_eq!(s.height, 640);
         assert_eq!(s.camera.heading, 45.0);
-        assert_eq!(s.sun.direction, [1.0, 0.0, 1.0]);
+        assert_eq!(s.sun.direction, Some([1.0, 0.0, 1.0]));
         assert_eq!(s.method, Method::CubeReflection);
         assert_eq!(s.model.as_deref(), Some(Path::new("/scenes/bunny.obj")));
     }

@@ -38,7 +38,7 @@ const SENSORS: [(u32, &str); 4] = [
 pub struct AndroidSensors {
     manager: NonNull<ffi::ASensorManager>,
     queue: NonNull<ffi::ASensorEventQueue>,
-    enabled: Vec<*const ffi::ASensor>,
+    enabled: Vec<(*const ffi::ASensor, &'static str)>,
     missing: Vec<&'static str>,
     vm: JavaVM,
     activity: Global<JObject<'static>>,
@@ -47,6 +47,8 @@ pub struct AndroidSensors {
     polls: u32,
     rejected: u64,
     events: Vec<ffi::ASensorEvent>,
+    /// Sensors disabled and location updates removed ([`SensorSource::pause`]).
+    paused: bool,
 }
 
 impl AndroidSensors {
@@ -91,6 +93,7 @@ impl AndroidSensors {
                 polls: 0,
                 rejected: 0,
                 events: Vec::with_capacity(BATCH),
+                paused: false,
             };
             for (ty, name) in SENSORS {
                 let sensor = ffi::ASensorManager_getDefaultSensor(manager.as_ptr(), ty as i32);
@@ -98,12 +101,8 @@ impl AndroidSensors {
                     s.missing.push(name);
                     continue;
                 }
-                if ffi::ASensorEventQueue_enableSensor(queue.as_ptr(), sensor) < 0 {
-                    bail!("cannot enable the {name}");
-                }
-                // A device may refuse the rate; it then runs at its own, which is fine.
-                let _ = ffi::ASensorEventQueue_setEventRate(queue.as_ptr(), sensor, RATE_US);
-                s.enabled.push(sensor);
+                enable(queue, sensor, name)?;
+                s.enabled.push((sensor, name));
             }
             if s.missing.contains(&"accelerometer") {
                 bail!("this device has no accelerometer");
@@ -121,6 +120,22 @@ impl AndroidSensors {
     pub fn location_state(&self) -> jni_location::LocationState {
         self.location.state()
     }
+}
+
+/// Enable one sensor on the queue at [`RATE_US`].
+///
+/// # Safety
+/// `queue` and `sensor` are valid (the sensor from this process's `ASensorManager`).
+unsafe fn enable(queue: NonNull<ffi::ASensorEventQueue>, sensor: *const ffi::ASensor, name: &str) -> Result<()> {
+    // SAFETY: the caller's contract.
+    unsafe {
+        if ffi::ASensorEventQueue_enableSensor(queue.as_ptr(), sensor) < 0 {
+            bail!("cannot enable the {name}");
+        }
+        // A device may refuse the rate; it then runs at its own, which is fine.
+        let _ = ffi::ASensorEventQueue_setEventRate(queue.as_ptr(), sensor, RATE_US);
+    }
+    Ok(())
 }
 
 /// One NDK sensor event as a reading (`None` for types we did not ask for).
@@ -144,6 +159,9 @@ fn event_to_reading(e: &ffi::ASensorEvent) -> Option<Reading> {
 
 impl SensorSource for AndroidSensors {
     fn poll(&mut self, _until: f64, out: &mut Vec<Reading>) -> Result<()> {
+        if self.paused {
+            return Ok(());
+        }
         let start = out.len();
         loop {
             // SAFETY: the queue is valid until drop; the buffer has room for BATCH events.
@@ -189,14 +207,47 @@ impl SensorSource for AndroidSensors {
     fn display_rotation(&mut self) -> Option<DisplayRotation> {
         Some(self.rotation)
     }
+
+    /// Disable every sensor (no more events, no battery drain) and remove the location updates.
+    fn pause(&mut self) -> Result<()> {
+        if self.paused {
+            return Ok(());
+        }
+        // SAFETY: the sensors were enabled on this queue, which lives until drop.
+        unsafe {
+            for &(s, _) in &self.enabled {
+                ffi::ASensorEventQueue_disableSensor(self.queue.as_ptr(), s);
+            }
+        }
+        let location = &mut self.location;
+        self.vm.attach_current_thread(|env| location.stop(env))?;
+        self.paused = true;
+        Ok(())
+    }
+
+    /// Enable the sensors again; location updates restart on the next poll (after checking the
+    /// permission again: the user may have revoked it meanwhile).
+    fn resume(&mut self) -> Result<()> {
+        if !self.paused {
+            return Ok(());
+        }
+        for &(s, name) in &self.enabled {
+            // SAFETY: the queue lives until drop; the sensor came from its manager.
+            unsafe { enable(self.queue, s, name)? };
+        }
+        self.paused = false;
+        Ok(())
+    }
 }
 
 impl Drop for AndroidSensors {
     fn drop(&mut self) {
         // SAFETY: the sensors were enabled on this queue, which is destroyed exactly once here.
         unsafe {
-            for &s in &self.enabled {
-                ffi::ASensorEventQueue_disableSensor(self.queue.as_ptr(), s);
+            if !self.paused {
+                for &(s, _) in &self.enabled {
+                    ffi::ASensorEventQueue_disableSensor(self.queue.as_ptr(), s);
+                }
             }
             ffi::ASensorManager_destroyEventQueue(self.manager.as_ptr(), self.queue.as_ptr());
         }

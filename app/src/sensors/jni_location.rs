@@ -44,7 +44,7 @@ pub const UPDATE_INTERVAL_MS: i64 = 1000;
 
 /// Turn a JNI error into an error naming the call; a pending Java exception is caught,
 /// cleared (so the JVM stays usable) and reported with its class and message.
-fn checked<T>(env: &mut Env<'_>, what: &str, r: jni::errors::Result<T>) -> Result<T> {
+pub(crate) fn checked<T>(env: &mut Env<'_>, what: &str, r: jni::errors::Result<T>) -> Result<T> {
     r.map_err(|e| match e {
         jni::errors::Error::JavaException => match env.exception_catch() {
             Err(jni::errors::Error::CaughtJavaException { name, msg, .. }) => anyhow!("{what}: Java threw {name}: {msg}"),
@@ -55,7 +55,7 @@ fn checked<T>(env: &mut Env<'_>, what: &str, r: jni::errors::Result<T>) -> Resul
 }
 
 /// A new Java string.
-fn jstring<'l>(env: &mut Env<'l>, s: &str) -> Result<JString<'l>> {
+pub(crate) fn jstring<'l>(env: &mut Env<'l>, s: &str) -> Result<JString<'l>> {
     let r = env.new_string(s);
     checked(env, "new String", r)
 }

@@ -22,6 +22,7 @@ use glam::{DQuat, DVec3};
 
 pub mod csv;
 pub mod jni_location;
+pub mod permissions;
 pub mod platform;
 pub mod replay;
 pub mod sim;
@@ -176,6 +177,17 @@ pub trait SensorSource {
     /// The display rotation the source knows of (live Android, the simulator), if any.
     fn display_rotation(&mut self) -> Option<crate::pose::frames::DisplayRotation> {
         None
+    }
+
+    /// Stop the sensors' callbacks (the app went to the background): no reading is produced or
+    /// queued until [`SensorSource::resume`]. Replayed and simulated sources have none.
+    fn pause(&mut self) -> Result<()> {
+        Ok(())
+    }
+
+    /// Start the sensors again after [`SensorSource::pause`].
+    fn resume(&mut self) -> Result<()> {
+        Ok(())
     }
 }
 

@@ -11,6 +11,9 @@ use crate::scene::{CubeMap, Model, Rgba8Image, demo};
 use anyhow::{Context, Result};
 use glam::Vec3;
 
+pub mod light;
+pub use light::{LightTerms, light_terms, measure_environment};
+
 /// Everything loaded from disk (or the embedded demo) for a scene.
 pub struct Inputs {
     pub model: Model,
@@ -60,8 +63,8 @@ pub fn exposure(scene: &Scene, env: &CubeMap) -> f32 {
     (0.18 / (sum / n as f64).exp()) as f32
 }
 
-/// The frame parameters a scene describes, given the loaded model's bounds.
-pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
+/// The camera and the model's placement a scene describes, given the loaded model's bounds.
+pub fn camera_and_placement(scene: &Scene, bounds: (Vec3, Vec3)) -> (Camera, Placement) {
     let c = &scene.camera;
     let pose = view::camera_pose((c.heading as f32).to_radians(), (c.pitch as f32).to_radians(), (c.roll as f32).to_radians());
     let position = Vec3::new(0.0, 0.0, c.height as f32);
@@ -74,16 +77,21 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
         rotation: Vec3::new(p.rotation[0] as f32, p.rotation[1] as f32, p.rotation[2] as f32) * (std::f32::consts::PI / 180.0),
         scale: p.scale.map(|s| s as f32).unwrap_or(p.size as f32 / extent),
     };
-    let sun_dir = Vec3::new(scene.sun.direction[0] as f32, scene.sun.direction[1] as f32, scene.sun.direction[2] as f32).normalize();
+    (Camera { pose, position, vfov }, placement)
+}
+
+/// The frame parameters a scene describes, given the loaded model's bounds and the light terms
+/// measured from its environment ([`light_terms`]).
+pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> FrameParams {
+    let (camera, placement) = camera_and_placement(scene, bounds);
     let m = &scene.material;
     FrameParams {
-        camera: Camera { pose, position, vfov },
+        camera,
         method: scene.method,
         lighting: Lighting {
-            sun_dir,
-            sunlight: scene.sun.sunlight as f32
-                * crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees())),
-            daylight: scene.sun.daylight as f32,
+            sun_dir: light.sun_dir,
+            sunlight: light.sunlight,
+            daylight: light.daylight,
             material: MaterialTerms {
                 ambient: m.ambient as f32,
                 diffuse: m.diffuse as f32,
@@ -92,7 +100,7 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3)) -> FrameParams {
             },
             reflection: scene.effects.reflection as f32,
             ior: scene.effects.ior as f32,
-            shadow_opacity: scene.effects.shadow_opacity as f32,
+            shadow_opacity: light.shadow_opacity,
             live_depth: scene.effects.live_depth as f32,
         },
         placement,
@@ -112,10 +120,27 @@ pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor,
 /// parameters of the scene's frame; the background is the caller's (a photo, or the live
 /// camera frame by frame).
 pub fn compositor_for(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams)> {
+    compositor_and_light(gpu, scene, env, model).map(|(c, p, _)| (c, p))
+}
+
+/// [`compositor_for`], and the light terms measured in the environment with the scene's
+/// multipliers (sun.sunlight, sun.daylight, effects.shadow_opacity) at 1, before the twilight
+/// fade: what the live view's sliders and its export scale.
+pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams, LightTerms)> {
     let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
-    compositor.set_environment(gpu, env, exposure(scene, env), (scene.env.heading as f32).to_radians())?;
+    let (exposure, heading) = (exposure(scene, env), (scene.env.heading as f32).to_radians());
+    compositor.set_environment(gpu, env, exposure, heading)?;
     compositor.set_model(gpu, model)?;
     let bounds = compositor.model_bounds().context("model bounds")?;
-    let params = frame_params(scene, bounds);
-    Ok((compositor, params))
+    let priors = compositor.priors().context("environment priors")?;
+    let measured = measure_environment(scene, env);
+    let params = frame_params(scene, bounds, &light_terms(scene, &measured, &priors, exposure, heading));
+    let mut unit = scene.clone();
+    unit.sun.sunlight = 1.0;
+    unit.sun.daylight = 1.0;
+    unit.effects.shadow_opacity = 1.0;
+    let mut unit = light_terms(&unit, &measured, &priors, exposure, heading);
+    let fade = crate::sun::twilight::sunlight_factor(f64::from(unit.sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
+    unit.sunlight = if fade > 0.0 { unit.sunlight / fade } else { 0.0 };
+    Ok((compositor, params, unit))
 }

@@ -7,10 +7,12 @@ use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::gpu::{Gpu, build};
 use crate::priors;
+use crate::render::Method;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, Vertex, depth_state, pipeline as make};
-use crate::render::shaders::Technique;
+use crate::render::pipelines::{COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
+use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
+use crate::scene::lod::{IndexRange, LodChain};
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::Vec3;
@@ -19,8 +21,19 @@ use wgpu::ShaderStages;
 use wgpu::TextureViewDimension::{Cube, D2};
 use wgpu::util::DeviceExt;
 
-/// The model pipeline and its material layout (bind group 1).
-pub fn pipeline(device: &wgpu::Device) -> (PassPipeline, wgpu::BindGroupLayout) {
+/// What the model pass's pipelines share.
+pub struct ModelPipelines {
+    /// Bind group 0: frame, instance, environment, background, shadow map, colour correction.
+    pub layout: wgpu::BindGroupLayout,
+    /// Bind group 1: one per material.
+    pub material_layout: wgpu::BindGroupLayout,
+    /// One pipeline per method, indexed by [`Method::shader_id`]: the shader's `METHOD` is a
+    /// pipeline-override constant, so each compiles only its own branches.
+    pub by_method: Vec<wgpu::RenderPipeline>,
+}
+
+/// The model pipelines (one per method) and their layouts.
+pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
@@ -48,18 +61,31 @@ pub fn pipeline(device: &wgpu::Device) -> (PassPipeline, wgpu::BindGroupLayout) 
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
     };
-    let pipeline = make(
-        device,
-        PipelineSpec {
-            technique: Technique::Model,
-            layouts: &[&layout, &material_layout],
-            vertex_buffers: &[Some(vertex_layout)],
-            depth: depth_state(true, wgpu::DepthBiasState::default()),
-            samples: SAMPLES,
-            blend: Some(Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING)),
-        },
-    );
-    (PassPipeline { layout, pipeline }, material_layout)
+    let module = build::shader(device, "model", source(Technique::Model));
+    let by_method = Method::ALL
+        .iter()
+        .map(|m| {
+            let constants = [("METHOD", f64::from(m.shader_id()))];
+            build::render_pipeline(
+                device,
+                build::PipelineSpec {
+                    label: m.name(),
+                    module: &module,
+                    layouts: &[&layout, &material_layout],
+                    vertex_buffers: &[Some(vertex_layout.clone())],
+                    colour: Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    depth: depth_state(true, wgpu::DepthBiasState::default()),
+                    samples: SAMPLES,
+                    constants: &constants,
+                },
+            )
+        })
+        .collect();
+    ModelPipelines { layout, material_layout, by_method }
 }
 
 /// A mesh's vertices interleaved for the vertex buffer, after checking that its attribute
@@ -90,8 +116,9 @@ pub fn material_uniforms(base: &MaterialUniforms, terms: &MaterialTerms) -> Mate
 
 struct MeshGpu {
     vertices: wgpu::Buffer,
+    /// Every level of detail's triangles, one after another (scene::lod::MeshLods).
     indices: wgpu::Buffer,
-    index_count: u32,
+    levels: Vec<IndexRange>,
     material: wgpu::BindGroup,
 }
 
@@ -100,6 +127,11 @@ pub struct ModelGpu {
     meshes: Vec<MeshGpu>,
     /// Bounds in model space.
     pub bounds: (Vec3, Vec3),
+    /// Per level of detail, the simplification error (model units, non-decreasing from 0) and
+    /// the model's triangle count; the index buffers hold every level, so switching level
+    /// allocates nothing.
+    pub lod_errors: Vec<f32>,
+    pub lod_triangles: Vec<usize>,
     /// Each mesh's material buffer and its values as loaded, rewritten each frame with the
     /// frame's material terms.
     materials: Vec<(wgpu::Buffer, MaterialUniforms)>,
@@ -109,22 +141,24 @@ pub struct ModelGpu {
 }
 
 impl ModelGpu {
-    /// Draw every mesh; `material_group`: where to bind each mesh's material (None: no
-    /// materials, the shadow pass).
-    pub fn draw_meshes(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>) {
+    /// Draw every mesh at level of detail `level` (clamped to the chain); `material_group`:
+    /// where to bind each mesh's material (None: no materials, the shadow pass).
+    pub fn draw_meshes(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>, level: usize) {
         for mesh in &self.meshes {
             if let Some(group) = material_group {
                 pass.set_bind_group(group, &mesh.material, &[]);
             }
+            let r = mesh.levels[level.min(mesh.levels.len() - 1)];
             pass.set_vertex_buffer(0, mesh.vertices.slice(..));
             pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            pass.draw_indexed(r.first..r.first + r.count, 0, 0..1);
         }
     }
 }
 
 pub struct ModelPass {
-    pipeline: wgpu::RenderPipeline,
+    /// Indexed by [`Method::shader_id`].
+    by_method: Vec<wgpu::RenderPipeline>,
     layout: wgpu::BindGroupLayout,
     material_layout: wgpu::BindGroupLayout,
     linear_sampler: wgpu::Sampler,
@@ -142,9 +176,9 @@ impl ModelPass {
     pub fn new(gpu: &Gpu, pipelines: &Pipelines) -> ModelPass {
         let device = &gpu.device;
         ModelPass {
-            pipeline: pipelines.model.pipeline.clone(),
+            by_method: pipelines.model.by_method.clone(),
             layout: pipelines.model.layout.clone(),
-            material_layout: pipelines.material_layout.clone(),
+            material_layout: pipelines.model.material_layout.clone(),
             linear_sampler: pipelines.linear_sampler.clone(),
             repeat_sampler: pipelines.repeat_sampler.clone(),
             shadow_sampler: pipelines.shadow_sampler.clone(),
@@ -207,8 +241,14 @@ impl ModelPass {
             .collect();
         let mut meshes = Vec::new();
         let mut materials = Vec::new();
-        for mesh in model.meshes.iter().filter(|m| !m.indices.is_empty()) {
-            let vertices = interleave(mesh)?;
+        // Checked before simplifying: the simplifier indexes the vertices.
+        let vertex_lists =
+            model.meshes.iter().map(|m| if m.indices.is_empty() { Ok(Vec::new()) } else { interleave(m) }).collect::<Result<Vec<_>>>()?;
+        let chain = LodChain::build(model);
+        for ((mesh, lods), vertices) in model.meshes.iter().zip(&chain.meshes).zip(vertex_lists) {
+            if mesh.indices.is_empty() {
+                continue;
+            }
             let material =
                 model.materials.get(mesh.material).ok_or_else(|| anyhow!("a mesh refers to missing material {}", mesh.material))?;
             let uniforms = MaterialUniforms {
@@ -240,10 +280,10 @@ impl ModelPass {
                 }),
                 indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("indices"),
-                    contents: bytemuck::cast_slice(&mesh.indices),
+                    contents: bytemuck::cast_slice(&lods.indices),
                     usage: wgpu::BufferUsages::INDEX,
                 }),
-                index_count: mesh.indices.len() as u32,
+                levels: lods.levels.clone(),
                 material: bind,
             });
             materials.push((material_buf, uniforms));
@@ -252,7 +292,7 @@ impl ModelPass {
             bail!("the model has no triangles");
         }
         let colour = priors::model_priors(model).map(|p| p.stats).map_err(|e| format!("{e:#}"));
-        Ok(ModelGpu { meshes, bounds, materials, colour })
+        Ok(ModelGpu { meshes, bounds, lod_errors: chain.errors, lod_triangles: chain.triangles, materials, colour })
     }
 
     /// This frame's colour correction and material terms.
@@ -263,11 +303,12 @@ impl ModelPass {
         }
     }
 
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu) -> Result<()> {
+    /// Draw `model` with `method`'s pipeline at level of detail `level`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: Method, level: usize) -> Result<()> {
         let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.by_method[method.shader_id() as usize]);
         pass.set_bind_group(0, bind_group, &[]);
-        model.draw_meshes(pass, Some(1));
+        model.draw_meshes(pass, Some(1), level);
         Ok(())
     }
 }

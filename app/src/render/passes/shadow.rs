@@ -80,10 +80,10 @@ impl ShadowPass {
         })
     }
 
-    /// The model's depth.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu) {
+    /// The model's depth at level of detail `level`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, level: usize) {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        model.draw_meshes(pass, None);
+        model.draw_meshes(pass, None, level);
     }
 }

@@ -10,6 +10,11 @@ import android.view.WindowManager;
  */
 public class Activity {
     private boolean granted;
+    private boolean cameraGranted;
+    /** The user's scripted answer to the next dialog: 0 none (dialog still up), 1 allow, 2 deny, 3 deny + don't ask again. */
+    private int answer;
+    private final java.util.Set<String> rationale = new java.util.HashSet<>();
+    private final java.util.Set<String> neverAsk = new java.util.HashSet<>();
     private int requestCount;
     private String lastRequested = "";
     private int lastRequestCode;
@@ -19,13 +24,38 @@ public class Activity {
     public int checkSelfPermission(String permission) {
         boolean location = permission.equals("android.permission.ACCESS_FINE_LOCATION")
                 || permission.equals("android.permission.ACCESS_COARSE_LOCATION");
-        return granted && location ? 0 : -1; // PERMISSION_GRANTED / PERMISSION_DENIED
+        boolean camera = permission.equals("android.permission.CAMERA");
+        return (granted && location) || (cameraGranted && camera) ? 0 : -1; // PERMISSION_GRANTED / PERMISSION_DENIED
     }
 
     public void requestPermissions(String[] permissions, int requestCode) {
         requestCount++;
         lastRequested = String.join(",", permissions);
         lastRequestCode = requestCode;
+        for (String p : permissions) {
+            if (neverAsk.contains(p)) {
+                continue; // Android shows no dialog for it any more
+            }
+            boolean camera = p.equals("android.permission.CAMERA");
+            switch (answer) {
+                case 1:
+                    if (camera) cameraGranted = true; else granted = true;
+                    break;
+                case 2:
+                    rationale.add(p);
+                    break;
+                case 3:
+                    rationale.remove(p);
+                    neverAsk.add(p);
+                    break;
+                default:
+                    break;
+            }
+        }
+    }
+
+    public boolean shouldShowRequestPermissionRationale(String permission) {
+        return rationale.contains(permission);
     }
 
     public Object getSystemService(String name) {
@@ -47,6 +77,7 @@ public class Activity {
 
     // ---- test hooks ----
     public void testSetGranted(boolean g) { granted = g; }
+    public void testSetAnswer(int a) { answer = a; }
     public int testRequestCount() { return requestCount; }
     public String testLastRequested() { return lastRequested; }
     public int testLastRequestCode() { return lastRequestCode; }

@@ -1,0 +1,406 @@
+//! Android: the back camera through the NDK Camera2 API (`ACameraManager`, `ACameraDevice`, a
+//! capture session repeating a preview request into an `AImageReader` of `YUV_420_888`
+//! images). Compiled for Android only (checked by .ci/mobile-check.sh); the pure parts — chroma
+//! layout and field of view — are in [`super::platform`] and tested on the host.
+//!
+//! [`Camera2::latest`] lends the newest image's planes as a [`YuvFrame`] (no copy), for the GPU
+//! converter ([`super::yuv::YuvConverter`]). The [`FrameSource`] implementation, which must
+//! return an RGBA image, converts on the CPU with the reference conversion for now — the live
+//! session does not yet take YUV frames straight to the GPU (docs/mobile.md).
+//!
+//! The camera's intrinsics give the vertical field of view ([`Camera2::vfov_deg`]):
+//! `LENS_INTRINSIC_CALIBRATION`'s fy over the active array's height, or else the first focal
+//! length over the sensor's physical height.
+
+use super::platform::{ChromaLayout, chroma_layout, vfov_from_focal_mm, vfov_from_focal_px};
+use super::yuv::{Chroma, Plane, YuvFrame, YuvMatrix, YuvRange, to_rgba_cpu};
+use super::{Frame, FrameSource};
+use anyhow::{Context, Result, bail};
+use ndk_sys as ffi;
+use std::ffi::{CStr, CString, c_void};
+use std::ptr::{NonNull, null_mut};
+use std::sync::atomic::{AtomicI32, Ordering};
+
+// ndk-sys declares the Camera2 and media functions but links their libraries only with features;
+// name them here (android/build-apk.sh's stub libraries provide the same sonames).
+#[link(name = "camera2ndk")]
+unsafe extern "C" {}
+#[link(name = "mediandk")]
+unsafe extern "C" {}
+
+/// Images the reader holds at most (one being read, one arriving, one spare).
+const MAX_IMAGES: i32 = 3;
+/// The device's state, written by its callbacks: 0 open, 1 disconnected, 2.. an error code + 2.
+const OPEN: i32 = 0;
+const DISCONNECTED: i32 = 1;
+
+fn camera_ok(what: &str, s: ffi::camera_status_t) -> Result<()> {
+    if s != ffi::camera_status_t::ACAMERA_OK {
+        bail!("{what} failed (camera status {})", s.0);
+    }
+    Ok(())
+}
+
+fn media_ok(what: &str, s: ffi::media_status_t) -> Result<()> {
+    if s != ffi::media_status_t::AMEDIA_OK {
+        bail!("{what} failed (media status {})", s.0);
+    }
+    Ok(())
+}
+
+unsafe extern "C" fn on_disconnected(context: *mut c_void, _device: *mut ffi::ACameraDevice) {
+    // SAFETY: the context is the Box<AtomicI32> owned by the Camera2, alive while the device is.
+    unsafe { (*context.cast::<AtomicI32>()).store(DISCONNECTED, Ordering::Release) };
+}
+
+unsafe extern "C" fn on_error(context: *mut c_void, _device: *mut ffi::ACameraDevice, error: i32) {
+    // SAFETY: as in on_disconnected.
+    unsafe { (*context.cast::<AtomicI32>()).store(error.saturating_add(2), Ordering::Release) };
+}
+
+unsafe extern "C" fn session_state(_context: *mut c_void, _session: *mut ffi::ACameraCaptureSession) {}
+
+/// The open device, its capture session and request (closed on pause, made again on resume).
+/// Dropping it releases whatever exists, session before device (the NDK's order), so a start
+/// that fails half-way leaks nothing.
+struct Streaming {
+    device: NonNull<ffi::ACameraDevice>,
+    container: Option<NonNull<ffi::ACaptureSessionOutputContainer>>,
+    output: Option<NonNull<ffi::ACaptureSessionOutput>>,
+    target: Option<NonNull<ffi::ACameraOutputTarget>>,
+    request: Option<NonNull<ffi::ACaptureRequest>>,
+    session: Option<NonNull<ffi::ACameraCaptureSession>>,
+}
+
+impl Drop for Streaming {
+    fn drop(&mut self) {
+        // SAFETY: every pointer was made by `Camera2::start` and is released exactly once here.
+        unsafe {
+            if let Some(s) = self.session {
+                ffi::ACameraCaptureSession_stopRepeating(s.as_ptr());
+                ffi::ACameraCaptureSession_close(s.as_ptr());
+            }
+            if let Some(r) = self.request {
+                ffi::ACaptureRequest_free(r.as_ptr());
+            }
+            if let Some(t) = self.target {
+                ffi::ACameraOutputTarget_free(t.as_ptr());
+            }
+            if let Some(c) = self.container {
+                ffi::ACaptureSessionOutputContainer_free(c.as_ptr());
+            }
+            if let Some(o) = self.output {
+                ffi::ACaptureSessionOutput_free(o.as_ptr());
+            }
+            ffi::ACameraDevice_close(self.device.as_ptr());
+        }
+    }
+}
+
+/// The back camera streaming YUV_420_888 images of a fixed size.
+pub struct Camera2 {
+    manager: NonNull<ffi::ACameraManager>,
+    id: CString,
+    reader: NonNull<ffi::AImageReader>,
+    window: NonNull<ffi::ANativeWindow>,
+    streaming: Option<Streaming>,
+    state: Box<AtomicI32>,
+    device_callbacks: Box<ffi::ACameraDevice_StateCallbacks>,
+    session_callbacks: Box<ffi::ACameraCaptureSession_stateCallbacks>,
+    vfov_deg: Option<f64>,
+    t0_ns: Option<i64>,
+}
+
+impl Camera2 {
+    /// Open the first back-facing camera and stream `width`×`height` images (the size must be
+    /// one the camera offers for YUV_420_888; 1280×720 and 640×480 exist on every camera).
+    /// Needs the CAMERA permission ([`crate::sensors::permissions`]).
+    pub fn open(width: u32, height: u32) -> Result<Camera2> {
+        // SAFETY: plain NDK calls; every returned pointer is checked before use and released in
+        // Drop (or here on the error paths, through the partially built Camera2's Drop).
+        unsafe {
+            let manager = NonNull::new(ffi::ACameraManager_create()).context("ACameraManager_create returned null")?;
+            let (id, vfov_deg) = match back_camera(manager) {
+                Ok(v) => v,
+                Err(e) => {
+                    ffi::ACameraManager_delete(manager.as_ptr());
+                    return Err(e);
+                }
+            };
+            let mut reader = null_mut();
+            let status = ffi::AImageReader_new(
+                width as i32,
+                height as i32,
+                ffi::AIMAGE_FORMATS::AIMAGE_FORMAT_YUV_420_888.0 as i32,
+                MAX_IMAGES,
+                &mut reader,
+            );
+            if let Err(e) = media_ok("AImageReader_new", status) {
+                ffi::ACameraManager_delete(manager.as_ptr());
+                return Err(e);
+            }
+            let reader = NonNull::new(reader).context("AImageReader_new returned null")?;
+            let mut window = null_mut();
+            let status = ffi::AImageReader_getWindow(reader.as_ptr(), &mut window);
+            let window = match (media_ok("AImageReader_getWindow", status), NonNull::new(window)) {
+                (Ok(()), Some(w)) => w,
+                (r, _) => {
+                    ffi::AImageReader_delete(reader.as_ptr());
+                    ffi::ACameraManager_delete(manager.as_ptr());
+                    r?;
+                    bail!("AImageReader_getWindow returned null");
+                }
+            };
+            let mut state = Box::new(AtomicI32::new(OPEN));
+            let context: *mut c_void = (&mut *state as *mut AtomicI32).cast();
+            let device_callbacks =
+                Box::new(ffi::ACameraDevice_StateCallbacks { context, onDisconnected: Some(on_disconnected), onError: Some(on_error) });
+            let session_callbacks = Box::new(ffi::ACameraCaptureSession_stateCallbacks {
+                context: null_mut(),
+                onClosed: Some(session_state),
+                onReady: Some(session_state),
+                onActive: Some(session_state),
+            });
+            let mut camera =
+                Camera2 { manager, id, reader, window, streaming: None, state, device_callbacks, session_callbacks, vfov_deg, t0_ns: None };
+            camera.start()?;
+            Ok(camera)
+        }
+    }
+
+    /// The vertical field of view from the camera's intrinsics, degrees (None when the camera
+    /// reports neither calibration nor focal length and sensor size).
+    pub fn vfov_deg(&self) -> Option<f64> {
+        self.vfov_deg
+    }
+
+    /// Open the device and start the repeating preview request into the reader.
+    fn start(&mut self) -> Result<()> {
+        if self.streaming.is_some() {
+            return Ok(());
+        }
+        self.state.store(OPEN, Ordering::Release);
+        // SAFETY: the manager, reader window and callback boxes live as long as self; every
+        // object made here is owned by `Streaming`, whose Drop releases it.
+        unsafe {
+            let mut device = null_mut();
+            camera_ok(
+                "ACameraManager_openCamera",
+                ffi::ACameraManager_openCamera(self.manager.as_ptr(), self.id.as_ptr(), &mut *self.device_callbacks, &mut device),
+            )?;
+            let device = NonNull::new(device).context("ACameraManager_openCamera returned null")?;
+            let mut s = Streaming { device, container: None, output: None, target: None, request: None, session: None };
+            let mut container = null_mut();
+            camera_ok("ACaptureSessionOutputContainer_create", ffi::ACaptureSessionOutputContainer_create(&mut container))?;
+            let container = *s.container.insert(NonNull::new(container).context("null output container")?);
+            let mut output = null_mut();
+            camera_ok("ACaptureSessionOutput_create", ffi::ACaptureSessionOutput_create(self.window.as_ptr(), &mut output))?;
+            let output = *s.output.insert(NonNull::new(output).context("null session output")?);
+            camera_ok("ACaptureSessionOutputContainer_add", ffi::ACaptureSessionOutputContainer_add(container.as_ptr(), output.as_ptr()))?;
+            let mut target = null_mut();
+            camera_ok("ACameraOutputTarget_create", ffi::ACameraOutputTarget_create(self.window.as_ptr(), &mut target))?;
+            let target = *s.target.insert(NonNull::new(target).context("null output target")?);
+            let mut request = null_mut();
+            camera_ok(
+                "ACameraDevice_createCaptureRequest",
+                ffi::ACameraDevice_createCaptureRequest(
+                    device.as_ptr(),
+                    ffi::ACameraDevice_request_template::TEMPLATE_PREVIEW,
+                    &mut request,
+                ),
+            )?;
+            let request = *s.request.insert(NonNull::new(request).context("null capture request")?);
+            camera_ok("ACaptureRequest_addTarget", ffi::ACaptureRequest_addTarget(request.as_ptr(), target.as_ptr()))?;
+            let mut session = null_mut();
+            camera_ok(
+                "ACameraDevice_createCaptureSession",
+                ffi::ACameraDevice_createCaptureSession(device.as_ptr(), container.as_ptr(), &*self.session_callbacks, &mut session),
+            )?;
+            let session = *s.session.insert(NonNull::new(session).context("null capture session")?);
+            let mut requests = [request.as_ptr()];
+            camera_ok(
+                "ACameraCaptureSession_setRepeatingRequest",
+                ffi::ACameraCaptureSession_setRepeatingRequest(session.as_ptr(), null_mut(), 1, requests.as_mut_ptr(), null_mut()),
+            )?;
+            self.streaming = Some(s);
+        }
+        Ok(())
+    }
+
+    /// Stop the repeating request and close the session and the device (the camera is then
+    /// free for other apps and draws no power).
+    fn stop(&mut self) {
+        self.streaming = None;
+    }
+
+    /// Call `f` with the newest image (seconds since the first image, planes) and release it;
+    /// `Ok(None)` when no new image has arrived.
+    pub fn latest<T>(&mut self, f: impl FnOnce(f64, &YuvFrame) -> Result<T>) -> Result<Option<T>> {
+        match self.state.load(Ordering::Acquire) {
+            OPEN => {}
+            DISCONNECTED => bail!("the camera was disconnected (another app took it?)"),
+            e => bail!("the camera device failed (ACameraDevice error {})", e - 2),
+        }
+        if self.streaming.is_none() {
+            bail!("the camera is paused");
+        }
+        // SAFETY: the reader lives as long as self; the image is deleted on every path below,
+        // and the plane slices do not outlive it (they are only lent to `f`).
+        unsafe {
+            let mut image = null_mut();
+            let status = ffi::AImageReader_acquireLatestImage(self.reader.as_ptr(), &mut image);
+            if status == ffi::media_status_t::AMEDIA_IMGREADER_NO_BUFFER_AVAILABLE {
+                return Ok(None);
+            }
+            media_ok("AImageReader_acquireLatestImage", status)?;
+            let image = NonNull::new(image).context("AImageReader_acquireLatestImage returned null")?;
+            let result = read_image(image, &mut self.t0_ns, f);
+            ffi::AImage_delete(image.as_ptr());
+            result.map(Some)
+        }
+    }
+}
+
+/// Lend one image's planes to `f`.
+///
+/// # Safety
+/// `image` is a valid, acquired `AImage` of format YUV_420_888.
+unsafe fn read_image<T>(image: NonNull<ffi::AImage>, t0_ns: &mut Option<i64>, f: impl FnOnce(f64, &YuvFrame) -> Result<T>) -> Result<T> {
+    // SAFETY: the caller's contract; the slices are valid until the image is deleted.
+    unsafe {
+        let img = image.as_ptr();
+        let (mut w, mut h, mut ts) = (0, 0, 0);
+        media_ok("AImage_getWidth", ffi::AImage_getWidth(img, &mut w))?;
+        media_ok("AImage_getHeight", ffi::AImage_getHeight(img, &mut h))?;
+        media_ok("AImage_getTimestamp", ffi::AImage_getTimestamp(img, &mut ts))?;
+        let plane = |i: i32| -> Result<(*mut u8, usize, usize, i32)> {
+            let (mut data, mut len, mut row, mut px) = (null_mut(), 0, 0, 0);
+            media_ok("AImage_getPlaneData", ffi::AImage_getPlaneData(img, i, &mut data, &mut len))?;
+            media_ok("AImage_getPlaneRowStride", ffi::AImage_getPlaneRowStride(img, i, &mut row))?;
+            media_ok("AImage_getPlanePixelStride", ffi::AImage_getPlanePixelStride(img, i, &mut px))?;
+            if data.is_null() || len <= 0 || row <= 0 {
+                bail!("YUV_420_888 plane {i} is empty");
+            }
+            Ok((data, len as usize, row as usize, px))
+        };
+        let (y, y_len, y_row, _) = plane(0)?;
+        let (u, u_len, u_row, px) = plane(1)?;
+        let (v, v_len, v_row, _) = plane(2)?;
+        let luma = Plane { data: std::slice::from_raw_parts(y, y_len), row_stride: y_row };
+        let chroma = match chroma_layout(u as usize, v as usize, px)? {
+            ChromaLayout::Planar => Chroma::Planar {
+                cb: Plane { data: std::slice::from_raw_parts(u, u_len), row_stride: u_row },
+                cr: Plane { data: std::slice::from_raw_parts(v, v_len), row_stride: v_row },
+            },
+            // The interleaved plane starts at the first of the two and covers both.
+            ChromaLayout::Nv12 => {
+                Chroma::Interleaved { plane: Plane { data: std::slice::from_raw_parts(u, v_len + 1), row_stride: u_row }, cb_first: true }
+            }
+            ChromaLayout::Nv21 => {
+                Chroma::Interleaved { plane: Plane { data: std::slice::from_raw_parts(v, u_len + 1), row_stride: v_row }, cb_first: false }
+            }
+        };
+        // Camera YUV_420_888 is JFIF: BT.601 matrix, full range.
+        let frame = YuvFrame { width: w as u32, height: h as u32, luma, chroma, matrix: YuvMatrix::Bt601, range: YuvRange::Full };
+        let t0 = *t0_ns.get_or_insert(ts);
+        f((ts - t0) as f64 * 1e-9, &frame)
+    }
+}
+
+/// The first back-facing camera's id and its vertical field of view.
+///
+/// # Safety
+/// `manager` is a valid `ACameraManager`.
+unsafe fn back_camera(manager: NonNull<ffi::ACameraManager>) -> Result<(CString, Option<f64>)> {
+    // SAFETY: the caller's contract; the id list and metadata are freed before returning.
+    unsafe {
+        let mut list = null_mut();
+        camera_ok("ACameraManager_getCameraIdList", ffi::ACameraManager_getCameraIdList(manager.as_ptr(), &mut list))?;
+        let list = NonNull::new(list).context("ACameraManager_getCameraIdList returned null")?;
+        let l = list.as_ref();
+        let ids: Vec<CString> = (0..l.numCameras.max(0) as usize).map(|i| CStr::from_ptr(*l.cameraIds.add(i)).to_owned()).collect();
+        ffi::ACameraManager_deleteCameraIdList(list.as_ptr());
+        for id in ids {
+            let mut meta = null_mut();
+            if ffi::ACameraManager_getCameraCharacteristics(manager.as_ptr(), id.as_ptr(), &mut meta) != ffi::camera_status_t::ACAMERA_OK
+                || meta.is_null()
+            {
+                continue;
+            }
+            let entry = |tag: ffi::acamera_metadata_tag| {
+                let mut e: ffi::ACameraMetadata_const_entry = std::mem::zeroed();
+                (ffi::ACameraMetadata_getConstEntry(meta, tag.0, &mut e) == ffi::camera_status_t::ACAMERA_OK && e.count > 0).then_some(e)
+            };
+            let back = entry(ffi::acamera_metadata_tag::ACAMERA_LENS_FACING)
+                .is_some_and(|e| u32::from(*e.data.u8_) == ffi::acamera_metadata_enum_acamera_lens_facing::ACAMERA_LENS_FACING_BACK.0);
+            if !back {
+                ffi::ACameraMetadata_free(meta);
+                continue;
+            }
+            let calibrated = match (
+                entry(ffi::acamera_metadata_tag::ACAMERA_LENS_INTRINSIC_CALIBRATION),
+                entry(ffi::acamera_metadata_tag::ACAMERA_SENSOR_INFO_ACTIVE_ARRAY_SIZE),
+            ) {
+                // [fx, fy, cx, cy, s] over the active array [left, top, right, bottom].
+                (Some(cal), Some(active)) if cal.count >= 5 && active.count >= 4 => {
+                    let fy = f64::from(*cal.data.f.add(1));
+                    let height = f64::from(*active.data.i32_.add(3) - *active.data.i32_.add(1));
+                    vfov_from_focal_px(fy, height).ok()
+                }
+                _ => None,
+            };
+            let vfov = calibrated.or_else(|| {
+                match (
+                    entry(ffi::acamera_metadata_tag::ACAMERA_LENS_INFO_AVAILABLE_FOCAL_LENGTHS),
+                    entry(ffi::acamera_metadata_tag::ACAMERA_SENSOR_INFO_PHYSICAL_SIZE),
+                ) {
+                    (Some(f), Some(size)) if size.count >= 2 => {
+                        vfov_from_focal_mm(f64::from(*f.data.f), f64::from(*size.data.f.add(1))).ok()
+                    }
+                    _ => None,
+                }
+            });
+            ffi::ACameraMetadata_free(meta);
+            return Ok((id, vfov));
+        }
+        bail!("this device has no back-facing camera")
+    }
+}
+
+impl FrameSource for Camera2 {
+    /// The newest image as RGBA (CPU conversion for now, see the module text). Polls the reader
+    /// every millisecond until an image newer than the last one arrives; an error after 2 s
+    /// without one.
+    fn next_frame(&mut self) -> Result<Option<Frame>> {
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(2);
+        loop {
+            if let Some(frame) = self.latest(|t, yuv| Ok(Frame { image: to_rgba_cpu(yuv)?, t }))? {
+                return Ok(Some(frame));
+            }
+            if std::time::Instant::now() > deadline {
+                bail!("no camera image for 2 s");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+    }
+
+    fn pause(&mut self) -> Result<()> {
+        self.stop();
+        Ok(())
+    }
+
+    fn resume(&mut self) -> Result<()> {
+        self.start()
+    }
+}
+
+impl Drop for Camera2 {
+    fn drop(&mut self) {
+        self.stop();
+        // SAFETY: made in `open`, released once here (the reader owns its window).
+        unsafe {
+            ffi::AImageReader_delete(self.reader.as_ptr());
+            ffi::ACameraManager_delete(self.manager.as_ptr());
+        }
+    }
+}

@@ -1,0 +1,310 @@
+//! Shadows sized to what they cover: where the model's sun shadow can fall on the ground (the
+//! receiver quad), the shadow camera fitted tightly around the model, the shadow's footprint on
+//! screen and the shadow-map resolution it needs (a texel per pixel, from a few pre-allocated
+//! sizes), and whether a shadow pass is needed at all. Pure functions on glam types.
+//!
+//! World = ENU, z up; `sun` is the unit direction towards the sun. The ground is the plane
+//! z = `ground_z` (the model's base).
+
+use glam::{Mat4, Vec2, Vec3, Vec3Swizzles, Vec4Swizzles};
+
+/// Shadow-map sides the renderer allocates once; a frame picks one (switching allocates nothing).
+pub const SHADOW_MAP_SIZES: [u32; 4] = [256, 512, 1024, 2048];
+
+/// How far (in model bounding radii, from the model's base) the receiver may reach: the old
+/// fixed ground square's half side, so a shadow at a grazing sun is cut where it was before.
+pub const MAX_RECEIVER_RADII: f32 = 20.0;
+
+/// The eight corners of the box `bounds` (model space) placed by `model`, world space.
+pub fn box_corners(bounds: (Vec3, Vec3), model: Mat4) -> [Vec3; 8] {
+    let (lo, hi) = bounds;
+    std::array::from_fn(|i| {
+        let p = Vec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
+        model.transform_point3(p)
+    })
+}
+
+/// A rectangle on the ground plane z = `z`, axis-aligned in world x/y.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundRect {
+    pub min: Vec2,
+    pub max: Vec2,
+    pub z: f32,
+}
+
+impl GroundRect {
+    /// The matrix placing the unit square [-1, 1]² (z = 0) onto the rectangle: the ground
+    /// pass's instance transform.
+    pub fn matrix(&self) -> Mat4 {
+        let c = 0.5 * (self.min + self.max);
+        let h = 0.5 * (self.max - self.min);
+        Mat4::from_translation(c.extend(self.z)) * Mat4::from_scale(Vec3::new(h.x, h.y, 1.0))
+    }
+
+    /// The four corners, world space.
+    pub fn corners(&self) -> [Vec3; 4] {
+        [(self.min.x, self.min.y), (self.max.x, self.min.y), (self.max.x, self.max.y), (self.min.x, self.max.y)]
+            .map(|(x, y)| Vec3::new(x, y, self.z))
+    }
+
+    pub fn area(&self) -> f32 {
+        let d = self.max - self.min;
+        d.x * d.y
+    }
+}
+
+/// Where a point `p` above the ground casts its shadow on z = `ground_z` (along −sun); the
+/// point itself when it is on or below the ground. `sun.z` must be positive.
+pub fn shadow_point(p: Vec3, sun: Vec3, ground_z: f32) -> Vec3 {
+    let h = (p.z - ground_z).max(0.0);
+    Vec3::new(p.x - sun.x * h / sun.z, p.y - sun.y * h / sun.z, ground_z)
+}
+
+/// The ground rectangle the shadow of the box with world `corners` can cover: the box's own
+/// footprint and its corners swept along −sun onto the ground (the shadow of a box is inside
+/// the convex hull of those points), clipped to [`MAX_RECEIVER_RADII`] × `radius` around
+/// `base` (the model's base centre). None when the sun is on or below the horizon.
+pub fn receiver(corners: &[Vec3; 8], sun: Vec3, ground_z: f32, base: Vec2, radius: f32) -> Option<GroundRect> {
+    if sun.is_nan() || sun.z <= 0.0 {
+        return None;
+    }
+    let (mut min, mut max) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for &c in corners {
+        for q in [c, shadow_point(c, sun, ground_z)] {
+            min = min.min(q.xy());
+            max = max.max(q.xy());
+        }
+    }
+    let reach = Vec2::splat(MAX_RECEIVER_RADII * radius);
+    let (min, max) = (min.max(base - reach), max.min(base + reach));
+    (min.cmplt(max).all()).then_some(GroundRect { min, max, z: ground_z })
+}
+
+/// The orthographic shadow camera looking along −sun, fitted around the box `corners` across
+/// the sun (x/y: the box's extent in light space, no more), with depth 0..1 running over the
+/// bounding sphere (centre, radius) along the sun as before, so the depth bias keeps its size
+/// in metres.
+pub fn light_view_proj(sun: Vec3, corners: &[Vec3; 8], centre: Vec3, radius: f32) -> Mat4 {
+    let up = if sun.z.abs() > 0.99 { Vec3::Y } else { Vec3::Z };
+    let eye = centre + sun * (2.0 * radius);
+    let view = glam::camera::rh::view::look_at_mat4(eye, centre, up);
+    let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for &c in corners {
+        let l = view.transform_point3(c).xy();
+        lo = lo.min(l);
+        hi = hi.max(l);
+    }
+    // Never wider than the sphere, never degenerate.
+    let lo = lo.max(Vec2::splat(-radius)).min(Vec2::splat(-1e-6));
+    let hi = hi.min(Vec2::splat(radius)).max(Vec2::splat(1e-6));
+    let proj = glam::camera::rh::proj::directx::orthographic(lo.x, hi.x, lo.y, hi.y, radius, 3.0 * radius);
+    proj * view
+}
+
+/// The pixel rectangle (min, max) that the convex hull of `points` covers on a `size` image
+/// seen through `view_proj`, clipped to the image; None when the hull lies wholly outside the
+/// view (all points beyond one frustum side, or all behind the camera). Where the points
+/// straddle the camera plane the answer is the whole image (conservative).
+pub fn screen_rect(points: &[Vec3], view_proj: Mat4, (width, height): (u32, u32)) -> Option<(Vec2, Vec2)> {
+    let size = Vec2::new(width as f32, height as f32);
+    let clip: Vec<glam::Vec4> = points.iter().map(|p| view_proj * p.extend(1.0)).collect();
+    let outside = |f: fn(&glam::Vec4) -> bool| clip.iter().all(f);
+    if clip.is_empty()
+        || outside(|c| c.w <= 1e-6)
+        || outside(|c| c.x > c.w)
+        || outside(|c| c.x < -c.w)
+        || outside(|c| c.y > c.w)
+        || outside(|c| c.y < -c.w)
+    {
+        return None;
+    }
+    if clip.iter().any(|c| c.w.is_nan() || c.w <= 1e-6) {
+        return Some((Vec2::ZERO, size));
+    }
+    let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for c in &clip {
+        // NDC y up, pixel rows down.
+        let ndc = c.xy() / c.w;
+        let px = Vec2::new((ndc.x * 0.5 + 0.5) * size.x, (0.5 - ndc.y * 0.5) * size.y);
+        lo = lo.min(px);
+        hi = hi.max(px);
+    }
+    let (lo, hi) = (lo.max(Vec2::ZERO), hi.min(size));
+    (lo.cmplt(hi).all()).then_some((lo, hi))
+}
+
+/// The shadow-map side for a shadow whose on-screen footprint spans `footprint_px` pixels along
+/// its longer side: the smallest of `sizes` (ascending) with a texel per pixel, else the
+/// largest. A non-finite footprint takes the largest.
+pub fn shadow_map_size(footprint_px: f32, sizes: &[u32]) -> u32 {
+    let largest = *sizes.last().expect("at least one shadow-map size");
+    if !footprint_px.is_finite() {
+        return largest;
+    }
+    sizes.iter().copied().find(|&s| s as f32 >= footprint_px).unwrap_or(largest)
+}
+
+/// Whether the frame needs a shadow pass: the sun is above the horizon, there is sunlight to
+/// block (a measured sun share above zero), and the shadow — the model (self-shadowing) or its
+/// ground footprint — is on screen.
+pub fn shadow_needed(sun: Vec3, sunlight: f32, footprint_on_screen: bool) -> bool {
+    sun.z > 0.0 && sunlight > 0.0 && footprint_on_screen
+}
+
+/// Everything a frame needs to know about its shadow.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowFit {
+    /// The ground pass's quad (None: no shadow can fall, nothing to draw).
+    pub receiver: Option<GroundRect>,
+    pub light_view_proj: Mat4,
+    /// The caster and its ground shadow on screen, pixels (None: off-screen).
+    pub footprint: Option<(Vec2, Vec2)>,
+    pub map_size: u32,
+    pub needed: bool,
+}
+
+/// Fit the shadow of a model with (model-space) `bounds` placed by `model` (base centre `base`,
+/// bounding sphere `centre`/`radius`), a sun direction and share, for a camera `view_proj`
+/// rendering `size` pixels.
+pub fn fit(
+    bounds: (Vec3, Vec3),
+    model: Mat4,
+    (base, centre, radius): (Vec3, Vec3, f32),
+    (sun, sunlight): (Vec3, f32),
+    (view_proj, size): (Mat4, (u32, u32)),
+    sizes: &[u32],
+) -> ShadowFit {
+    let corners = box_corners(bounds, model);
+    let receiver = receiver(&corners, sun, base.z, base.xy(), radius);
+    let mut points: Vec<Vec3> = corners.to_vec();
+    if let Some(r) = &receiver {
+        points.extend(r.corners());
+    }
+    let footprint = screen_rect(&points, view_proj, size);
+    let px = footprint.map_or(0.0, |(lo, hi)| (hi - lo).max_element());
+    let needed = receiver.is_some() && shadow_needed(sun, sunlight, footprint.is_some());
+    ShadowFit {
+        receiver,
+        light_view_proj: light_view_proj(sun, &corners, centre, radius),
+        footprint,
+        map_size: shadow_map_size(px, sizes),
+        needed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit cube standing on the origin: x, y in [-0.5, 0.5], z in [0, 1].
+    fn cube() -> [Vec3; 8] {
+        box_corners((Vec3::new(-0.5, -0.5, 0.0), Vec3::new(0.5, 0.5, 1.0)), Mat4::IDENTITY)
+    }
+
+    fn close2(a: Vec2, b: Vec2) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    #[test]
+    fn the_receiver_is_the_cube_and_its_shadow() {
+        // Sun due south at 45° elevation: a 1 m tall cube's shadow reaches 1 m north of it.
+        let sun = Vec3::new(0.0, -1.0, 1.0).normalize();
+        let r = receiver(&cube(), sun, 0.0, Vec2::ZERO, 0.87).unwrap();
+        assert!(close2(r.min, Vec2::new(-0.5, -0.5)) && close2(r.max, Vec2::new(0.5, 1.5)), "{r:?}");
+        // Sun overhead: only the cube's own footprint.
+        let r = receiver(&cube(), Vec3::Z, 0.0, Vec2::ZERO, 0.87).unwrap();
+        assert!(close2(r.min, Vec2::splat(-0.5)) && close2(r.max, Vec2::splat(0.5)), "{r:?}");
+        // Sun at 30° elevation towards the east-north-east (azimuth 60°): the shadow points to
+        // azimuth 240°, length 1 / tan 30° = √3 m.
+        let (el, az) = (30f32.to_radians(), 60f32.to_radians());
+        let sun = Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+        let r = receiver(&cube(), sun, 0.0, Vec2::ZERO, 0.87).unwrap();
+        let l = 3f32.sqrt();
+        let tip = Vec2::new(-l * az.sin(), -l * az.cos());
+        assert!(close2(r.min, Vec2::splat(-0.5) + tip) && close2(r.max, Vec2::splat(0.5)), "{r:?} tip {tip}");
+        // The quad's matrix maps the unit square's corners onto the rectangle.
+        let m = r.matrix();
+        assert!((m.transform_point3(Vec3::new(-1.0, -1.0, 0.0)) - r.corners()[0]).length() < 1e-5);
+        assert!((m.transform_point3(Vec3::new(1.0, 1.0, 0.0)) - r.corners()[2]).length() < 1e-5);
+    }
+
+    #[test]
+    fn a_grazing_sun_is_clipped_and_a_set_sun_casts_nothing() {
+        // 1° elevation: the shadow would be 57 m long; it is cut at 20 radii from the base.
+        let sun = Vec3::new(0.0, -1f32.to_radians().cos(), 1f32.to_radians().sin());
+        let r = receiver(&cube(), sun, 0.0, Vec2::ZERO, 0.87).unwrap();
+        assert!((r.max.y - 20.0 * 0.87).abs() < 1e-4 && (r.min.y + 0.5).abs() < 1e-5, "{r:?}");
+        // Still far smaller than the fixed 40-radius square the ground pass used to draw.
+        assert!(r.area() < 0.05 * (40.0 * 0.87f32).powi(2), "{}", r.area());
+        assert_eq!(receiver(&cube(), Vec3::new(0.0, 1.0, 0.0), 0.0, Vec2::ZERO, 0.87), None);
+        assert_eq!(receiver(&cube(), Vec3::new(0.0, 0.9, -0.1).normalize(), 0.0, Vec2::ZERO, 0.87), None);
+    }
+
+    #[test]
+    fn the_shadow_camera_touches_the_box_on_every_side() {
+        let corners = box_corners((Vec3::new(-1.0, 0.0, -0.3), Vec3::new(1.0, 0.5, 0.3)), Mat4::from_rotation_z(0.4));
+        let centre = corners.iter().copied().sum::<Vec3>() / 8.0;
+        let radius = corners.iter().map(|c| (*c - centre).length()).fold(0.0, f32::max);
+        for sun in [Vec3::new(0.3, -0.5, 0.8), Vec3::Z, Vec3::new(-0.9, 0.1, 0.2)] {
+            let m = light_view_proj(sun.normalize(), &corners, centre, radius);
+            let ndc: Vec<Vec3> = corners.iter().map(|&c| m.project_point3(c)).collect();
+            let (lo, hi) = ndc.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+            // Tight across the sun: the box's extreme corners land on the map's edges.
+            assert!(close2(lo.xy(), Vec2::splat(-1.0)) && close2(hi.xy(), Vec2::splat(1.0)), "{sun}: {lo} {hi}");
+            // Depth inside 0..1 (the sphere's range along the sun).
+            assert!(lo.z >= -1e-5 && hi.z <= 1.0 + 1e-5, "{sun}: {lo} {hi}");
+        }
+    }
+
+    #[test]
+    fn the_screen_rect_is_clipped_and_empty_off_screen() {
+        // A 90° square camera at the origin looking down −z: (x, y, −1) with |x|, |y| <= 1 is in view.
+        let vp = glam::camera::rh::proj::directx::perspective(90f32.to_radians(), 1.0, 0.1, 100.0);
+        let (lo, hi) = screen_rect(&[Vec3::new(-0.5, -0.5, -1.0), Vec3::new(0.5, 0.5, -1.0)], vp, (200, 100)).unwrap();
+        // x: ±0.5 -> 50..150 px of 200; y: ±0.5 -> 25..75 px of 100 (rows down).
+        assert!(close2(lo, Vec2::new(50.0, 25.0)) && close2(hi, Vec2::new(150.0, 75.0)), "{lo} {hi}");
+        // Half off the right edge: clipped.
+        let (lo, hi) = screen_rect(&[Vec3::new(0.5, 0.0, -1.0), Vec3::new(3.0, 0.5, -1.0)], vp, (200, 100)).unwrap();
+        assert!(close2(lo, Vec2::new(150.0, 25.0)) && close2(hi, Vec2::new(200.0, 50.0)), "{lo} {hi}");
+        // Wholly to the right: off-screen.
+        assert_eq!(screen_rect(&[Vec3::new(2.0, 0.0, -1.0), Vec3::new(3.0, 0.5, -1.0)], vp, (200, 100)), None);
+        // Wholly behind the camera: off-screen; straddling it: conservatively the whole image.
+        assert_eq!(screen_rect(&[Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 2.0)], vp, (200, 100)), None);
+        let whole = Some((Vec2::ZERO, Vec2::new(200.0, 100.0)));
+        assert_eq!(screen_rect(&[Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -2.0)], vp, (200, 100)), whole);
+    }
+
+    #[test]
+    fn a_texel_per_pixel_from_the_preallocated_sizes() {
+        assert_eq!(shadow_map_size(0.0, &SHADOW_MAP_SIZES), 256);
+        assert_eq!(shadow_map_size(256.0, &SHADOW_MAP_SIZES), 256);
+        assert_eq!(shadow_map_size(300.0, &SHADOW_MAP_SIZES), 512);
+        assert_eq!(shadow_map_size(960.0, &SHADOW_MAP_SIZES), 1024);
+        assert_eq!(shadow_map_size(5000.0, &SHADOW_MAP_SIZES), 2048);
+        assert_eq!(shadow_map_size(f32::NAN, &SHADOW_MAP_SIZES), 2048);
+    }
+
+    #[test]
+    fn no_shadow_pass_without_sun_or_on_screen_footprint() {
+        let up = Vec3::new(0.0, -0.6, 0.8);
+        assert!(shadow_needed(up, 1.0, true));
+        assert!(!shadow_needed(Vec3::new(0.0, -0.8, -0.6), 1.0, true), "sun below the horizon");
+        assert!(!shadow_needed(up, 0.0, true), "overcast: no measured sun");
+        assert!(!shadow_needed(up, 1.0, false), "footprint off-screen");
+        // Through `fit`: a cube 5 m ahead of a camera looking north needs a shadow; turned
+        // around (looking south), neither the cube nor its shadow is in view.
+        let bounds = (Vec3::new(-0.5, -0.5, 0.0), Vec3::new(0.5, 0.5, 1.0));
+        let model = Mat4::from_translation(Vec3::new(0.0, 5.0, 0.0));
+        let sphere = (Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.0, 5.0, 0.5), 0.87);
+        let proj = crate::render::view::projection(60f32.to_radians(), 1.5, 0.1, 100.0);
+        let cam = Vec3::new(0.0, 0.0, 1.6);
+        let look = |heading: f32| proj * crate::render::view::view_matrix(crate::render::view::camera_pose(heading, -0.2, 0.0), cam);
+        let f = fit(bounds, model, sphere, (up.normalize(), 1.0), (look(0.0), (960, 640)), &SHADOW_MAP_SIZES);
+        assert!(f.needed && f.footprint.is_some() && f.receiver.is_some(), "{f:?}");
+        // The cube and its shadow span some hundred pixels: a 256-512 map suffices, not 2048.
+        let (lo, hi) = f.footprint.unwrap();
+        assert!(f.map_size < 2048 && f.map_size as f32 >= (hi - lo).max_element(), "{f:?}");
+        let f = fit(bounds, model, sphere, (up.normalize(), 1.0), (look(std::f32::consts::PI), (960, 640)), &SHADOW_MAP_SIZES);
+        assert!(!f.needed && f.footprint.is_none(), "{f:?}");
+    }
+}

@@ -1,0 +1,113 @@
+//! Light from the scene's environment (issue 9): the sun and sky measured in the map
+//! (`light::measure`) become the frame's sunlight, daylight and shadow strength, and — unless the
+//! scene gives the sun's direction — the sun's direction. The scene's `sun.sunlight`,
+//! `sun.daylight` and `effects.shadow_opacity` are multipliers on these (1 by default).
+//!
+//! Units: the renderer's linear light after the environment's exposure. A Lambertian surface of
+//! albedo ρ under irradiance E has radiance ρ E / π, so the sunlight the model shader multiplies
+//! by albedo · max(n·l, 0) is E_sun / π, and the ambient terms are scaled so that the methods'
+//! ambient light equals E_sky / π (the sky without the sun, SH9) averaged over the up- and
+//! down-facing normals.
+
+use crate::light::measure::{MeasureOptions, MeasuredLight, SunSource, measure};
+use crate::light::samples::from_cube;
+use crate::light::sun_finder;
+use crate::render::{HemispherePriors, Method};
+use crate::scene::CubeMap;
+use crate::scene::file::Scene;
+use glam::Vec3;
+
+/// Measure the light in the scene's environment map. An 8-bit map (every value ≤ 1: JPEG cube
+/// maps, captures) has a clipped sun: it is found with clip level 1 and its energy restored from
+/// the clear-sky model at the scene's sun elevation when the scene gives the sun's direction
+/// (else the saturated disc's); a float HDR map is trusted as it is.
+pub fn measure_environment(scene: &Scene, env: &CubeMap) -> MeasuredLight {
+    let samples = from_cube(env);
+    let max = samples.iter().flat_map(|s| s.radiance).fold(0f32, f32::max);
+    let low_dynamic_range = max <= 1.0;
+    let finder = sun_finder::Options { clip_level: low_dynamic_range.then_some(1.0), ..Default::default() };
+    let solar_elevation = scene.sun.direction.map(|d| sun_finder::azimuth_elevation(Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32)).1);
+    measure(&samples, &MeasureOptions { finder, restore_clipped: low_dynamic_range, solar_elevation })
+}
+
+/// A direction in the map's own frame (ENU of the unrotated cube map) as a world direction, for
+/// an environment turned by `heading` (rad): shaders/frame.wgsl `env_dir` samples the map at
+/// Rz(heading)·d, so d = Rz(−heading)·m.
+pub fn map_to_world(m: Vec3, heading: f32) -> Vec3 {
+    let (s, c) = heading.sin_cos();
+    Vec3::new(c * m.x + s * m.y, -s * m.x + c * m.y, m.z)
+}
+
+/// The light terms of a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightTerms {
+    /// Unit direction to the sun, world (ENU): the scene's when it gives one, else the map's
+    /// (straight up when the map has no sun; the sunlight is then 0).
+    pub sun_dir: Vec3,
+    /// The map's sun in the world (None: no sun found).
+    pub map_sun_dir: Option<Vec3>,
+    /// l_s = SL · E_sun / π (luminance, after exposure).
+    pub sunlight: f32,
+    /// l_d = DL · the factor that makes the method's ambient term E_sky / π.
+    pub daylight: f32,
+    /// SO · the sun's share of the ground's irradiance (what the ground loses in the model's
+    /// shadow, sky kept).
+    pub shadow_opacity: f32,
+}
+
+/// The light terms for `scene` from the measured light of its environment, at `exposure`, with
+/// the environment turned by `heading` (rad); `priors` are the hemisphere methods' ambient
+/// colours (after exposure) that the daylight factor scales.
+pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePriors, exposure: f32, heading: f32) -> LightTerms {
+    let lum = crate::colour::luminance_bt709;
+    let pi = std::f32::consts::PI;
+    let map_sun_dir = light.sun_dir.map(|d| map_to_world(d, heading).normalize());
+    let sun_dir = match scene.sun.direction {
+        Some(d) => Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32).normalize(),
+        None => map_sun_dir.unwrap_or(Vec3::Z),
+    };
+    let has_sun = light.source != SunSource::None && map_sun_dir.is_some();
+    let fade = crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
+    let sun = if has_sun { lum(light.sun_irradiance) * exposure / pi } else { 0.0 };
+    // The sky's ambient radiance E/π, averaged over up and down normals (the hemisphere
+    // methods blend between these two).
+    let up = lum(light.sky.irradiance(Vec3::Z)) * exposure / pi;
+    let down = lum(light.sky.irradiance(-Vec3::Z)) * exposure / pi;
+    let reference = match scene.method {
+        Method::BlinnPhong => 1.0,
+        Method::HemisphereOcclusion => 0.5 * (priors.light + priors.shadow),
+        _ => 0.5 * (lum(priors.sky) + lum(priors.ground)),
+    };
+    let daylight = if reference > 0.0 { 0.5 * (up + down) / reference } else { 0.0 };
+    // The sun's share of the ground's irradiance with the direction used (the scene's sun is
+    // given the map's energy).
+    let ground_sun = sun * pi * sun_dir.z.max(0.0) * scene.sun.sunlight as f32 * fade;
+    let ground_sky = up * pi * scene.sun.daylight as f32;
+    let share = if ground_sun + ground_sky > 0.0 { ground_sun / (ground_sun + ground_sky) } else { 0.0 };
+    LightTerms {
+        sun_dir,
+        map_sun_dir,
+        sunlight: scene.sun.sunlight as f32 * sun * fade,
+        daylight: scene.sun.daylight as f32 * daylight,
+        shadow_opacity: (scene.effects.shadow_opacity as f32 * crate::light::measure::shadow_strength(share, 1.0)).clamp(0.0, 1.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn map_to_world_turns_north_to_the_heading() {
+        // Heading 90°: the map's North is seen looking East (frame.wgsl env_dir).
+        let d = map_to_world(Vec3::Y, 90f32.to_radians());
+        assert!((d - Vec3::X).length() < 1e-6, "{d}");
+        // Inverse of env_dir's rotation: map_to_world then the shader's Rz(heading) is identity.
+        let h = 0.7f32;
+        let m = Vec3::new(0.3, -0.5, 0.8);
+        let d = map_to_world(m, h);
+        let (s, c) = h.sin_cos();
+        let back = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+        assert!((back - m).length() < 1e-6);
+    }
+}

@@ -89,6 +89,9 @@ fn decode_reader<R: BufRead + Seek>(reader: ImageReader<R>, len: u64, allowed: &
 /// [`MAX_SIDE`] a side, deep data, or more pixel bytes than [`MAX_EXR_EXPANSION`] × `len`.
 fn check_exr_claims(reader: &mut impl std::io::Read, len: u64) -> Result<()> {
     let meta = exr::meta::MetaData::read_from_buffered(reader, false).map_err(|e| anyhow!("cannot decode OpenEXR header: {e}"))?;
+    // `read_from_buffered` does not validate (a channel sampling of 0 would divide by zero in
+    // the exr crate's own size arithmetic); the decoder validates the same way.
+    exr::meta::MetaData::validate(&meta.headers, false).map_err(|e| anyhow!("invalid OpenEXR header: {e}"))?;
     for (i, header) in meta.headers.iter().enumerate() {
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
         if w > MAX_SIDE as usize || h > MAX_SIDE as usize {
@@ -97,7 +100,8 @@ fn check_exr_claims(reader: &mut impl std::io::Read, len: u64) -> Result<()> {
         if header.deep {
             return Err(anyhow!("OpenEXR part {i}: deep data is not supported"));
         }
-        let bytes = header.total_pixel_bytes() as u64;
+        // Every channel at full resolution, one level: no subsampling or mip arithmetic.
+        let bytes = (w as u64).saturating_mul(h as u64).saturating_mul(header.channels.bytes_per_pixel as u64);
         if bytes > len.saturating_mul(MAX_EXR_EXPANSION) {
             return Err(anyhow!(
                 "OpenEXR part {i}: data window {w}x{h} holds {bytes} pixel bytes, more than a {len}-byte file can hold (at most {MAX_EXR_EXPANSION} per byte of file); the file is truncated or damaged"

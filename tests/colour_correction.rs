@@ -44,7 +44,8 @@ fn quad(tex: Rgba8Image) -> Model {
     Model { meshes: vec![mesh], materials: vec![Material { diffuse: [1.0; 3], texture: Some(tex), ..Default::default() }] }
 }
 
-/// Ambient light only, at 1: the model's pixels are its (corrected) albedo.
+/// Ambient light only (blinn-phong, no sun, no diffuse): the model's pixels are its
+/// (corrected) albedo times the ambient light.
 fn flat(env: &str, correction: Method, strength: f64) -> String {
     format!(
         "width = 320\nheight = 240\nmethod = \"blinn-phong\"\nenvironment = \"{env}\"\n\
@@ -67,6 +68,8 @@ fn shader_applies_the_correction_built_from_the_priors() {
         let s = scene(&flat(env_dir, Method::None, 1.0));
         let source = environment_priors_scaled(&inputs.env, exposure(&s, &inputs.env)).unwrap().horizontal;
         let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
+        // Ambient light exactly 1 (the scene's daylight is a multiplier on the measured sky).
+        params.lighting.daylight = 1.0;
         let mut moved = 0.0f64;
         for method in [Method::None, Method::BrightnessContrast, Method::Reinhard, Method::CielabApprox, Method::Mkl] {
             for strength in [1.0f32, 0.5] {

@@ -120,17 +120,30 @@ fn linear(p: [f64; 3]) -> [f64; 3] {
     p.map(|c| f64::from(previz::colour::srgb_to_linear((c / 255.0) as f32)))
 }
 
+/// A grey sky of 32² faces with a small bright sun (2×2 texels, radiance 500) just above the
+/// horizon at the centre of `face`: the sun the light comes from (setup::light finds it).
+fn grey_with_sun(face: usize) -> CubeMap {
+    let size = 32;
+    let mut cube = CubeMap { size, faces: [[0.3f32; 3]; 6].map(|c| vec![c; (size * size) as usize]) };
+    for y in 12..14 {
+        for x in 15..17 {
+            cube.faces[face][(y * size + x) as usize] = [500.0; 3];
+        }
+    }
+    cube
+}
+
 #[test]
 fn sun_from_the_left_lights_the_left_side() {
-    let grey = [[0.3; 3]; 6];
     let off = 0.7 * sphere_radius();
-    // Camera looks North, so its left is West; the sun is 20° up and dominates the ambient.
-    let r = render("method = \"blinn-phong\"\n[sun]\ndirection = [-1.0, 0.0, 0.36]\ndaylight = 0.2\n", solid_cube(grey), Layer::Model);
+    // Camera looks North, so its left is West; the map's sun is in the West (−X face), a little
+    // up, and dominates the ambient.
+    let r = render("method = \"blinn-phong\"\n[sun]\ndaylight = 0.2\n", grey_with_sun(1), Layer::Model);
     let left = luma(patch(&r, 0.5 - off, 0.5));
     let right = luma(patch(&r, 0.5 + off, 0.5));
     assert!(left > 2.0 * right, "left {left} right {right}");
     // And from the right (East) the other way round.
-    let r = render("method = \"blinn-phong\"\n[sun]\ndirection = [1.0, 0.0, 0.36]\ndaylight = 0.2\n", solid_cube(grey), Layer::Model);
+    let r = render("method = \"blinn-phong\"\n[sun]\ndaylight = 0.2\n", grey_with_sun(0), Layer::Model);
     let left = luma(patch(&r, 0.5 - off, 0.5));
     let right = luma(patch(&r, 0.5 + off, 0.5));
     assert!(right > 2.0 * left, "left {left} right {right}");

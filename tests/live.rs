@@ -144,7 +144,7 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
         (vec!["--time", "noon", "--frames", "2", "-o", "."], "--time"),
         (vec!["--fps", "0", "--frames", "2", "-o", "."], "--fps"),
         (vec!["--frames", "2", "-o", "a_file"], "a_file"),
-        (vec!["--frames", "2"], "--out"),
+        (vec!["--frames", "2"], "--output"),
     ] {
         let args: Vec<&str> = common_args.iter().copied().chain(extra).collect();
         assert_clean_failure(&previz(&bad, &args), &bad, &before, &[needle]);

@@ -26,7 +26,7 @@ use crate::pose::frames::angle_between;
 use crate::pose::fusion::{FusionConfig, OrientationFilter};
 use crate::pose::trace::TruthTrace;
 use crate::pose::user_path::UserPathParams;
-use crate::pose::{HeadingSource, OrientationEstimator};
+use crate::pose::{HeadingSource, OrientationEstimator, Pose};
 use crate::scene::CubeMap;
 use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
 use crate::sensors::{Reading, SensorSource};
@@ -137,6 +137,8 @@ pub struct ReplayResult {
     pub track: Vec<(f64, Quat, DQuat)>,
     /// Per target (the assistant's order): whether its shot was taken.
     pub taken: Vec<bool>,
+    /// Per target: when its shot was taken (s, the trace's clock).
+    pub shot_t: Vec<Option<f64>>,
     /// The assistant's reference heading (degrees), once the front was taken.
     pub reference_heading_deg: Option<f64>,
 }
@@ -238,7 +240,10 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
             }
         }
         let Some(pose) = filter.pose(rotation) else { continue };
-        let aim_pose = aim_filter.as_ref().and_then(|f| f.pose(rotation)).unwrap_or(pose);
+        // The held orientation with the compass-corrected filter's accuracy: the held filter's
+        // own 1σ assumes an unlearnt gyroscope bias (0.5°/s) and would widen the aim boxes to
+        // ±14° within seconds, so far that neighbouring shots leave gaps.
+        let aim_pose = aim_filter.as_ref().and_then(|f| f.pose(rotation)).map_or(pose, |held| Pose { q: held.q, ..pose });
         frames += 1;
         if pose.heading_source == HeadingSource::GyroOnly {
             gyro_only += 1;
@@ -278,7 +283,8 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         }
     }
     let targets = assistant.targets().len();
-    let taken: Vec<bool> = (0..targets).map(|i| assistant.shot(i).is_some()).collect();
+    let shot_t: Vec<Option<f64>> = (0..targets).map(|i| assistant.shot(i).map(|s| s.t)).collect();
+    let taken: Vec<bool> = shot_t.iter().map(Option::is_some).collect();
     let shots = taken.iter().filter(|t| **t).count();
     let started = Instant::now();
     let finished = assistant.finish();
@@ -297,6 +303,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         exposure: locked,
         track,
         taken,
+        shot_t,
         reference_heading_deg: assistant.reference_heading_deg(),
     };
     match finished {
@@ -320,6 +327,31 @@ pub struct GuidedRun {
     pub attempts: usize,
 }
 
+/// Simple visual reaction time (s): the user sees "taken" and starts the next turn (about
+/// 0.23 s for a simple reaction to a visual stimulus, Woods et al. 2015, Front. Hum. Neurosci.
+/// 9:131).
+pub const REACTION_S: f64 = 0.25;
+
+/// How long each visit of `path` would be held by a user who moves on [`REACTION_S`] after the
+/// screen shows its target taken (`result`, the replay of `path`): per target index, the shot's
+/// time after the hold began plus the reaction; a target taken before the user got there (by a
+/// neighbouring view) or never needed is held for the reaction only. The front keeps its hold
+/// (the tap falls within it).
+pub fn reactive_holds(path: &CapturePath, result: &ReplayResult) -> Vec<(usize, f64)> {
+    path.visits
+        .iter()
+        .filter(|v| v.target != 0)
+        .map(|v| {
+            let shot = result.shot_t.get(v.target).copied().flatten();
+            let held = match shot {
+                Some(t) if t <= v.end => (t - v.start).max(0.0),
+                _ => 0.0,
+            };
+            (v.target, held + REACTION_S)
+        })
+        .collect()
+}
+
 /// Targets whose aims are this close to a pole get no heading correction (heading is free there).
 const POLE_PITCH_DEG: f64 = 80.0;
 
@@ -328,7 +360,9 @@ const POLE_PITCH_DEG: f64 = 80.0;
 /// the estimate says the target is, not where it truly is. Simulated in passes: when a pass
 /// leaves targets untaken, the mean aim error shown during each of their holds shifts the
 /// user's aim for the next pass, up to `max_attempts`
-/// passes. The result is the last pass. The user does not see the true target, only the
+/// passes. The result is the last pass. A pass that completes is replayed once more with each
+/// hold ending [`REACTION_S`] after its shot ([`reactive_holds`]) — the user moves on when the
+/// screen shows the shot taken — and that replay is the result when it completes too. The user does not see the true target, only the
 /// screen: the shift is the aim error the assistant showed (from the estimated pose and its
 /// estimated reference heading).
 pub fn replay_guided(
@@ -345,7 +379,19 @@ pub fn replay_guided(
         attempts += 1;
         let path = simulate_guided_path(path_seed, &targets, params, &shifts)?;
         let result = replay(env, &TruthTrace::new(path.samples.clone())?, cfg)?;
-        if result.capture.is_some() || attempts >= max_attempts.max(1) {
+        if result.capture.is_some() {
+            // The same user, moving on as soon as the screen shows each shot taken.
+            for (i, hold) in reactive_holds(&path, &result) {
+                shifts[i].hold_s = Some(hold);
+            }
+            let quick = simulate_guided_path(path_seed, &targets, params, &shifts)?;
+            let quick_result = replay(env, &TruthTrace::new(quick.samples.clone())?, cfg)?;
+            if quick_result.capture.is_some() {
+                return Ok(GuidedRun { result: quick_result, path: quick, attempts });
+            }
+            return Ok(GuidedRun { result, path, attempts });
+        }
+        if attempts >= max_attempts.max(1) {
             return Ok(GuidedRun { result, path, attempts });
         }
         let Some(href) = result.reference_heading_deg else {

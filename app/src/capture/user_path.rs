@@ -39,6 +39,10 @@ pub struct CapturePath {
 pub struct AimShift {
     pub heading_deg: f64,
     pub pitch_deg: f64,
+    /// How long the user holds this target (s), when they move on as soon as the screen
+    /// shows it taken; `None`: the drawn hold (`params.hold_s`). Ignored for the front (the
+    /// tap falls within its drawn hold).
+    pub hold_s: Option<f64>,
 }
 
 /// Generate the path of a user visiting `targets` (the first must be the front). Same seed
@@ -96,7 +100,11 @@ pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathPara
         let dh = heading_difference_deg(goal.h, at.h);
         let goal = Hpr { h: at.h + dh, ..goal };
         timeline.turn(&mut rng, params, at, goal);
-        let hold = uniform(&mut rng, params.hold_s);
+        let drawn = uniform(&mut rng, params.hold_s);
+        let hold = match shift.hold_s {
+            Some(h) if index != 0 && h.is_finite() && h > 0.0 => h,
+            _ => drawn,
+        };
         if index == 0 {
             tap_t = timeline.t + uniform(&mut rng, (0.3, 0.6)).min(hold * 0.8);
         }

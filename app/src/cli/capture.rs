@@ -105,8 +105,8 @@ pub struct StabilityArgs {
     pub case_runs: usize,
     /// Output folder for capture_stability.csv and capture_stability.png (the markdown report,
     /// a section of docs/PERFORMANCE.md, is printed)
-    #[arg(short = 'o', long = "out", default_value = "docs")]
-    pub out: PathBuf,
+    #[arg(short = 'o', long = "output", default_value = "docs")]
+    pub output: PathBuf,
     /// Worker threads (default: one per core)
     #[arg(long)]
     pub threads: Option<usize>,
@@ -217,8 +217,8 @@ fn run_stability(a: StabilityArgs) -> Result<()> {
     if a.runs == 0 {
         bail!("--runs must be at least 1");
     }
-    if !a.out.is_dir() {
-        bail!("output folder {} does not exist", a.out.display());
+    if !a.output.is_dir() {
+        bail!("output folder {} does not exist", a.output.display());
     }
     let env_path = a.env.clone();
     let env = Arc::new(load_environment(&env_path).with_context(|| format!("cannot load the environment {}", env_path.display()))?);
@@ -238,8 +238,8 @@ fn run_stability(a: StabilityArgs) -> Result<()> {
     bar.finish_and_clear();
     let elapsed = started.elapsed().as_secs_f64();
     let summaries = stability::summarise(&rows);
-    let csv = a.out.join("capture_stability.csv");
-    let png = a.out.join("capture_stability.png");
+    let csv = a.output.join("capture_stability.csv");
+    let png = a.output.join("capture_stability.png");
     write_atomic(&csv, stability::rows_csv(&rows).as_bytes())?;
     stability::draw_chart(&png, &summaries)?;
     let report = format!(

@@ -64,8 +64,8 @@ pub struct BenchArgs {
     pub data: PathBuf,
     /// Folder for colour-bench.json, colour-bench.md, colour-speed-accuracy.png and the
     /// single-colour figures (created if missing).
-    #[arg(long, short = 'o')]
-    pub out_dir: PathBuf,
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
     /// Timed runs per method and pair (the median is reported).
     #[arg(long, default_value_t = 9)]
     pub repeats: u32,
@@ -178,7 +178,7 @@ pub fn run(args: Args) -> Result<()> {
 }
 
 fn run_bench(args: BenchArgs) -> Result<()> {
-    std::fs::create_dir_all(&args.out_dir).with_context(|| format!("cannot create {}", args.out_dir.display()))?;
+    std::fs::create_dir_all(&args.output).with_context(|| format!("cannot create {}", args.output.display()))?;
     let pairs = bench::default_pairs(&args.data);
     let gpu = if args.no_gpu { None } else { Some(crate::gpu::Gpu::headless()?) };
     let steps = (pairs.len() * bench::METHODS.len()) as u64;
@@ -201,7 +201,7 @@ fn run_bench(args: BenchArgs) -> Result<()> {
         let stats = image_stats(&env, false, "environment")?;
         figures.push((format!("colour-single-colour-{name}.png"), bench::single_colour_figure(&env, &stats, colour)?));
     }
-    let dir = &args.out_dir;
+    let dir = &args.output;
     write_atomic(&dir.join("colour-bench.json"), serde_json::to_string_pretty(&report)?.as_bytes())?;
     write_atomic(&dir.join("colour-bench.md"), md.as_bytes())?;
     write_png_rgb8(&dir.join("colour-speed-accuracy.png"), chart.width, chart.height, &chart.rgb)?;

@@ -39,12 +39,12 @@ pub struct Args {
     /// Length of the session, seconds
     #[arg(long, default_value_t = 60.0)]
     pub duration: f64,
-    /// Headless: render this many frames into --out instead of opening a window
-    #[arg(long, requires = "out")]
+    /// Headless: render this many frames into --output instead of opening a window
+    #[arg(long, requires = "output")]
     pub frames: Option<usize>,
     /// Headless: folder for frame_NNNN.png (created if missing)
-    #[arg(short = 'o', long, requires = "frames")]
-    pub out: Option<PathBuf>,
+    #[arg(short = 'o', long = "output", requires = "frames")]
+    pub output: Option<PathBuf>,
     /// Headless: print each frame's pose, pose error and sun as JSON lines
     #[arg(long)]
     pub json: bool,
@@ -65,13 +65,13 @@ pub fn run(a: Args) -> Result<()> {
             bail!("--frames {n}: must be 1..={available} (--duration {} s × --fps {})", a.duration, a.fps);
         }
     }
-    if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("--out {}: cannot create the directory", dir.display()))?;
+    if let Some(dir) = &a.output {
+        std::fs::create_dir_all(dir).with_context(|| format!("--output {}: cannot create the directory", dir.display()))?;
     }
     let inputs = load_inputs(&scene, demo)?;
     let env = Arc::new(inputs.env);
     let model = inputs.model;
-    match (a.frames, &a.out) {
+    match (a.frames, &a.output) {
         (Some(n), Some(dir)) => headless(&scene, env, &model, cfg, n, dir, a.json),
         _ => run_window(scene, env, model, cfg),
     }

@@ -20,8 +20,8 @@ pub struct Args {
     #[arg(long, default_value_t = 30.0)]
     pub hold: f64,
     /// Output directory for pose-stability.csv and pose-stability.png.
-    #[arg(short, long, default_value = "docs")]
-    pub out: PathBuf,
+    #[arg(short = 'o', long = "output", default_value = "docs")]
+    pub output: PathBuf,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -34,8 +34,8 @@ pub fn run(args: Args) -> Result<()> {
     if !(args.hold.is_finite() && args.hold > 10.0) {
         bail!("--hold must be more than 10 seconds, got {}", args.hold);
     }
-    if !args.out.is_dir() {
-        bail!("output directory {} does not exist", args.out.display());
+    if !args.output.is_dir() {
+        bail!("output directory {} does not exist", args.output.display());
     }
     let cfg = StabilityConfig { seeds: args.seeds, noise_levels: args.noise.clone(), hold_s: args.hold, ..StabilityConfig::default() };
     let default_setting = cfg.settings[0].clone();
@@ -60,8 +60,8 @@ pub fn run(args: Args) -> Result<()> {
     let timing = stability::measure_timing(&cfg, &timing_settings)?;
     let report = StabilityReport { tradeoff, cases, timing, disturbance };
 
-    let csv_path = args.out.join("pose-stability.csv");
-    let png_path = args.out.join("pose-stability.png");
+    let csv_path = args.output.join("pose-stability.csv");
+    let png_path = args.output.join("pose-stability.png");
     write_atomic(&csv_path, report_csv(&report).as_bytes())?;
     draw_chart(&png_path, &report)?;
     print!("{}", report_markdown(&report, cfg.seeds));
@@ -288,7 +288,7 @@ mod tests {
     fn bad_arguments_are_errors_and_write_nothing() {
         let dir = std::env::temp_dir().join(format!("previz-ps-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let args = |seeds, out: PathBuf| Args { seeds, noise: vec![NoiseLevel::Phone], hold: 12.0, out };
+        let args = |seeds, out: PathBuf| Args { seeds, noise: vec![NoiseLevel::Phone], hold: 12.0, output: out };
         assert!(run(args(0, dir.clone())).is_err());
         assert!(run(args(1, dir.join("missing"))).is_err());
         assert!(!dir.join("pose-stability.csv").exists());

@@ -51,8 +51,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 9)]
     pub repeats: u32,
     /// Also write the table (markdown) and the rows (JSON, same name with .json) here.
-    #[arg(long, short = 'o')]
-    pub out: Option<PathBuf>,
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -137,7 +137,7 @@ fn run_bench(args: BenchArgs) -> Result<()> {
     let (cube, frame) = crate::priors::bench::default_inputs(&args.data)?;
     let rows = crate::priors::bench::run(&gpu, &cube, &frame, args.repeats)?;
     let md = crate::priors::bench::markdown(&rows, &gpu.describe(), args.repeats);
-    if let Some(out) = &args.out {
+    if let Some(out) = &args.output {
         let json = serde_json::to_string_pretty(&rows)?;
         write_atomic(out, md.as_bytes())?;
         write_atomic(&out.with_extension("json"), json.as_bytes())?;

@@ -201,9 +201,11 @@ impl Compositor {
         let level =
             if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(&model.lod_errors, model.bounds, p, self.height).0 };
         let shadow = fit_shadow(p, &context);
-        // The model shades with the sun (and samples the map) even when the sun is below the
-        // horizon, so only the ground pass also needs the sun up.
-        let shadow_pass = p.lighting.sunlight > 0.0 && shadow.footprint.is_some();
+        // The model samples the map whatever the sun (its shading uses the visibility beyond the
+        // sun's own term), so the shadow pass runs whenever the model or its shadow is on
+        // screen; the ground pass only when its shader would darken something (sun up,
+        // sunlight and opacity above zero: exactly where its alpha is non-zero).
+        let shadow_pass = shadow.footprint.is_some();
         let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
         Ok(FrameData { frame, instance, ground, colour, level, shadow_pass, ground_pass })
     }

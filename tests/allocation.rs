@@ -4,21 +4,10 @@
 
 mod common;
 
-use common::{gpu, scene};
+use common::{FRAME_RESOURCES, assert_unchanged, gpu, scene, settled_counters, triangle};
 use previz::render::Layer;
-use previz::scene::{CubeMap, Material, Mesh, Model};
+use previz::scene::CubeMap;
 use previz::setup::{Inputs, prepare};
-
-fn triangle() -> Model {
-    let mesh = Mesh {
-        positions: vec![[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]],
-        normals: vec![[0.0, 0.0, 1.0]; 3],
-        uvs: vec![[0.0, 0.0]; 3],
-        indices: vec![0, 1, 2],
-        material: 0,
-    };
-    Model { meshes: vec![mesh], materials: vec![Material::default()] }
-}
 
 #[test]
 fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
@@ -27,27 +16,15 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
         Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
     let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
-    let before = gpu().device.get_internal_counters().hal;
-    // The counters only count with wgpu's `counters` feature; without it this test would be empty.
-    assert!(before.buffers.read() > 0 && before.render_pipelines.read() > 0, "wgpu counters are not enabled");
+    let before = settled_counters();
     for i in 0..5 {
         params.camera.pose *= glam::Quat::from_rotation_y(0.1 * i as f32);
         for layer in [Layer::Composite, Layer::Model, Layer::Background] {
             compositor.render(gpu(), &params, layer).unwrap();
         }
     }
-    let after = gpu().device.get_internal_counters().hal;
-    for (name, a, b) in [
-        ("buffers", &before.buffers, &after.buffers),
-        ("textures", &before.textures, &after.textures),
-        ("texture views", &before.texture_views, &after.texture_views),
-        ("bind groups", &before.bind_groups, &after.bind_groups),
-        ("render pipelines", &before.render_pipelines, &after.render_pipelines),
-        ("shader modules", &before.shader_modules, &after.shader_modules),
-        ("samplers", &before.samplers, &after.samplers),
-    ] {
-        assert_eq!(a.read(), b.read(), "{name} changed across frames");
-    }
+    let after = settled_counters();
+    assert_unchanged(&before, &after, &FRAME_RESOURCES, "frames");
     lod_switches_allocate_nothing();
     a_second_composite_reuses_the_pipelines();
 }
@@ -67,7 +44,7 @@ fill = 0.8
     let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
     assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
-    let before = gpu().device.get_internal_counters().hal;
+    let before = settled_counters();
     let mut levels = Vec::new();
     for i in 0..8 {
         let mut p = params;
@@ -76,17 +53,10 @@ fill = 0.8
         compositor.render(gpu(), &p, Layer::Composite).unwrap();
         levels.push(compositor.lod_level());
     }
-    let after = gpu().device.get_internal_counters().hal;
+    let after = settled_counters();
     levels.dedup();
     assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
-    for (name, a, b) in [
-        ("buffers", &before.buffers, &after.buffers),
-        ("textures", &before.textures, &after.textures),
-        ("texture views", &before.texture_views, &after.texture_views),
-        ("bind groups", &before.bind_groups, &after.bind_groups),
-    ] {
-        assert_eq!(a.read(), b.read(), "{name} changed across level switches");
-    }
+    assert_unchanged(&before, &after, &["buffers", "textures", "texture views", "bind groups"], "level switches");
 }
 
 /// Called from the one test: the counters are per device and tests run in parallel.
@@ -96,18 +66,16 @@ fn a_second_composite_reuses_the_pipelines() {
         Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
     let (mut first, params) = prepare(gpu(), &s, &inputs).unwrap();
     first.render(gpu(), &params, Layer::Composite).unwrap();
-    let before = gpu().device.get_internal_counters().hal;
+    let before = settled_counters();
     let (mut second, params) = prepare(gpu(), &s, &inputs).unwrap();
     second.render(gpu(), &params, Layer::Composite).unwrap();
-    let after = gpu().device.get_internal_counters().hal;
+    let after = settled_counters();
     // The second compositor has its own targets and buffers, but no new pipeline or shader.
     assert!(after.buffers.read() > before.buffers.read(), "the second compositor allocated no buffers");
-    for (name, a, b) in [
-        ("render pipelines", &before.render_pipelines, &after.render_pipelines),
-        ("shader modules", &before.shader_modules, &after.shader_modules),
-        ("pipeline layouts", &before.pipeline_layouts, &after.pipeline_layouts),
-        ("bind group layouts", &before.bind_group_layouts, &after.bind_group_layouts),
-    ] {
-        assert_eq!(a.read(), b.read(), "{name}: the second composite built new ones");
-    }
+    assert_unchanged(
+        &before,
+        &after,
+        &["render pipelines", "shader modules", "pipeline layouts", "bind group layouts"],
+        "a second composite (it must build no new pipelines)",
+    );
 }

@@ -7,6 +7,7 @@ pub mod cli;
 use previz::gpu::Gpu;
 use previz::render::{Layer, Rendered};
 use previz::scene::file::{Scene, SceneBuilder};
+use previz::scene::{Material, Mesh, Model};
 use previz::setup::{Inputs, load_inputs, prepare};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -113,5 +114,54 @@ pub fn assert_golden(name: &str, r: &Rendered) {
             actual_path.display(),
             diff_path.display()
         );
+    }
+}
+
+/// One upright triangle, 2 units tall, facing +z: the smallest model a compositor accepts.
+pub fn triangle() -> Model {
+    let mesh = Mesh {
+        positions: vec![[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]],
+        normals: vec![[0.0, 0.0, 1.0]; 3],
+        uvs: vec![[0.0, 0.0]; 3],
+        indices: vec![0, 1, 2],
+        material: 0,
+    };
+    Model { meshes: vec![mesh], materials: vec![Material::default()] }
+}
+
+/// wgpu's resource counters (its `counters` feature) once the GPU is idle: staging buffers of
+/// finished uploads (`write_buffer`/`write_texture`) are freed only when the device is polled, so
+/// reading the counters without waiting counted 19 or 25 buffers depending on timing.
+pub fn settled_counters() -> wgpu::HalCounters {
+    gpu().device.poll(wgpu::PollType::wait_indefinitely()).expect("waiting for the GPU");
+    let c = gpu().device.get_internal_counters().hal;
+    assert!(c.buffers.read() > 0 && c.render_pipelines.read() > 0, "wgpu counters are not enabled");
+    c
+}
+
+/// The count of one kind of GPU resource, by the name used in assertion messages.
+fn count(c: &wgpu::HalCounters, name: &str) -> isize {
+    match name {
+        "buffers" => c.buffers.read(),
+        "textures" => c.textures.read(),
+        "texture views" => c.texture_views.read(),
+        "bind groups" => c.bind_groups.read(),
+        "render pipelines" => c.render_pipelines.read(),
+        "shader modules" => c.shader_modules.read(),
+        "samplers" => c.samplers.read(),
+        "pipeline layouts" => c.pipeline_layouts.read(),
+        "bind group layouts" => c.bind_group_layouts.read(),
+        _ => panic!("no wgpu counter named {name}"),
+    }
+}
+
+/// Every resource a frame could allocate.
+pub const FRAME_RESOURCES: [&str; 7] =
+    ["buffers", "textures", "texture views", "bind groups", "render pipelines", "shader modules", "samplers"];
+
+/// Asserts that none of `names` changed between the two counter readings.
+pub fn assert_unchanged(before: &wgpu::HalCounters, after: &wgpu::HalCounters, names: &[&str], across: &str) {
+    for name in names {
+        assert_eq!(count(before, name), count(after, name), "{name} changed across {across}");
     }
 }

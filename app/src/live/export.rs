@@ -26,7 +26,7 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
     let hpr = heading_pitch_roll(p.camera.pose.as_dquat());
     let l = &p.lighting;
     let sun_dir = l.sun_dir.normalize();
-    let fade = crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
+    let fade = crate::sun::twilight::sunlight_factor_toward(sun_dir);
     // The scene's sunlight, daylight and shadow opacity are multipliers on the light measured
     // in the environment (setup::light); composite fades the sunlight by the sun's elevation
     // again. (The shadow's measured share depends on the sunlight and daylight multipliers:

@@ -67,7 +67,7 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
         None => map_sun_dir.unwrap_or(Vec3::Z),
     };
     let has_sun = light.source != SunSource::None && map_sun_dir.is_some();
-    let fade = crate::sun::twilight::sunlight_factor(f64::from(sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
+    let fade = crate::sun::twilight::sunlight_factor_toward(sun_dir);
     let sun = if has_sun { lum(light.sun_irradiance) * exposure / pi } else { 0.0 };
     // The sky's ambient radiance E/π, averaged over up and down normals (the hemisphere
     // methods blend between these two).

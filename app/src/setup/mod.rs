@@ -140,7 +140,7 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
     unit.sun.daylight = 1.0;
     unit.effects.shadow_opacity = 1.0;
     let mut unit = light_terms(&unit, &measured, &priors, exposure, heading);
-    let fade = crate::sun::twilight::sunlight_factor(f64::from(unit.sun_dir.z.clamp(-1.0, 1.0).asin().to_degrees()));
+    let fade = crate::sun::twilight::sunlight_factor_toward(unit.sun_dir);
     unit.sunlight = if fade > 0.0 { unit.sunlight / fade } else { 0.0 };
     Ok((compositor, params, unit))
 }

@@ -22,9 +22,25 @@ pub fn sunlight_factor(apparent_elevation_deg: f64) -> f32 {
     (x * x * (3.0 - 2.0 * x)) as f32
 }
 
+/// [`sunlight_factor`] for a sun in direction `dir` (ENU, any non-zero length): its elevation is
+/// the asin of the unit vector's up component. A zero or NaN direction gives 0.
+pub fn sunlight_factor_toward(dir: glam::Vec3) -> f32 {
+    sunlight_factor(f64::from(dir.normalize().z.clamp(-1.0, 1.0).asin().to_degrees()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn factor_toward_a_direction_uses_its_elevation() {
+        // 3° below the horizon, at any length: half-way through civil twilight (smoothstep(0.5)).
+        let e = (-3f32).to_radians();
+        let f = sunlight_factor_toward(glam::Vec3::new(0.0, 2.0 * e.cos(), 2.0 * e.sin()));
+        assert!((f - 0.5).abs() < 1e-5, "{f}");
+        assert_eq!(sunlight_factor_toward(glam::Vec3::Z), 1.0);
+        assert_eq!(sunlight_factor_toward(glam::Vec3::ZERO), 0.0);
+    }
 
     #[test]
     fn ends_of_the_band() {

@@ -5,7 +5,7 @@ use crate::gpu::Gpu;
 use crate::render::{Layer, LightingMethod};
 use crate::scene::demo;
 use crate::scene::file::{Scene, SceneBuilder};
-use crate::setup::{load_inputs, prepare};
+use crate::setup::{SceneLight, load_inputs, prepare_with_light};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -163,18 +163,17 @@ fn flag_for_error(msg: &str) -> String {
 
 /// The frame's light and where it came from: the sun used (the scene's or the map's) and the
 /// sun found in the map, both as ENU directions with azimuth/elevation in degrees.
-fn light_json(scene: &crate::scene::file::Scene, inputs: &crate::setup::Inputs, params: &crate::render::FrameParams) -> serde_json::Value {
-    let measured = crate::setup::measure_environment(scene, &inputs.env);
+fn light_json(scene: &crate::scene::file::Scene, light: &SceneLight, params: &crate::render::FrameParams) -> serde_json::Value {
+    let measured = &light.measured;
     let dir = |d: glam::Vec3| {
         let (az, el) = crate::light::sun_finder::azimuth_elevation(d);
         serde_json::json!({ "enu": d.to_array(), "azimuth_deg": az.to_degrees(), "elevation_deg": el.to_degrees() })
     };
-    let map_sun = measured.sun_dir.map(|d| crate::setup::light::map_to_world(d, (scene.env.heading as f32).to_radians()));
     let l = &params.lighting;
     serde_json::json!({
         "sun_from": if scene.sun.direction.is_some() { "scene" } else { "map" },
         "sun_dir": dir(l.sun_dir),
-        "map_sun_dir": map_sun.map(dir),
+        "map_sun_dir": light.unit.map_sun_dir.map(dir),
         "map_sun": format!("{:?}", measured.source).to_lowercase(),
         "map_sun_irradiance": measured.sun_irradiance,
         "sunlight": l.sunlight,
@@ -199,7 +198,7 @@ pub fn run(args: Args) -> Result<()> {
 
     let t_upload = Instant::now();
     let gpu = Gpu::headless()?;
-    let (mut compositor, params) = prepare(&gpu, &scene, &inputs)?;
+    let (mut compositor, params, light) = prepare_with_light(&gpu, &scene, &inputs)?;
     let upload_ms = ms(t_upload);
 
     let composite = compositor.render(&gpu, &params, Layer::Composite)?;
@@ -237,7 +236,7 @@ pub fn run(args: Args) -> Result<()> {
             "model_pixels": model_pixels,
             "method": scene.method.name(),
             "colour_correction": { "method": scene.colour.correction.name(), "strength": scene.colour.strength },
-            "light": light_json(&scene, &inputs, &params),
+            "light": light_json(&scene, &light, &params),
             "adapter": gpu.describe(),
             "timings_ms": {
                 "load": load_ms,

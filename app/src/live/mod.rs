@@ -211,7 +211,8 @@ impl LiveSession {
     /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
     pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let (compositor, params, unit_light) = compositor_and_light(gpu, scene, env, model)?;
+        let (compositor, params, light) = compositor_and_light(gpu, scene, env, model)?;
+        let unit_light = light.unit;
         // True north from the first GPS fix and the World Magnetic Model for the date.
         let mut filter = OrientationFilter::new(FusionConfig::default());
         filter.set_date(magnetic_model_date(cfg.start.date_naive()));

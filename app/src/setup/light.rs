@@ -38,6 +38,16 @@ pub fn map_to_world(m: Vec3, heading: f32) -> Vec3 {
     Vec3::new(c * m.x + s * m.y, -s * m.x + c * m.y, m.z)
 }
 
+/// The light measured in a scene's environment, kept with the compositor it was set up for: what
+/// the map holds, and the frame's light terms with the scene's multipliers (sun.sunlight,
+/// sun.daylight, effects.shadow_opacity) at 1 before the twilight fade — what the live view's
+/// sliders and its export scale.
+#[derive(Clone, Debug)]
+pub struct SceneLight {
+    pub measured: MeasuredLight,
+    pub unit: LightTerms,
+}
+
 /// The light terms of a frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightTerms {

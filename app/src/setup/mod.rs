@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 
 pub mod light;
-pub use light::{LightTerms, light_terms, measure_environment};
+pub use light::{LightTerms, SceneLight, light_terms, measure_environment};
 
 /// Everything loaded from disk (or the embedded demo) for a scene.
 pub struct Inputs {
@@ -111,9 +111,15 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> 
 /// GPU resources for a scene and the parameters of its frame: what `run`, the tests and the
 /// benchmark share.
 pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
-    let (mut compositor, params) = compositor_for(gpu, scene, &inputs.env, &inputs.model)?;
+    prepare_with_light(gpu, scene, inputs).map(|(c, p, _)| (c, p))
+}
+
+/// [`prepare`], and the light measured in the environment (for reporting it without measuring
+/// the map again).
+pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams, SceneLight)> {
+    let (mut compositor, params, light) = compositor_and_light(gpu, scene, &inputs.env, &inputs.model)?;
     compositor.set_background(gpu, inputs.background.as_ref())?;
-    Ok((compositor, params))
+    Ok((compositor, params, light))
 }
 
 /// A compositor with the scene's environment (at its exposure and heading) and model, and the
@@ -123,10 +129,8 @@ pub fn compositor_for(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) ->
     compositor_and_light(gpu, scene, env, model).map(|(c, p, _)| (c, p))
 }
 
-/// [`compositor_for`], and the light terms measured in the environment with the scene's
-/// multipliers (sun.sunlight, sun.daylight, effects.shadow_opacity) at 1, before the twilight
-/// fade: what the live view's sliders and its export scale.
-pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams, LightTerms)> {
+/// [`compositor_for`], and the light measured in the environment ([`SceneLight`]).
+pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams, SceneLight)> {
     let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
     let (exposure, heading) = (exposure(scene, env), (scene.env.heading as f32).to_radians());
     compositor.set_environment(gpu, env, exposure, heading)?;
@@ -142,5 +146,5 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
     let mut unit = light_terms(&unit, &measured, &priors, exposure, heading);
     let fade = crate::sun::twilight::sunlight_factor_toward(unit.sun_dir);
     unit.sunlight = if fade > 0.0 { unit.sunlight / fade } else { 0.0 };
-    Ok((compositor, params, unit))
+    Ok((compositor, params, SceneLight { measured, unit }))
 }

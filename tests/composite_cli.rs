@@ -66,7 +66,7 @@ fn layers_and_json() {
     for key in ["load", "upload", "readback", "total"] {
         assert!(json["timings_ms"][key].as_f64().unwrap() >= 0.0, "{key}");
     }
-    assert_eq!(json["outputs"].as_array().unwrap().len(), 4);
+    assert_eq!(json["outputs"].as_array().unwrap().len(), 5);
     // The model layer: premultiplied, alpha = coverage; its opaque pixel count is the JSON's.
     let model = image::open(layers.join("model_rgba.png")).unwrap().to_rgba8();
     let covered = model.pixels().filter(|p| p[3] > 0).count() as u64;

@@ -69,6 +69,26 @@ fn encode_png(width: u32, height: u32, data: &[u8], ty: image::ExtendedColorType
     Ok(buf)
 }
 
+/// Write a `width`×`height` OpenEXR of 32-bit float channels, one part, scan lines with ZIP
+/// compression (lossless; every OpenEXR reader decodes it). `channels`: (name, plane row-major
+/// from the top-left pixel); the file lists them sorted by name, as the format requires.
+pub fn write_exr_f32(path: &Path, width: u32, height: u32, channels: Vec<(&str, Vec<f32>)>) -> Result<()> {
+    use exr::prelude::*;
+    let pixels = width as usize * height as usize;
+    if pixels == 0 || channels.is_empty() {
+        anyhow::bail!("{}: an EXR needs at least one pixel and one channel", path.display());
+    }
+    if let Some((name, plane)) = channels.iter().find(|(_, plane)| plane.len() != pixels) {
+        anyhow::bail!("{}: channel {name} has {} samples for {width}x{height} pixels", path.display(), plane.len());
+    }
+    let list = channels.into_iter().map(|(name, plane)| AnyChannel::new(name, FlatSamples::F32(plane))).collect();
+    let layer =
+        Layer::new((width as usize, height as usize), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+    let mut buf = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer).write().to_buffered(&mut buf).with_context(|| format!("{}: EXR encoding failed", path.display()))?;
+    write_atomic(path, buf.get_ref())
+}
+
 fn temp_sibling(path: &Path) -> PathBuf {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
@@ -93,6 +113,26 @@ mod tests {
             .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
             .collect();
         assert!(leftovers.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn exr_channels_round_trip_as_f32() {
+        let dir = std::env::temp_dir().join(format!("previz-out-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("layers.exr");
+        // Values f16 cannot hold (1e-7, 70000, 1 + 2^-20) and infinity must come back bit-exact.
+        let z = vec![1e-7, 70000.0, 1.0 + 2f32.powi(-20), f32::INFINITY, 0.5, 2.0];
+        let r = vec![0.25, 0.5, 0.75, 1.0, 1.25, 1.5];
+        write_exr_f32(&path, 3, 2, vec![("depth.Z", z.clone()), ("R", r.clone())]).unwrap();
+        let image = exr::prelude::read_first_flat_layer_from_file(&path).unwrap();
+        let channels = &image.layer_data.channel_data.list;
+        let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
+        assert_eq!(names, ["R", "depth.Z"]);
+        assert_eq!(channels[0].sample_data.values_as_f32().collect::<Vec<_>>(), r);
+        assert_eq!(channels[1].sample_data.values_as_f32().collect::<Vec<_>>(), z);
+        let err = format!("{:#}", write_exr_f32(&path, 3, 3, vec![("R", r)]).unwrap_err());
+        assert!(err.contains("channel R has 6 samples for 3x3 pixels") && err.contains("layers.exr"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

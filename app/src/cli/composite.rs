@@ -19,7 +19,9 @@ pub struct Args {
     /// Output image  [key: output]
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
-    /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage) and background.png into DIR
+    /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage), background.png and
+    /// layers.exr (linear float: beauty R,G,B,A; model.R/G/B/A premultiplied; shadow.Y matte, 1 = no
+    /// darkening; background.R/G/B; depth.Z camera distance in metres, inf where no model) into DIR
     #[arg(long, value_name = "DIR")]
     pub layers: Option<PathBuf>,
     /// Print outputs, size, model pixel count, method and timings as JSON
@@ -204,6 +206,7 @@ pub fn run(args: Args) -> Result<()> {
     let composite = compositor.render(&gpu, &params, Layer::Composite)?;
     let model_layer = if args.json || args.layers.is_some() { Some(compositor.render(&gpu, &params, Layer::Model)?) } else { None };
     let background_layer = if args.layers.is_some() { Some(compositor.render(&gpu, &params, Layer::Background)?) } else { None };
+    let float_layers = if args.layers.is_some() { Some(compositor.render_layers(&gpu, &params)?) } else { None };
 
     // Encode everything first, then write: an error leaves no output behind.
     let mut outputs: Vec<(PathBuf, &crate::render::Rendered)> = vec![(scene.output.clone(), &composite)];
@@ -225,6 +228,16 @@ pub fn run(args: Args) -> Result<()> {
             return Err(e);
         }
         written.push(path.clone());
+    }
+    if let (Some(dir), Some(layers)) = (&args.layers, &float_layers) {
+        let path = dir.join(crate::render::layers::EXR_FILE);
+        if let Err(e) = crate::output::write_exr_f32(&path, layers.width, layers.height, layers.channels()) {
+            for p in &written {
+                let _ = std::fs::remove_file(p);
+            }
+            return Err(e);
+        }
+        written.push(path);
     }
 
     if args.json {

@@ -1,6 +1,6 @@
 //! The shutter: the current live frame as files a desktop reproduces. Into a folder it writes
 //! the composite and its layers (the names `previz composite --layers` uses: `composite.png`,
-//! `model_rgba.png`, `background.png`), the camera image (`camera.png`) and `scene.toml`, the
+//! `model_rgba.png`, `background.png`, the float layers in `layers.exr`), the camera image (`camera.png`) and `scene.toml`, the
 //! scene of that moment — camera pose and field of view, sun direction and intensity, the panel's
 //! values, the model's placement, the camera image as background — so that
 //! `previz composite scene.toml` (run in the folder) renders the same frame into
@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use toml::Value;
 
 /// The files of one export, in the order written.
-pub const FILES: [&str; 5] = ["composite.png", "model_rgba.png", "background.png", "camera.png", "scene.toml"];
+pub const FILES: [&str; 6] = ["composite.png", "model_rgba.png", "background.png", "camera.png", "layers.exr", "scene.toml"];
 
 /// The scene of the session's current frame (model, environment, size and what the frame does
 /// not change come from the scene the session was made from). Paths: the camera image is
@@ -110,6 +110,7 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option
     let composite = session.render_layer(gpu, Layer::Composite)?;
     let model = session.render_layer(gpu, Layer::Model)?;
     let background = session.render_layer(gpu, Layer::Background)?;
+    let layers = session.render_float_layers(gpu)?;
     let toml = scene_toml(session, location)?;
     let mut written = Vec::new();
     let result = (|| -> Result<()> {
@@ -124,6 +125,9 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option
             written.push(path);
         }
         let path = dir.join(FILES[4]);
+        crate::output::write_exr_f32(&path, layers.width, layers.height, layers.channels())?;
+        written.push(path);
+        let path = dir.join(FILES[5]);
         std::fs::write(&path, &toml).with_context(|| format!("writing {}", path.display()))?;
         written.push(path);
         Ok(())

@@ -332,6 +332,11 @@ impl LiveSession {
         self.compositor.render(gpu, &self.params, layer)
     }
 
+    /// The current frame's float layers (render/layers.rs), for the shutter's `layers.exr`.
+    pub fn render_float_layers(&mut self, gpu: &Gpu) -> Result<crate::render::layers::LayerImages> {
+        self.compositor.render_layers(gpu, &self.params)
+    }
+
     pub fn compositor(&self) -> &Compositor {
         &self.compositor
     }

@@ -6,6 +6,7 @@
 
 use super::environment::{self, Environment};
 use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, lod_level};
+use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::GroundPass;
@@ -49,6 +50,8 @@ pub struct Compositor {
     /// The model's transform, read by the shadow and model passes.
     instance_buf: wgpu::Buffer,
     targets: Targets,
+    /// The float layer targets, made by the first `render_layers`.
+    layer_targets: Option<LayerTargets>,
     shadow: ShadowPass,
     background: BackgroundPass,
     ground: GroundPass,
@@ -95,6 +98,7 @@ impl Compositor {
             frame_buf,
             instance_buf,
             targets,
+            layer_targets: None,
             shadow,
             background,
             ground,
@@ -252,8 +256,35 @@ impl Compositor {
         Ok(Rendered { width: self.width, height: self.height, rgba, timings: Timings { encode_ms, gpu_ms, readback_ms } })
     }
 
+    /// Render the frame's layers in float (render/layers.rs: background, shadow matte, model,
+    /// depth, and the beauty composed from them) and read them back. The layer targets and
+    /// pipelines are made on the first call; the 8-bit frame's are not touched.
+    pub fn render_layers(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<LayerImages> {
+        gpu.checked("the layers", || {
+            let pipelines = LayerPipelines::shared(gpu, &self.pipelines)?;
+            if self.layer_targets.is_none() {
+                self.layer_targets = Some(LayerTargets::new(&gpu.device, (self.width, self.height))?);
+            }
+            let data = self.write_frame(gpu, p, Layer::Composite)?;
+            let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("layers") });
+            self.encode_layers(&mut encoder, &pipelines, p.method)?;
+            let targets = self.layer_targets.as_ref().ok_or_else(|| anyhow!("no layer targets"))?;
+            targets.copy_for_readback(&mut encoder);
+            gpu.queue.submit([encoder.finish()]);
+            targets.read(gpu, glam::Mat4::from_cols_array_2d(&data.frame.view_proj), Vec3::from(data.frame.camera_pos))
+        })
+    }
+
     /// Write the frame's uniforms and encode its passes.
     fn prepare_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<wgpu::CommandEncoder> {
+        self.write_frame(gpu, p, layer)?;
+        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        self.encode_frame(&mut encoder, layer, p.method)?;
+        Ok(encoder)
+    }
+
+    /// Write the frame's uniforms; note its level of detail and the passes it runs.
+    fn write_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<FrameData> {
         let data = self.frame_uniforms(p)?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let queue = &gpu.queue;
@@ -265,9 +296,7 @@ impl Compositor {
         let composite = layer == Layer::Composite;
         self.passes_run =
             PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
-        let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        self.encode_frame(&mut encoder, layer, p.method)?;
-        Ok(encoder)
+        Ok(data)
     }
 
     /// The passes of one frame, top-down (DESIGN.md "One frame"). The camera image (1.) was
@@ -276,22 +305,12 @@ impl Compositor {
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
     fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::LightingMethod) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        // The shadow is not needed for the background alone.
         let shadows = self.passes_run.shadow;
         // The first pass recorded writes the start timestamp, the composite pass the end.
         let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(0, begin, end));
 
-        // 2. Shadow pass: the model's depth seen from the sun.
-        if shadows {
-            let mut pass = self.shadow.begin(encoder, stamp(true, false));
-            in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
-        }
-
-        // 3a. The environment seen by the camera becomes the background when there is no image.
-        if self.background.from_env() {
-            let mut pass = self.background.begin_env_view(encoder, stamp(!shadows, false));
-            in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
-        }
+        // 2-3a. The shadow map and the background texture.
+        self.encode_shadow_and_env_view(encoder, model, true)?;
 
         // 3b-5. Background, ground shadow and model into the multisampled target.
         let first = !shadows && !self.background.from_env();
@@ -310,6 +329,48 @@ impl Compositor {
             in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, self.level))?;
         }
         Ok(())
+    }
+
+    /// Step 2, the shadow pass: the model's depth seen from the sun (not needed for the
+    /// background alone); step 3a: the environment seen by the camera becomes the background
+    /// when there is no image. `timed`: the first pass writes the frame's start timestamp.
+    fn encode_shadow_and_env_view(&self, encoder: &mut wgpu::CommandEncoder, model: &ModelGpu, timed: bool) -> Result<()> {
+        let shadows = self.passes_run.shadow;
+        let stamp = |begin: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(0, begin, false)) } else { None };
+        if shadows {
+            let mut pass = self.shadow.begin(encoder, stamp(true));
+            in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
+        }
+        if self.background.from_env() {
+            let mut pass = self.background.begin_env_view(encoder, stamp(!shadows));
+            in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
+        }
+        Ok(())
+    }
+
+    /// The frame's passes for its layers (render/layers.rs), each alone into its float target:
+    /// the same shadow map and background texture, then background, ground over white (the
+    /// shadow matte), the model over transparent black, and the model's depth.
+    fn encode_layers(&self, encoder: &mut wgpu::CommandEncoder, pipelines: &LayerPipelines, method: super::LightingMethod) -> Result<()> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let targets = self.layer_targets.as_ref().ok_or_else(|| anyhow!("no layer targets"))?;
+        self.encode_shadow_and_env_view(encoder, model, false)?;
+        {
+            let mut pass = targets.begin(encoder, LayerPass::Background);
+            in_group(&mut pass, "background layer", |pass| self.background.draw_with(pass, pipelines.background()));
+        }
+        {
+            let mut pass = targets.begin(encoder, LayerPass::Matte);
+            if self.passes_run.ground {
+                in_group(&mut pass, "shadow matte layer", |pass| self.ground.draw_with(pass, pipelines.ground()));
+            }
+        }
+        {
+            let mut pass = targets.begin(encoder, LayerPass::Model);
+            in_group(&mut pass, "model layer", |pass| self.model_pass.draw_with(pass, pipelines.model(method), model, self.level))?;
+        }
+        let mut pass = targets.begin_depth(encoder);
+        in_group(&mut pass, "depth layer", |pass| self.model_pass.draw_with(pass, pipelines.depth(), model, self.level))
     }
 }
 

@@ -3,6 +3,7 @@
 pub mod compositor;
 pub mod environment;
 pub mod frame;
+pub mod layers;
 pub mod method;
 pub mod params;
 pub mod passes;

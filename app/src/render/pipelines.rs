@@ -27,6 +27,11 @@ pub struct Vertex {
 }
 
 pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
+    pipeline_into(device, spec, COLOR_FORMAT)
+}
+
+/// A pass's pipeline drawing into `format` targets (the float layers, render/layers.rs).
+pub(super) fn pipeline_into(device: &wgpu::Device, spec: PipelineSpec<'_>, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
     let label = format!("{:?}", spec.technique);
     let module = build::shader(device, &label, source(spec.technique));
     build::render_pipeline(
@@ -36,7 +41,7 @@ pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::R
             module: &module,
             layouts: spec.layouts,
             vertex_buffers: spec.vertex_buffers,
-            colour: spec.blend.map(|blend| wgpu::ColorTargetState { format: COLOR_FORMAT, blend, write_mask: wgpu::ColorWrites::ALL }),
+            colour: spec.blend.map(|blend| wgpu::ColorTargetState { format, blend, write_mask: wgpu::ColorWrites::ALL }),
             depth: spec.depth,
             samples: spec.samples,
             constants: &[],

@@ -3,7 +3,9 @@
 //! background texture (the environment-view pass), so every later pass reads one background.
 
 use crate::gpu::{Gpu, build};
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline as make};
+use crate::render::pipelines::{
+    COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline as make, pipeline_into,
+};
 use crate::render::shaders::Technique;
 use crate::scene::Rgba8Image;
 use anyhow::{Result, anyhow, bail};
@@ -38,18 +40,21 @@ pub fn env_view_pipeline(device: &wgpu::Device) -> PassPipeline {
 pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
     let fs = ShaderStages::FRAGMENT;
     let layout = build::layout(device, "background", &[build::texture_entry(0, fs, D2, true), build::sampler_entry(1, fs, Filtering)]);
-    let pipeline = make(
-        device,
-        PipelineSpec {
-            technique: Technique::Background,
-            layouts: &[&layout],
-            vertex_buffers: &[],
-            depth: depth_state(false, wgpu::DepthBiasState::default()),
-            samples: SAMPLES,
-            blend: Some(None),
-        },
-    );
+    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT);
     PassPipeline { layout, pipeline }
+}
+
+/// The background pipeline with bind-group `layout`, drawing into `format` targets.
+pub fn pipeline_for(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+    let spec = PipelineSpec {
+        technique: Technique::Background,
+        layouts: &[layout],
+        vertex_buffers: &[],
+        depth: depth_state(false, wgpu::DepthBiasState::default()),
+        samples: SAMPLES,
+        blend: Some(None),
+    };
+    pipeline_into(device, spec, format)
 }
 
 pub struct BackgroundPass {
@@ -164,7 +169,12 @@ impl BackgroundPass {
 
     /// 3b. The background fills the composite target.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
-        pass.set_pipeline(&self.pipeline);
+        self.draw_with(pass, &self.pipeline);
+    }
+
+    /// Draw with `pipeline`: this pass's, or its float twin (render/layers.rs).
+    pub fn draw_with(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.draw(0..3, 0..1);
     }

@@ -3,7 +3,7 @@
 
 use super::super::uniforms::InstanceUniforms;
 use crate::gpu::build;
-use crate::render::pipelines::{PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline as make};
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline_into};
 use crate::render::shaders::Technique;
 use wgpu::ShaderStages;
 
@@ -21,18 +21,21 @@ pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
             build::sampler_entry(3, fs, wgpu::SamplerBindingType::Comparison),
         ],
     );
-    let pipeline = make(
-        device,
-        PipelineSpec {
-            technique: Technique::Ground,
-            layouts: &[&layout],
-            vertex_buffers: &[],
-            depth: depth_state(false, wgpu::DepthBiasState::default()),
-            samples: SAMPLES,
-            blend: Some(Some(wgpu::BlendState::ALPHA_BLENDING)),
-        },
-    );
+    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT);
     PassPipeline { layout, pipeline }
+}
+
+/// The ground pipeline with bind-group `layout`, drawing into `format` targets.
+pub fn pipeline_for(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+    let spec = PipelineSpec {
+        technique: Technique::Ground,
+        layouts: &[layout],
+        vertex_buffers: &[],
+        depth: depth_state(false, wgpu::DepthBiasState::default()),
+        samples: SAMPLES,
+        blend: Some(Some(wgpu::BlendState::ALPHA_BLENDING)),
+    };
+    pipeline_into(device, spec, format)
 }
 
 pub struct GroundPass {
@@ -66,7 +69,12 @@ impl GroundPass {
     }
 
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
-        pass.set_pipeline(&self.pipeline);
+        self.draw_with(pass, &self.pipeline);
+    }
+
+    /// Draw with `pipeline`: this pass's, or its float twin (render/layers.rs).
+    pub fn draw_with(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.draw(0..6, 0..1);
     }

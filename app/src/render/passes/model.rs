@@ -56,13 +56,28 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
         "material",
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
-    let vertex_layout = wgpu::VertexBufferLayout {
+    let by_method = pipelines_for(device, (&layout, &material_layout), COLOR_FORMAT);
+    ModelPipelines { layout, material_layout, by_method }
+}
+
+fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRIBUTES: [wgpu::VertexAttribute; 3] = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+    wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
-    };
+        attributes: &ATTRIBUTES,
+    }
+}
+
+/// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
+/// layouts (`layout`, `material_layout`), drawing into `format` targets.
+pub fn pipelines_for(
+    device: &wgpu::Device,
+    (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    format: wgpu::TextureFormat,
+) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
-    let by_method = LightingMethod::ALL
+    LightingMethod::ALL
         .iter()
         .map(|m| {
             let constants = [("METHOD", f64::from(m.shader_id()))];
@@ -71,10 +86,10 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
                 build::PipelineSpec {
                     label: m.name(),
                     module: &module,
-                    layouts: &[&layout, &material_layout],
-                    vertex_buffers: &[Some(vertex_layout.clone())],
+                    layouts: &[layout, material_layout],
+                    vertex_buffers: &[Some(vertex_layout())],
                     colour: Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
+                        format,
                         blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
                         write_mask: wgpu::ColorWrites::ALL,
                     }),
@@ -84,8 +99,26 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
                 },
             )
         })
-        .collect();
-    ModelPipelines { layout, material_layout, by_method }
+        .collect()
+}
+
+/// The model's depth seen by the camera, single-sampled and without colour: the model pass's
+/// vertex stage (so the same surface), for the depth layer (render/layers.rs).
+pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines) -> wgpu::RenderPipeline {
+    let module = build::shader(device, "model depth", source(Technique::Model));
+    build::render_pipeline(
+        device,
+        build::PipelineSpec {
+            label: "model depth",
+            module: &module,
+            layouts: &[&pipelines.layout, &pipelines.material_layout],
+            vertex_buffers: &[Some(vertex_layout())],
+            colour: None,
+            depth: depth_state(true, wgpu::DepthBiasState::default()),
+            samples: 1,
+            constants: &[("METHOD", 0.0)],
+        },
+    )
 }
 
 /// A mesh's vertices interleaved for the vertex buffer, after checking that its attribute
@@ -305,8 +338,20 @@ impl ModelPass {
 
     /// Draw `model` with `method`'s pipeline at level of detail `level`.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: LightingMethod, level: usize) -> Result<()> {
+        self.draw_with(pass, &self.by_method[method.shader_id() as usize], model, level)
+    }
+
+    /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from
+    /// render/layers.rs) at level of detail `level`.
+    pub fn draw_with(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        pipeline: &wgpu::RenderPipeline,
+        model: &ModelGpu,
+        level: usize,
+    ) -> Result<()> {
         let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        pass.set_pipeline(&self.by_method[method.shader_id() as usize]);
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bind_group, &[]);
         model.draw_meshes(pass, Some(1), level);
         Ok(())

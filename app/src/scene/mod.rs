@@ -114,3 +114,4 @@ pub mod file;
 pub mod lod;
 pub mod model;
 pub mod normals;
+pub mod occlusion;

@@ -91,7 +91,7 @@ fn frame_json(f: &LiveFrame) -> serde_json::Value {
 }
 
 fn headless(
-    scene: &crate::scene::file::Scene,
+    scene: &crate::setup::scene_file::Scene,
     env: Arc<crate::scene::CubeMap>,
     model: &crate::scene::Model,
     cfg: LiveConfig,
@@ -125,7 +125,7 @@ fn headless(
 
 #[cfg(not(any(target_os = "android", target_os = "ios")))]
 fn run_window(
-    scene: crate::scene::file::Scene,
+    scene: crate::setup::scene_file::Scene,
     env: Arc<crate::scene::CubeMap>,
     model: crate::scene::Model,
     cfg: LiveConfig,
@@ -135,6 +135,6 @@ fn run_window(
 }
 
 #[cfg(any(target_os = "android", target_os = "ios"))]
-fn run_window(_: crate::scene::file::Scene, _: Arc<crate::scene::CubeMap>, _: crate::scene::Model, _: LiveConfig) -> Result<()> {
+fn run_window(_: crate::setup::scene_file::Scene, _: Arc<crate::scene::CubeMap>, _: crate::scene::Model, _: LiveConfig) -> Result<()> {
     bail!("the desktop window is not available on phones")
 }

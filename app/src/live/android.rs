@@ -11,9 +11,9 @@
 use super::window;
 use super::{LiveConfig, LiveSession};
 use crate::scene::demo;
-use crate::scene::file::SceneBuilder;
 use crate::sensors::permissions::PermissionFlow;
 use crate::sensors::sim::NoiseLevel;
+use crate::setup::scene_file::SceneBuilder;
 use anyhow::{Context, Result};
 use jni::objects::JObject;
 use jni::vm::JavaVM;

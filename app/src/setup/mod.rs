@@ -6,12 +6,13 @@
 
 use crate::gpu::Gpu;
 use crate::render::{Camera, ColourSettings, Compositor, FrameParams, Lighting, MaterialTerms, Placement, view};
-use crate::scene::file::Scene;
 use crate::scene::{CubeMap, Model, Rgba8Image, demo};
+use crate::setup::scene_file::Scene;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
 pub mod light;
+pub mod scene_file;
 pub use light::{LightTerms, SceneLight, light_terms, measure_environment};
 
 /// Everything loaded from disk (or the embedded demo) for a scene.

@@ -10,7 +10,7 @@
 //! nalgebra and a second maths library next to glam.
 
 use super::{Mesh, Model};
-use glam::Vec3;
+use glam::{Mat4, Vec2, Vec3};
 use std::f32::consts::TAU;
 
 /// Rays cast for a whole model at most (when that leaves each vertex at least [`MIN_RAYS`]): the
@@ -202,6 +202,85 @@ pub fn smooth_over_neighbours(mesh: &Mesh, values: &[f32]) -> Vec<f32> {
 /// occluders: the sky a ground point under the model still receives.
 pub fn sky_visibility(occluders: &Occluders, point: Vec3, up: Vec3, rays: u32, seed: u32) -> f32 {
     occluders.visibility(point, up, rays, seed)
+}
+
+/// Texels per side of the ground's sky-visibility map.
+pub const GROUND_TEXELS: u32 = 64;
+/// Rays per texel of the ground map.
+pub const GROUND_RAYS: u32 = 64;
+
+/// The sky a horizontal ground square under a placed model still sees: the contact shadow an
+/// overcast sky (or the sky part of any light) leaves under the model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundSky {
+    /// World corners of the square (x, y) at height `z`.
+    pub min: Vec2,
+    pub max: Vec2,
+    pub z: f32,
+    /// Texels per side; `visibility` is row-major from `min` (row 0 at min.y), cosine-weighted
+    /// sky visibility in 0..=1 at each texel's centre.
+    pub size: u32,
+    pub visibility: Vec<f32>,
+}
+
+impl GroundSky {
+    /// The visibility at world (x, y) by bilinear interpolation between texel centres (1 outside
+    /// the square: far from the model the sky is whole).
+    pub fn at(&self, p: Vec2) -> f32 {
+        let uv = (p - self.min) / (self.max - self.min);
+        if !(0.0..=1.0).contains(&uv.x) || !(0.0..=1.0).contains(&uv.y) {
+            return 1.0;
+        }
+        let n = self.size as usize;
+        let f = (uv * self.size as f32 - 0.5).clamp(Vec2::ZERO, Vec2::splat(self.size as f32 - 1.0));
+        let (x0, y0) = (f.x as usize, f.y as usize);
+        let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
+        let (tx, ty) = (f.x - x0 as f32, f.y - y0 as f32);
+        let v = |x: usize, y: usize| self.visibility[y * n + x];
+        let top = v(x0, y0) * (1.0 - tx) + v(x1, y0) * tx;
+        let bottom = v(x0, y1) * (1.0 - tx) + v(x1, y1) * tx;
+        top * (1.0 - ty) + bottom * ty
+    }
+}
+
+/// The ground square that holds the model's contact shadow: the footprint of the placed model's
+/// box (model-space `bounds`, placement `model`, world z up) widened by twice its height on
+/// every side, at the box's lowest point. Past that margin a wall as tall as the box hides less
+/// than (1 − cos atan ½)/2 ≈ 5 % of the cosine-weighted sky.
+pub fn ground_square(bounds: (Vec3, Vec3), model: Mat4) -> (Vec2, Vec2, f32) {
+    let (lo, hi) = bounds;
+    let corners = (0..8).map(|i| model.transform_point3(Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][i >> 2])));
+    let (wlo, whi) = corners.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| (a.min(c), b.max(c)));
+    let margin = 2.0 * (whi.z - wlo.z);
+    let centre = 0.5 * (wlo.truncate() + whi.truncate());
+    let half = 0.5 * (whi.truncate() - wlo.truncate()).max_element() + margin;
+    (centre - Vec2::splat(half), centre + Vec2::splat(half), wlo.z)
+}
+
+/// The ground's sky visibility around a model placed by `model` (model space → world, a
+/// rotation, uniform scale and translation): `occluders` are the model's triangles in model
+/// space; `size`² texels over [`ground_square`], `rays` rays each. Computed once per placement.
+pub fn ground_sky(occluders: &Occluders, bounds: (Vec3, Vec3), model: Mat4, size: u32, rays: u32) -> GroundSky {
+    let (min, max, z) = ground_square(bounds, model);
+    let to_model = model.inverse();
+    let up = to_model.transform_vector3(Vec3::Z).normalize_or_zero();
+    let n = size.max(1) as usize;
+    let mut visibility = vec![1.0f32; n * n];
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(n);
+    let rows = n.div_ceil(threads);
+    std::thread::scope(|s| {
+        for (c, out) in visibility.chunks_mut(rows * n).enumerate() {
+            s.spawn(move || {
+                for (k, v) in out.iter_mut().enumerate() {
+                    let (x, y) = (k % n, c * rows + k / n);
+                    let uv = (Vec2::new(x as f32, y as f32) + 0.5) / n as f32;
+                    let world = (min + (max - min) * uv).extend(z);
+                    *v = occluders.visibility(to_model.transform_point3(world), up, rays, (y * n + x) as u32);
+                }
+            });
+        }
+    });
+    GroundSky { min, max, z, size: n as u32, visibility }
 }
 
 fn mesh_triangles(mesh: &Mesh) -> impl Iterator<Item = [Vec3; 3]> + '_ {
@@ -522,6 +601,55 @@ mod tests {
         assert_eq!(rays_per_vertex(100), MAX_RAYS);
         assert_eq!(rays_per_vertex(50_000), 40);
         assert_eq!(rays_per_vertex(10_000_000), MIN_RAYS);
+    }
+
+    #[test]
+    fn the_ground_under_a_placed_sphere_is_darkest_below_it_and_whole_far_away() {
+        // A model-space (y-up) unit sphere centred 2 above its origin, placed by a scale of 1.5,
+        // a turn of 0.7 rad about world z and a move to (3, -1, 0.5): in the world a sphere of
+        // radius 1.5 centred at (3, -1, 3.5), resting on the ground square at z = 2.
+        let mut mesh = sphere(1.0, 48, 96);
+        for p in &mut mesh.positions {
+            p[1] += 2.0;
+        }
+        let y_up = Mat4::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        let model =
+            Mat4::from_translation(Vec3::new(3.0, -1.0, 0.5)) * Mat4::from_rotation_z(0.7) * Mat4::from_scale(Vec3::splat(1.5)) * y_up;
+        let bounds = (Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 3.0, 1.0));
+        let occ = Occluders::new(mesh_triangles(&mesh).collect());
+        let sky = ground_sky(&occ, bounds, model, 33, 256);
+        assert!((sky.z - 2.0).abs() < 1e-4, "{}", sky.z);
+        let centre = Vec2::new(3.0, -1.0);
+        assert!(((sky.min + sky.max) * 0.5 - centre).length() < 1e-4);
+        // The side: the turned box's footprint, 3 (cos 0.7 + sin 0.7), plus twice its height (3)
+        // on both sides.
+        let side = 3.0 * (0.7f32.cos() + 0.7f32.sin()) + 12.0;
+        assert!(((sky.max - sky.min) - Vec2::splat(side)).length() < 1e-3, "{:?} vs {side}", sky.max - sky.min);
+        // Darkest at the texel under the contact point (the middle of a 33-texel map).
+        let darkest = sky.visibility.iter().copied().enumerate().fold((0, 2.0), |b, (i, v)| if v < b.1 { (i, v) } else { b });
+        assert_eq!(darkest.0, 16 * 33 + 16);
+        // Under a sphere of radius R whose centre is h above the ground: 1 − (R/h)²; this one
+        // touches the ground (R = h), and the middle texel lies right under the contact point.
+        assert!(darkest.1 < 0.02, "{}", darkest.1);
+        // The map's corner, 8.1·√2 = 11.5 from the centre: the sphere hides less than
+        // (1.5/11.5)² = 1.7 % of the cosine-weighted sky there.
+        assert!(sky.visibility[0] > 0.98, "{}", sky.visibility[0]);
+        assert!(sky.at(centre + Vec2::splat(100.0)) == 1.0);
+    }
+
+    #[test]
+    fn the_ground_map_under_a_floating_sphere_matches_the_cap() {
+        // A sphere of radius 1 floating with its centre 2 above z = 0, under a square whose
+        // z is forced to the ground: 1 − (R/h)² = 0.75 right under it.
+        let mut mesh = sphere(1.0, 48, 96);
+        for p in &mut mesh.positions {
+            p[2] += 2.0;
+        }
+        let occ = Occluders::new(mesh_triangles(&mesh).collect());
+        // Bounds that reach down to the ground (a model whose box includes a pedestal).
+        let sky = ground_sky(&occ, (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0)), Mat4::IDENTITY, 25, 1024);
+        let under = sky.at(Vec2::ZERO);
+        assert!((under - 0.75).abs() < 0.01, "{under}");
     }
 
     #[test]

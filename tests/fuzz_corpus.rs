@@ -1,7 +1,7 @@
 //! Replays every file of the fuzz corpora (tests/fuzz/corpus/TARGET/) through the loader its
 //! target feeds, as an ordinary test: none may panic (the entry points also assert what an
-//! accepted input promises). The corpora were minimised with `cargo fuzz cmin`; the runs that
-//! grew them are recorded in docs/robustness.md.
+//! accepted input promises). The corpora are the hand-written seeds plus the libFuzzer runs'
+//! corpora reduced to a set cover of their edges; the runs are recorded in docs/robustness.md.
 
 use std::path::Path;
 

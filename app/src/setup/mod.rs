@@ -82,17 +82,21 @@ pub fn camera_and_placement(scene: &Scene, bounds: (Vec3, Vec3)) -> (Camera, Pla
 }
 
 /// The frame parameters a scene describes, given the loaded model's bounds and the light terms
-/// measured from its environment ([`light_terms`]).
+/// measured from its environment ([`light_terms`]): the scene's sunlight, daylight and shadow
+/// multipliers and the sun's twilight fade apply here, once.
 pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> FrameParams {
     let (camera, placement) = camera_and_placement(scene, bounds);
     let m = &scene.material;
+    let fade = crate::sun::twilight::sunlight_factor_toward(light.sun_dir);
+    let (sl, dl) = (scene.sun.sunlight as f32, scene.sun.daylight as f32);
+    let shadow = light::shadow_opacity(sl * light.ground_sun * fade, dl * light.ground_sky);
     FrameParams {
         camera,
         method: scene.method,
         lighting: Lighting {
             sun_dir: light.sun_dir,
-            sunlight: light.sunlight,
-            daylight: light.daylight,
+            sunlight: sl * light.sunlight * fade,
+            daylight: dl * light.daylight,
             material: MaterialTerms {
                 ambient: m.ambient as f32,
                 diffuse: m.diffuse as f32,
@@ -101,8 +105,11 @@ pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> 
             },
             reflection: scene.effects.reflection as f32,
             ior: scene.effects.ior as f32,
-            shadow_opacity: light.shadow_opacity,
+            shadow_opacity: (scene.effects.shadow_opacity as f32 * shadow).clamp(0.0, 1.0),
             live_depth: scene.effects.live_depth as f32,
+            sky_sh: light.sky_sh,
+            sun_colour: light.sun_colour,
+            sun_angular_radius: light.sun_angular_radius,
         },
         placement,
         colour: ColourSettings { method: scene.colour.correction, strength: scene.colour.strength as f32 },
@@ -139,13 +146,7 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
     let bounds = compositor.model_bounds().context("model bounds")?;
     let priors = compositor.priors().context("environment priors")?;
     let measured = measure_environment(scene, env);
-    let params = frame_params(scene, bounds, &light_terms(scene, &measured, &priors, exposure, heading));
-    let mut unit = scene.clone();
-    unit.sun.sunlight = 1.0;
-    unit.sun.daylight = 1.0;
-    unit.effects.shadow_opacity = 1.0;
-    let mut unit = light_terms(&unit, &measured, &priors, exposure, heading);
-    let fade = crate::sun::twilight::sunlight_factor_toward(unit.sun_dir);
-    unit.sunlight = if fade > 0.0 { unit.sunlight / fade } else { 0.0 };
+    let unit = light_terms(scene, &measured, &priors, exposure, heading);
+    let params = frame_params(scene, bounds, &unit);
     Ok((compositor, params, SceneLight { measured, unit }))
 }

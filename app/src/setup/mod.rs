@@ -86,33 +86,39 @@ pub fn camera_and_placement(scene: &Scene, bounds: (Vec3, Vec3)) -> (Camera, Pla
 /// multipliers and the sun's twilight fade apply here, once.
 pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> FrameParams {
     let (camera, placement) = camera_and_placement(scene, bounds);
+    FrameParams {
+        camera,
+        method: scene.method,
+        lighting: lighting(scene, light),
+        placement,
+        colour: ColourSettings { method: scene.colour.correction, strength: scene.colour.strength as f32 },
+    }
+}
+
+/// The lighting of a scene's frame from the unit light terms of its environment: the scene's
+/// sunlight, daylight and shadow multipliers and the sun's twilight fade apply here, once.
+pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
     let m = &scene.material;
     let fade = crate::sun::twilight::sunlight_factor_toward(light.sun_dir);
     let (sl, dl) = (scene.sun.sunlight as f32, scene.sun.daylight as f32);
     let shadow = light::shadow_opacity(sl * light.ground_sun * fade, dl * light.ground_sky);
-    FrameParams {
-        camera,
-        method: scene.method,
-        lighting: Lighting {
-            sun_dir: light.sun_dir,
-            sunlight: sl * light.sunlight * fade,
-            daylight: dl * light.daylight,
-            material: MaterialTerms {
-                ambient: m.ambient as f32,
-                diffuse: m.diffuse as f32,
-                specular: m.specular as f32,
-                gloss: m.gloss.map(|g| g as f32),
-            },
-            reflection: scene.effects.reflection as f32,
-            ior: scene.effects.ior as f32,
-            shadow_opacity: (scene.effects.shadow_opacity as f32 * shadow).clamp(0.0, 1.0),
-            live_depth: scene.effects.live_depth as f32,
-            sky_sh: light.sky_sh,
-            sun_colour: light.sun_colour,
-            sun_angular_radius: light.sun_angular_radius,
+    Lighting {
+        sun_dir: light.sun_dir,
+        sunlight: sl * light.sunlight * fade,
+        daylight: dl * light.daylight,
+        material: MaterialTerms {
+            ambient: m.ambient as f32,
+            diffuse: m.diffuse as f32,
+            specular: m.specular as f32,
+            gloss: m.gloss.map(|g| g as f32),
         },
-        placement,
-        colour: ColourSettings { method: scene.colour.correction, strength: scene.colour.strength as f32 },
+        reflection: scene.effects.reflection as f32,
+        ior: scene.effects.ior as f32,
+        shadow_opacity: (scene.effects.shadow_opacity as f32 * shadow).clamp(0.0, 1.0),
+        live_depth: scene.effects.live_depth as f32,
+        sky_sh: light.sky_sh,
+        sun_colour: light.sun_colour,
+        sun_angular_radius: light.sun_angular_radius,
     }
 }
 
@@ -145,8 +151,22 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
     compositor.set_model(gpu, model)?;
     let bounds = compositor.model_bounds().context("model bounds")?;
     let priors = compositor.priors().context("environment priors")?;
+    let (light, scene_light) = environment_light(scene, env, &priors, exposure, heading);
+    let params = frame_params(scene, bounds, &light);
+    Ok((compositor, params, scene_light))
+}
+
+/// The light of `scene` measured in `env` (uploaded with `priors`, at `exposure` and `heading`
+/// radians): the light terms with the scene's multipliers at 1, before the twilight fade
+/// ([`lighting`] applies them), and the measured light with those terms.
+pub fn environment_light(
+    scene: &Scene,
+    env: &CubeMap,
+    priors: &crate::render::HemispherePriors,
+    exposure: f32,
+    heading: f32,
+) -> (LightTerms, SceneLight) {
     let measured = measure_environment(scene, env);
-    let unit = light_terms(scene, &measured, &priors, exposure, heading);
-    let params = frame_params(scene, bounds, &unit);
-    Ok((compositor, params, SceneLight { measured, unit }))
+    let unit = light_terms(scene, &measured, priors, exposure, heading);
+    (unit, SceneLight { measured, unit })
 }

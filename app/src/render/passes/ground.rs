@@ -37,27 +37,33 @@ pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
 
 pub struct GroundPass {
     pipeline: wgpu::RenderPipeline,
-    bind_group: wgpu::BindGroup,
+    /// One per shadow map (in the order of `ShadowPass::maps`).
+    bind_groups: Vec<wgpu::BindGroup>,
     /// The plane's transform (`InstanceUniforms`).
     instance: wgpu::Buffer,
 }
 
 impl GroundPass {
-    /// Reads the Frame uniform buffer `frame` and the sun's `shadow_map`.
-    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, frame: &wgpu::Buffer, shadow_map: &wgpu::TextureView) -> GroundPass {
+    /// Reads the Frame uniform buffer `frame` and one of the sun's `shadow_maps` per frame.
+    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, frame: &wgpu::Buffer, shadow_maps: &[wgpu::TextureView]) -> GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
-        let bind_group = build::bind_group(
-            device,
-            "ground",
-            &pipelines.ground.layout,
-            &[
-                frame.as_entire_binding(),
-                instance.as_entire_binding(),
-                wgpu::BindingResource::TextureView(shadow_map),
-                wgpu::BindingResource::Sampler(&pipelines.shadow_sampler),
-            ],
-        );
-        GroundPass { pipeline: pipelines.ground.pipeline.clone(), bind_group, instance }
+        let bind_groups = shadow_maps
+            .iter()
+            .map(|map| {
+                build::bind_group(
+                    device,
+                    "ground",
+                    &pipelines.ground.layout,
+                    &[
+                        frame.as_entire_binding(),
+                        instance.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(map),
+                        wgpu::BindingResource::Sampler(&pipelines.shadow_sampler),
+                    ],
+                )
+            })
+            .collect();
+        GroundPass { pipeline: pipelines.ground.pipeline.clone(), bind_groups, instance }
     }
 
     /// This frame's plane transform.
@@ -65,9 +71,10 @@ impl GroundPass {
         queue.write_buffer(&self.instance, 0, bytemuck::bytes_of(plane));
     }
 
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
+    /// Draw the plane, sampling shadow map `shadow_index`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, shadow_index: usize) {
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
         pass.draw(0..6, 0..1);
     }
 }

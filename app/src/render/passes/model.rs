@@ -168,8 +168,9 @@ pub struct ModelPass {
     colour: wgpu::Buffer,
     /// The texture of untextured materials.
     white: wgpu::TextureView,
-    /// Bind group 0, once there is an environment.
-    bind_group: Option<wgpu::BindGroup>,
+    /// Bind group 0 per shadow map (in the order of `ShadowPass::maps`), once there is an
+    /// environment.
+    bind_groups: Vec<wgpu::BindGroup>,
 }
 
 impl ModelPass {
@@ -184,7 +185,7 @@ impl ModelPass {
             shadow_sampler: pipelines.shadow_sampler.clone(),
             colour: build::uniform_buffer::<ColourCorrection>(device, "colour correction"),
             white: build::sampled_texture(device, &gpu.queue, "white", (1, 1), COLOR_FORMAT, &[255; 4]),
-            bind_group: None,
+            bind_groups: Vec::new(),
         }
     }
 
@@ -217,8 +218,9 @@ impl ModelPass {
         )
     }
 
-    pub fn set_bind_group(&mut self, bind_group: wgpu::BindGroup) {
-        self.bind_group = Some(bind_group);
+    /// Bind group 0 for each shadow map, from [`ModelPass::bind_group`].
+    pub fn set_bind_groups(&mut self, bind_groups: Vec<wgpu::BindGroup>) {
+        self.bind_groups = bind_groups;
     }
 
     /// Upload a model: one vertex/index buffer and material bind group per mesh. Returns the
@@ -303,9 +305,16 @@ impl ModelPass {
         }
     }
 
-    /// Draw `model` with `method`'s pipeline at level of detail `level`.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: LightingMethod, level: usize) -> Result<()> {
-        let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+    /// Draw `model` with `method`'s pipeline at level of detail `level`, sampling shadow map
+    /// `shadow_index`.
+    pub fn draw(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        model: &ModelGpu,
+        method: LightingMethod,
+        (level, shadow_index): (usize, usize),
+    ) -> Result<()> {
+        let bind_group = self.bind_groups.get(shadow_index).ok_or_else(|| anyhow!("no environment set"))?;
         pass.set_pipeline(&self.by_method[method.shader_id() as usize]);
         pass.set_bind_group(0, bind_group, &[]);
         model.draw_meshes(pass, Some(1), level);

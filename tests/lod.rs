@@ -162,3 +162,38 @@ fn a_small_shadow_from_a_small_map_matches_the_full_map() {
     frame(&mut c, &near);
     assert!(c.shadow_map_size() > small_size, "{} near vs {small_size} far", c.shadow_map_size());
 }
+
+/// `auto` (the default) picks the method a scene needs from its materials and measured light:
+/// the ordinary method for a matte model, refraction for a transparent one, reflection for a
+/// mirror-like one under a sunny sky, and no reflection for the same mirror in a uniform grey
+/// world (nothing to reflect; no sun, so no shadow on the ground either).
+#[test]
+fn auto_picks_the_method_each_scene_needs() {
+    use previz::render::LightingMethod;
+    let s = scene("width = 96\nheight = 64\nenvironment = \"cubemaps/humus_Park2_512\"\n");
+    assert_eq!(s.method, previz::setup::method_choice::MethodRequest::Auto);
+    let park = inputs(&s).env;
+    let grey = previz::scene::CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
+    let with = |f: fn(&mut previz::scene::Material)| {
+        let mut m = common::triangle();
+        f(&mut m.materials[0]);
+        m
+    };
+    let method = |model: previz::scene::Model, env: &previz::scene::CubeMap| {
+        let i = Inputs { model, env: env.clone(), background: None };
+        prepare(gpu(), &s, &i).unwrap().1.method
+    };
+    assert_eq!(method(with(|_| {}), &park), LightingMethod::Hemisphere);
+    assert_eq!(method(with(|m| m.opacity = 0.5), &park), LightingMethod::CubeRefraction);
+    let chrome = |m: &mut previz::scene::Material| {
+        m.specular = [0.9; 3];
+        m.shininess = 500.0;
+    };
+    assert_eq!(method(with(chrome), &park), LightingMethod::CubeReflection);
+    assert_eq!(method(with(chrome), &grey), LightingMethod::Hemisphere);
+    // A method by name is kept.
+    let mut named = s.clone();
+    named.method = previz::setup::method_choice::MethodRequest::Fixed(LightingMethod::BlinnPhong);
+    let i = Inputs { model: with(chrome), env: park, background: None };
+    assert_eq!(prepare(gpu(), &named, &i).unwrap().1.method, LightingMethod::BlinnPhong);
+}

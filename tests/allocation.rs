@@ -29,8 +29,8 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     a_second_composite_reuses_the_pipelines();
 }
 
-/// Called from the one test: a model moving away switches level of detail frame by frame
-/// (every level was uploaded at set_model) without allocating.
+/// Called from the one test: a model moving away switches level of detail and shadow-map size
+/// frame by frame (every level and every map was allocated up front) without allocating.
 fn lod_switches_allocate_nothing() {
     let s = scene(
         "width = 320
@@ -45,18 +45,21 @@ fill = 0.8
     assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
     let before = settled_counters();
-    let mut levels = Vec::new();
-    for i in 0..8 {
+    let (mut levels, mut maps) = (Vec::new(), Vec::new());
+    for i in -2..8 {
         let mut p = params;
         let toward = p.placement.position - p.camera.position;
         p.placement.position = p.camera.position + toward * 2f32.powi(i);
         compositor.render(gpu(), &p, Layer::Composite).unwrap();
         levels.push(compositor.lod_level());
+        maps.push(compositor.shadow_map_size());
     }
     let after = settled_counters();
     levels.dedup();
+    maps.dedup();
     assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
-    assert_unchanged(&before, &after, &["buffers", "textures", "texture views", "bind groups"], "level switches");
+    assert!(maps.len() >= 2, "the shadow map did not follow the footprint: {maps:?}");
+    assert_unchanged(&before, &after, &["buffers", "textures", "texture views", "bind groups"], "level and shadow-map switches");
 }
 
 /// Called from the one test: the counters are per device and tests run in parallel.

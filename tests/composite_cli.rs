@@ -59,7 +59,11 @@ fn layers_and_json() {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["width"], 320);
     assert_eq!(json["height"], 200);
+    // The default is auto: the bunny (matte, opaque) gets the ordinary method, and says why.
     assert_eq!(json["method"], "sh9-ggx");
+    assert_eq!(json["method_choice"]["requested"], "auto");
+    let why: Vec<&str> = json["method_choice"]["why"].as_array().unwrap().iter().filter_map(|w| w.as_str()).collect();
+    assert!(why.iter().any(|w| w.contains("no refraction")) && why.iter().any(|w| w.contains("no specular")), "{why:?}");
     assert_eq!(json["colour_correction"]["method"], "reinhard");
     assert_eq!(json["colour_correction"]["strength"], 1.0);
     let pixels = json["model_pixels"].as_u64().unwrap();

@@ -97,3 +97,103 @@ fn shadow_and_ground_passes_run_only_when_needed() {
     away.camera.pose *= glam::Quat::from_rotation_y(std::f32::consts::PI);
     assert_eq!(run(&mut c, &away).0, previz::render::PassesRun { shadow: false, ground: false });
 }
+
+/// A unit cube standing on its base (y up in model space), flat-shaded: 12 triangles, below the
+/// simplifier's floor, so every render draws the same triangles and only the shadow map differs.
+fn cube() -> previz::scene::Model {
+    use previz::scene::{Material, Mesh};
+    let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let n = glam::Vec3::from_array(std::array::from_fn(|i| if i == axis { sign } else { 0.0 }));
+            let (u, v) = (n.any_orthonormal_vector(), n.cross(n.any_orthonormal_vector()));
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                let p = 0.5 * (n + a * u + b * v) + glam::Vec3::Y * 0.5;
+                mesh.positions.push(p.to_array());
+                mesh.normals.push(n.to_array());
+                mesh.uvs.push([0.0, 0.0]);
+            }
+            // Counter-clockwise seen from outside: (u, v, n) is right-handed when u × v = n.
+            let ccw = u.cross(v).dot(n) > 0.0;
+            let quad = if ccw { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
+            mesh.indices.extend(quad.iter().map(|i| base + i));
+        }
+    }
+    previz::scene::Model { meshes: vec![mesh], materials: vec![Material::default()] }
+}
+
+/// Shadows sized to what they cover: a small, far cube's shadow comes from a small map (a texel
+/// per pixel of its footprint) and its composite is within a mean FLIP of 0.01 of the same frame
+/// with the full 2048² map; near and large, a larger map is chosen. The bound is not vacuous: the
+/// shadow itself (the reference against the same frame without a shadow) differs by far more.
+#[test]
+fn a_small_shadow_from_a_small_map_matches_the_full_map() {
+    let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.2\n");
+    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
+    let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
+    assert_eq!(c.lod_triangles().unwrap(), &[12], "the cube must have one level");
+    // Sun 35° up in the south-west: the shadow falls north-east, beside the cube.
+    let (el, az) = (35f32.to_radians(), 225f32.to_radians());
+    p.lighting.sun_dir = glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+    p.lighting.sunlight = 1.0;
+    p.lighting.shadow_opacity = 0.8;
+    let frame =
+        |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| rgb(&c.render(gpu(), p, Layer::Composite).unwrap().rgba);
+    let small = frame(&mut c, &p);
+    let small_size = c.shadow_map_size();
+    assert!(c.passes_run().ground, "{:?}", c.passes_run());
+    c.set_full_shadow(true);
+    let reference = frame(&mut c, &p);
+    assert_eq!(c.shadow_map_size(), 2048);
+    let mut no_shadow = p;
+    no_shadow.lighting.shadow_opacity = 0.0;
+    let unshadowed = frame(&mut c, &no_shadow);
+    let flip = |a: &[u8], b: &[u8]| previz::capture::replay::mean_flip(a, b, 320, 240).unwrap();
+    let (small_flip, shadow_flip) = (flip(&reference, &small), flip(&reference, &unshadowed));
+    eprintln!("{small_size}² map: mean FLIP {small_flip} vs 2048²; the shadow itself: {shadow_flip}");
+    assert!(small_size <= 512, "a cube {}% of the rows high drew into a {small_size}² map", 20);
+    assert!(small_flip <= 0.01, "{small_size}² map: mean FLIP {small_flip} against the 2048² map");
+    assert!(shadow_flip > 5.0 * small_flip, "the shadow {shadow_flip} vs the map's size {small_flip}");
+    // Brought near (eight times closer), its footprint grows and so does the map.
+    c.set_full_shadow(false);
+    let mut near = p;
+    near.placement.position = near.camera.position + 0.125 * (near.placement.position - near.camera.position);
+    frame(&mut c, &near);
+    assert!(c.shadow_map_size() > small_size, "{} near vs {small_size} far", c.shadow_map_size());
+}
+
+/// `auto` (the default) picks the method a scene needs from its materials and measured light:
+/// the ordinary method for a matte model, refraction for a transparent one, reflection for a
+/// mirror-like one under a sunny sky, and no reflection for the same mirror in a uniform grey
+/// world (nothing to reflect; no sun, so no shadow on the ground either).
+#[test]
+fn auto_picks_the_method_each_scene_needs() {
+    use previz::render::LightingMethod;
+    let s = scene("width = 96\nheight = 64\nenvironment = \"cubemaps/humus_Park2_512\"\n");
+    assert_eq!(s.method, previz::setup::method_choice::MethodRequest::Auto);
+    let park = inputs(&s).env;
+    let grey = previz::scene::CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
+    let with = |f: fn(&mut previz::scene::Material)| {
+        let mut m = common::triangle();
+        f(&mut m.materials[0]);
+        m
+    };
+    let method = |model: previz::scene::Model, env: &previz::scene::CubeMap| {
+        let i = Inputs { model, env: env.clone(), background: None };
+        prepare(gpu(), &s, &i).unwrap().1.method
+    };
+    assert_eq!(method(with(|_| {}), &park), LightingMethod::Hemisphere);
+    assert_eq!(method(with(|m| m.opacity = 0.5), &park), LightingMethod::CubeRefraction);
+    let chrome = |m: &mut previz::scene::Material| {
+        m.specular = [0.9; 3];
+        m.shininess = 500.0;
+    };
+    assert_eq!(method(with(chrome), &park), LightingMethod::CubeReflection);
+    assert_eq!(method(with(chrome), &grey), LightingMethod::Hemisphere);
+    // A method by name is kept.
+    let mut named = s.clone();
+    named.method = previz::setup::method_choice::MethodRequest::Fixed(LightingMethod::BlinnPhong);
+    let i = Inputs { model: with(chrome), env: park, background: None };
+    assert_eq!(prepare(gpu(), &named, &i).unwrap().1.method, LightingMethod::BlinnPhong);
+}

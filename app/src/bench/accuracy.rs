@@ -232,7 +232,7 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
     let mut rows = Vec::new();
     for method in crate::render::LightingMethod::ALL {
         let mut s = scene.clone();
-        s.method = method;
+        s.method = crate::setup::method_choice::MethodRequest::Fixed(method);
         let (mut compositor, params) = crate::setup::prepare(gpu, &s, inputs)?;
         let mut best = f64::INFINITY;
         let mut image = None;

@@ -43,7 +43,7 @@ pub fn run(
     let (mut compositor, base) = prepare(gpu, scene, inputs)?;
     let none = ColourSettings::NONE;
     let mut paths: Vec<(String, Layer, LightingMethod, ColourSettings)> =
-        vec![("background-only".into(), Layer::Background, scene.method, none)];
+        vec![("background-only".into(), Layer::Background, base.method, none)];
     paths.extend(LightingMethod::ALL.iter().map(|m| (m.name().to_string(), Layer::Composite, *m, none)));
     paths.extend(TransferMethod::ALL.iter().map(|c| {
         let name = format!("{}+{}", LightingMethod::Hemisphere.name(), c.name());

@@ -2,8 +2,9 @@
 //! demo scene.
 
 use crate::gpu::Gpu;
-use crate::render::{Layer, LightingMethod};
+use crate::render::Layer;
 use crate::scene::demo;
+use crate::setup::method_choice::{self, MethodRequest};
 use crate::setup::scene_file::{Scene, SceneBuilder};
 use crate::setup::{SceneLight, load_inputs, prepare_with_light};
 use anyhow::{Context, Result, bail};
@@ -64,9 +65,10 @@ pub struct SceneArgs {
     /// Direction to the sun in ENU as X,Y,Z (East, North, Up)  [key: sun.direction]
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub sun_dir: Option<String>,
-    /// Lighting method  [key: method]
+    /// Lighting method; auto (the default) picks it from the model's materials and the measured
+    /// light, and --json says why  [key: method]
     #[arg(long, value_enum)]
-    pub method: Option<LightingMethod>,
+    pub method: Option<MethodRequest>,
     /// Set any scene key, e.g. --set material.gloss=64 --set placement.rotation=[0,0,90]
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
@@ -241,13 +243,20 @@ pub fn run(args: Args) -> Result<()> {
     }
 
     if args.json {
+        // The same choice prepare made (pure and cheap: the materials and the measured light).
+        let choice = method_choice::resolve(scene.method, &inputs.model, &light.measured);
         let model_pixels = model_layer.as_ref().map(|m| m.rgba.chunks_exact(4).filter(|p| p[3] > 0).count()).unwrap_or(0);
         let out = serde_json::json!({
             "outputs": written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
             "width": scene.width,
             "height": scene.height,
             "model_pixels": model_pixels,
-            "method": scene.method.name(),
+            "method": params.method.name(),
+            "method_choice": {
+                "requested": choice.requested.name(),
+                "method": choice.method.name(),
+                "why": choice.why,
+            },
             "colour_correction": { "method": scene.colour.correction.name(), "strength": scene.colour.strength },
             "light": light_json(&scene, &light, &params),
             "adapter": gpu.describe(),

@@ -64,8 +64,12 @@ pub struct Compositor {
     timer: Option<GpuTimer>,
     /// Draw level 0 whatever the screen allows (a full-detail reference).
     full_detail: bool,
+    /// Draw the shadow into the largest map whatever the screen allows (a full-shadow reference).
+    full_shadow: bool,
     /// The level of detail the last prepared frame drew.
     level: usize,
+    /// The shadow map (index into `ShadowPass::sizes`) the last prepared frame drew into.
+    shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
 }
@@ -93,7 +97,7 @@ impl Compositor {
         let targets = Targets::new(device, (width, height))?;
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
-        let ground = GroundPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.map());
+        let ground = GroundPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
         Ok(Compositor {
             width,
@@ -112,7 +116,9 @@ impl Compositor {
             timer: GpuTimer::new(gpu, 1),
             pipelines,
             full_detail: false,
+            full_shadow: false,
             level: 0,
+            shadow_index: 0,
             passes_run: PassesRun::default(),
         })
     }
@@ -129,17 +135,16 @@ impl Compositor {
         let (env, env_view_bg, model_bg) = gpu.checked("the environment cube map", || {
             let (views, env) = environment::upload(gpu, cube, exposure, heading)?;
             let env_view_bg = BackgroundPass::env_view_bind_group(&gpu.device, &self.pipelines, &self.frame_buf, &views.cube);
-            let model_bg = self.model_pass.bind_group(
-                &gpu.device,
-                (&self.frame_buf, &self.instance_buf, &self.light_buf),
-                &views,
-                self.background.view(),
-                self.shadow.map(),
-            );
+            let model_bg = (self.shadow.maps().iter())
+                .map(|map| {
+                    let buffers = (&self.frame_buf, &self.instance_buf, &self.light_buf);
+                    self.model_pass.bind_group(&gpu.device, buffers, &views, self.background.view(), map)
+                })
+                .collect();
             Ok((env, env_view_bg, model_bg))
         })?;
         self.background.set_env_view_bind_group(env_view_bg);
-        self.model_pass.set_bind_group(model_bg);
+        self.model_pass.set_bind_groups(model_bg);
         self.env = Some(env);
         Ok(())
     }
@@ -163,6 +168,12 @@ impl Compositor {
         self.full_detail = on;
     }
 
+    /// Draw the shadow into the largest map instead of the one its footprint on screen needs:
+    /// for the full-shadow references that measure what the smaller maps cost in accuracy.
+    pub fn set_full_shadow(&mut self, on: bool) {
+        self.full_shadow = on;
+    }
+
     /// The loaded model's level-of-detail chain: per level, triangles (None before a model).
     pub fn lod_triangles(&self) -> Option<&[usize]> {
         self.model.as_ref().map(|m| m.lod_triangles.as_slice())
@@ -171,6 +182,11 @@ impl Compositor {
     /// The level of detail the last rendered frame drew (0: the model as loaded).
     pub fn lod_level(&self) -> usize {
         self.level
+    }
+
+    /// Side of the shadow map the last rendered frame drew into (texels).
+    pub fn shadow_map_size(&self) -> u32 {
+        self.shadow.sizes()[self.shadow_index]
     }
 
     /// Which optional passes the last rendered frame ran.
@@ -196,13 +212,14 @@ impl Compositor {
     pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let sizes = self.shadow.sizes();
         let context = FrameContext {
             bounds: model.bounds,
             priors: env.priors,
             exposure: env.exposure,
             env_heading: env.heading,
             size: (self.width, self.height),
-            shadow_map_size: self.shadow.size(),
+            shadow_map_sizes: if self.full_shadow { &sizes[sizes.len() - 1..] } else { sizes },
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
         let light = light_uniforms(&p.lighting);
@@ -216,7 +233,7 @@ impl Compositor {
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
         let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
-        Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass })
+        Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass, shadow_map_size: shadow.map_size })
     }
 
     /// Render one image of `layer` and read it back.
@@ -299,6 +316,7 @@ impl Compositor {
         self.ground.write(queue, &data.ground);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
+        self.shadow_index = self.shadow.index_of(data.shadow_map_size);
         let composite = layer == Layer::Composite;
         self.passes_run =
             PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
@@ -328,11 +346,11 @@ impl Compositor {
         }
         // 4. Ground pass: the shadow catcher darkens the background under the model.
         if self.passes_run.ground {
-            in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass));
+            in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index));
         }
         // 5. Model pass: shading, reflection/refraction and colour correction.
         if layer != Layer::Background {
-            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, self.level))?;
+            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?;
         }
         Ok(())
     }
@@ -344,7 +362,7 @@ impl Compositor {
         let shadows = self.passes_run.shadow;
         let stamp = |begin: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(0, begin, false)) } else { None };
         if shadows {
-            let mut pass = self.shadow.begin(encoder, stamp(true));
+            let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(true));
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
         if self.background.from_env() {
@@ -368,15 +386,19 @@ impl Compositor {
         {
             let mut pass = targets.begin(encoder, LayerPass::Matte);
             if self.passes_run.ground {
-                in_group(&mut pass, "shadow matte layer", |pass| self.ground.draw_with(pass, pipelines.ground()));
+                in_group(&mut pass, "shadow matte layer", |pass| self.ground.draw_with(pass, pipelines.ground(), self.shadow_index));
             }
         }
         {
             let mut pass = targets.begin(encoder, LayerPass::Model);
-            in_group(&mut pass, "model layer", |pass| self.model_pass.draw_with(pass, pipelines.model(method), model, self.level))?;
+            in_group(&mut pass, "model layer", |pass| {
+                self.model_pass.draw_with(pass, pipelines.model(method), model, (self.level, self.shadow_index))
+            })?;
         }
         let mut pass = targets.begin_depth(encoder);
-        in_group(&mut pass, "depth layer", |pass| self.model_pass.draw_with(pass, pipelines.depth(), model, self.level))
+        in_group(&mut pass, "depth layer", |pass| {
+            self.model_pass.draw_with(pass, pipelines.depth(), model, (self.level, self.shadow_index))
+        })
     }
 }
 

@@ -16,7 +16,7 @@ use glam::{Mat4, Vec3};
 /// What the frame maths needs besides the frame's parameters: fixed by the loaded model and
 /// environment and by the render targets.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FrameContext {
+pub struct FrameContext<'a> {
     /// The model's bounds in model space.
     pub bounds: (Vec3, Vec3),
     /// The environment's hemisphere priors after exposure.
@@ -27,8 +27,9 @@ pub struct FrameContext {
     pub env_heading: f32,
     /// Output size in pixels.
     pub size: (u32, u32),
-    /// Side of the square shadow map in texels.
-    pub shadow_map_size: u32,
+    /// Sides of the square shadow maps allocated (ascending); a frame draws into the smallest
+    /// with a texel per pixel of the shadow's footprint on screen (`shadow_fit::shadow_map_size`).
+    pub shadow_map_sizes: &'a [u32],
 }
 
 /// The uniform values of one frame.
@@ -48,6 +49,8 @@ pub struct FrameData {
     /// Whether the ground pass has a shadow to catch: the above, with the sun above the
     /// horizon and a shadow opacity above zero.
     pub ground_pass: bool,
+    /// Side of the shadow map this frame draws into (one of `FrameContext::shadow_map_sizes`).
+    pub shadow_map_size: u32,
 }
 
 fn mat(m: Mat4) -> [[f32; 4]; 4] {
@@ -97,7 +100,7 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
         live_depth: p.lighting.live_depth,
         tan_half_vfov: (0.5 * p.camera.vfov).tan(),
         aspect,
-        shadow_map_size: c.shadow_map_size,
+        shadow_map_size: shadow.map_size,
         _padding: [0; 2],
     };
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
@@ -133,7 +136,7 @@ pub fn fit_shadow(p: &FrameParams, c: &FrameContext) -> shadow_fit::ShadowFit {
         (p.placement.position, centre, radius),
         (sun, p.lighting.sunlight),
         (view_proj, c.size),
-        &[c.shadow_map_size],
+        c.shadow_map_sizes,
     )
 }
 
@@ -177,7 +180,7 @@ mod tests {
     /// straight down (identity pose: camera −z = world −z) with a 90° vertical field of view
     /// into a 200×100 target. By hand: the box's centre is at (0, 0, −9), the bounding sphere's
     /// radius is √3 (half the 2×2×2 diagonal), so near = 9 − 4√3 and far = 9 + 50√3.
-    fn scene(scale: f32) -> (FrameParams, FrameContext) {
+    fn scene(scale: f32) -> (FrameParams, FrameContext<'static>) {
         let p = FrameParams {
             camera: Camera { pose: Quat::IDENTITY, position: Vec3::ZERO, vfov: FRAC_PI_2 },
             method: LightingMethod::CubeRefraction,
@@ -203,7 +206,7 @@ mod tests {
             exposure: 2.0,
             env_heading: FRAC_PI_2,
             size: (200, 100),
-            shadow_map_size: 1024,
+            shadow_map_sizes: &[1024],
         };
         (p, c)
     }

@@ -14,8 +14,6 @@ pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrg
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Multisampling of the composite (coverage becomes the model layer's alpha).
 pub const SAMPLES: u32 = 4;
-/// Side of the square sun shadow map.
-pub const SHADOW_MAP_SIZE: u32 = 2048;
 
 /// Interleaved model vertex: position, normal, uv, ambient occlusion.
 #[repr(C)]

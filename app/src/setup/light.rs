@@ -99,7 +99,7 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
     // methods blend between these two).
     let up = lum(light.sky.irradiance(Vec3::Z)) * exposure / pi;
     let down = lum(light.sky.irradiance(-Vec3::Z)) * exposure / pi;
-    let reference = match scene.method {
+    let reference = match scene.method.method_or_ordinary() {
         LightingMethod::BlinnPhong | LightingMethod::Sh9Ggx => 1.0,
         LightingMethod::HemisphereOcclusion => 0.5 * (priors.light + priors.shadow),
         _ => 0.5 * (lum(priors.sky) + lum(priors.ground)),

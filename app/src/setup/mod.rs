@@ -12,6 +12,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 
 pub mod light;
+pub mod method_choice;
 pub mod scene_file;
 pub use light::{LightTerms, SceneLight, light_terms, measure_environment};
 
@@ -83,12 +84,13 @@ pub fn camera_and_placement(scene: &Scene, bounds: (Vec3, Vec3)) -> (Camera, Pla
 
 /// The frame parameters a scene describes, given the loaded model's bounds and the light terms
 /// measured from its environment ([`light_terms`]): the scene's sunlight, daylight and shadow
-/// multipliers and the sun's twilight fade apply here, once.
+/// multipliers and the sun's twilight fade apply here, once. The method is the scene's, resolved
+/// by [`compositor_and_light`] (an unresolved `auto` draws `method_choice::ORDINARY`).
 pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> FrameParams {
     let (camera, placement) = camera_and_placement(scene, bounds);
     FrameParams {
         camera,
-        method: scene.method,
+        method: scene.method.method_or_ordinary(),
         lighting: lighting(scene, light),
         placement,
         colour: ColourSettings { method: scene.colour.correction, strength: scene.colour.strength as f32 },
@@ -151,7 +153,11 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
     compositor.set_model(gpu, model)?;
     let bounds = compositor.model_bounds().context("model bounds")?;
     let priors = compositor.priors().context("environment priors")?;
-    let (light, scene_light) = environment_light(scene, env, &priors, exposure, heading);
+    let measured = measure_environment(scene, env);
+    // `auto` becomes the method the model and the measured light need.
+    let choice = method_choice::resolve(scene.method, model, &measured);
+    let scene = &Scene { method: method_choice::MethodRequest::Fixed(choice.method), ..scene.clone() };
+    let (light, scene_light) = environment_light_measured(scene, measured, &priors, exposure, heading);
     let params = frame_params(scene, bounds, &light);
     Ok((compositor, params, scene_light))
 }
@@ -166,7 +172,17 @@ pub fn environment_light(
     exposure: f32,
     heading: f32,
 ) -> (LightTerms, SceneLight) {
-    let measured = measure_environment(scene, env);
+    environment_light_measured(scene, measure_environment(scene, env), priors, exposure, heading)
+}
+
+/// [`environment_light`] with the environment already measured.
+fn environment_light_measured(
+    scene: &Scene,
+    measured: crate::light::measure::MeasuredLight,
+    priors: &crate::render::HemispherePriors,
+    exposure: f32,
+    heading: f32,
+) -> (LightTerms, SceneLight) {
     let unit = light_terms(scene, &measured, priors, exposure, heading);
     (unit, SceneLight { measured, unit })
 }

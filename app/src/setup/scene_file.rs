@@ -7,7 +7,9 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 use crate::colour::transfer::TransferMethod;
+#[cfg(test)]
 use crate::render::LightingMethod;
+use crate::setup::method_choice::MethodRequest;
 
 /// A complete, validated scene description. Paths are resolved against the scene file's folder.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -23,8 +25,8 @@ pub struct Scene {
     pub output: PathBuf,
     pub width: u32,
     pub height: u32,
-    /// Lighting method.
-    pub method: LightingMethod,
+    /// Lighting method: `auto` (the default: `setup::method_choice`) or one by name.
+    pub method: MethodRequest,
     pub camera: CameraSection,
     pub sun: SunSection,
     pub material: MaterialSection,
@@ -140,7 +142,7 @@ impl Default for Scene {
             output: PathBuf::from("composite.png"),
             width: 960,
             height: 640,
-            method: LightingMethod::Sh9Ggx,
+            method: MethodRequest::Auto,
             camera: CameraSection::default(),
             sun: SunSection::default(),
             material: MaterialSection::default(),
@@ -355,7 +357,7 @@ mod tests {
         assert_eq!(s.height, 640);
         assert_eq!(s.camera.heading, 45.0);
         assert_eq!(s.sun.direction, Some([1.0, 0.0, 1.0]));
-        assert_eq!(s.method, LightingMethod::CubeReflection);
+        assert_eq!(s.method, MethodRequest::Fixed(LightingMethod::CubeReflection));
         assert_eq!(s.model.as_deref(), Some(Path::new("/scenes/bunny.obj")));
     }
 

@@ -42,33 +42,39 @@ pub fn pipeline_for(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, forma
 
 pub struct GroundPass {
     pipeline: wgpu::RenderPipeline,
-    bind_group: wgpu::BindGroup,
+    /// One per shadow map (in the order of `ShadowPass::maps`).
+    bind_groups: Vec<wgpu::BindGroup>,
     /// The plane's transform (`InstanceUniforms`).
     instance: wgpu::Buffer,
 }
 
 impl GroundPass {
-    /// Reads the Frame and Light uniform buffers and the sun's `shadow_map`.
+    /// Reads the Frame and Light uniform buffers and one of the sun's `shadow_maps` per frame.
     pub fn new(
         device: &wgpu::Device,
         pipelines: &Pipelines,
         (frame, light): (&wgpu::Buffer, &wgpu::Buffer),
-        shadow_map: &wgpu::TextureView,
+        shadow_maps: &[wgpu::TextureView],
     ) -> GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
-        let bind_group = build::bind_group(
-            device,
-            "ground",
-            &pipelines.ground.layout,
-            &[
-                frame.as_entire_binding(),
-                instance.as_entire_binding(),
-                wgpu::BindingResource::TextureView(shadow_map),
-                wgpu::BindingResource::Sampler(&pipelines.shadow_sampler),
-                light.as_entire_binding(),
-            ],
-        );
-        GroundPass { pipeline: pipelines.ground.pipeline.clone(), bind_group, instance }
+        let bind_groups = shadow_maps
+            .iter()
+            .map(|map| {
+                build::bind_group(
+                    device,
+                    "ground",
+                    &pipelines.ground.layout,
+                    &[
+                        frame.as_entire_binding(),
+                        instance.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(map),
+                        wgpu::BindingResource::Sampler(&pipelines.shadow_sampler),
+                        light.as_entire_binding(),
+                    ],
+                )
+            })
+            .collect();
+        GroundPass { pipeline: pipelines.ground.pipeline.clone(), bind_groups, instance }
     }
 
     /// This frame's plane transform.
@@ -76,14 +82,16 @@ impl GroundPass {
         queue.write_buffer(&self.instance, 0, bytemuck::bytes_of(plane));
     }
 
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
-        self.draw_with(pass, &self.pipeline);
+    /// Draw the plane, sampling shadow map `shadow_index`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, shadow_index: usize) {
+        self.draw_with(pass, &self.pipeline, shadow_index);
     }
 
-    /// Draw with `pipeline`: this pass's, or its float twin (render/layers.rs).
-    pub fn draw_with(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline) {
+    /// Draw with `pipeline` (this pass's, or its float twin in render/layers.rs), sampling
+    /// shadow map `shadow_index`.
+    pub fn draw_with(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline, shadow_index: usize) {
         pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
         pass.draw(0..6, 0..1);
     }
 }

@@ -223,8 +223,9 @@ pub struct ModelPass {
     white: wgpu::TextureView,
     /// The split-sum BRDF table (light::ggx::brdf_lut): A, B in red and green.
     brdf_lut: wgpu::TextureView,
-    /// Bind group 0, once there is an environment.
-    bind_group: Option<wgpu::BindGroup>,
+    /// Bind group 0 per shadow map (in the order of `ShadowPass::maps`), once there is an
+    /// environment.
+    bind_groups: Vec<wgpu::BindGroup>,
 }
 
 impl ModelPass {
@@ -247,7 +248,7 @@ impl ModelPass {
                 wgpu::TextureFormat::Rgba16Float,
                 bytemuck::cast_slice(brdf_lut_texels()),
             ),
-            bind_group: None,
+            bind_groups: Vec::new(),
         }
     }
 
@@ -284,8 +285,9 @@ impl ModelPass {
         )
     }
 
-    pub fn set_bind_group(&mut self, bind_group: wgpu::BindGroup) {
-        self.bind_group = Some(bind_group);
+    /// Bind group 0 for each shadow map, from [`ModelPass::bind_group`].
+    pub fn set_bind_groups(&mut self, bind_groups: Vec<wgpu::BindGroup>) {
+        self.bind_groups = bind_groups;
     }
 
     /// Upload a model: one vertex/index buffer and material bind group per mesh. Returns the
@@ -370,21 +372,28 @@ impl ModelPass {
         }
     }
 
-    /// Draw `model` with `method`'s pipeline at level of detail `level`.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, method: LightingMethod, level: usize) -> Result<()> {
-        self.draw_with(pass, &self.by_method[method.shader_id() as usize], model, level)
+    /// Draw `model` with `method`'s pipeline at level of detail `level`, sampling shadow map
+    /// `shadow_index`.
+    pub fn draw(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        model: &ModelGpu,
+        method: LightingMethod,
+        lod_and_shadow: (usize, usize),
+    ) -> Result<()> {
+        self.draw_with(pass, &self.by_method[method.shader_id() as usize], model, lod_and_shadow)
     }
 
     /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from
-    /// render/layers.rs) at level of detail `level`.
+    /// render/layers.rs) at level of detail `level`, sampling shadow map `shadow_index`.
     pub fn draw_with(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         pipeline: &wgpu::RenderPipeline,
         model: &ModelGpu,
-        level: usize,
+        (level, shadow_index): (usize, usize),
     ) -> Result<()> {
-        let bind_group = self.bind_group.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let bind_group = self.bind_groups.get(shadow_index).ok_or_else(|| anyhow!("no environment set"))?;
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bind_group, &[]);
         model.draw_meshes(pass, Some(1), level);

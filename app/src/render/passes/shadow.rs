@@ -1,12 +1,13 @@
 //! The shadow pass (step 2 of DESIGN.md "One frame"): the model's depth seen from the sun (a
-//! directional light) into a square shadow map, which the ground and model passes sample.
+//! directional light) into a square shadow map, which the ground and model passes sample. One
+//! map per size in `shadow_fit::SHADOW_MAP_SIZES`, allocated once; a frame draws into the one
+//! its shadow's footprint on screen needs (switching allocates nothing).
 
 use super::model::ModelGpu;
 use crate::gpu::build;
-use crate::render::pipelines::{
-    DEPTH_FORMAT, PassPipeline, PipelineSpec, Pipelines, SHADOW_MAP_SIZE, Vertex, depth_state, pipeline as make,
-};
+use crate::render::pipelines::{DEPTH_FORMAT, PassPipeline, PipelineSpec, Pipelines, Vertex, depth_state, pipeline as make};
 use crate::render::shaders::Technique;
+use crate::render::shadow_fit::SHADOW_MAP_SIZES;
 use wgpu::ShaderStages;
 
 /// The shadow pipeline: model positions only, depth with a slope-scaled bias, no colour.
@@ -34,43 +35,56 @@ pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
 pub struct ShadowPass {
     pipeline: wgpu::RenderPipeline,
     bind_group: wgpu::BindGroup,
-    map: wgpu::TextureView,
-    size: u32,
+    /// One depth map per side in `sizes`.
+    maps: Vec<wgpu::TextureView>,
+    /// Ascending sides of `maps`: SHADOW_MAP_SIZES up to what the device allows.
+    sizes: Vec<u32>,
 }
 
 impl ShadowPass {
-    /// The shadow map (SHADOW_MAP_SIZE a side where the device allows it), reading the frame
-    /// and the model's instance uniforms.
+    /// The shadow maps (each size of SHADOW_MAP_SIZES the device allows, at least the smallest
+    /// clamped to its limit), reading the frame and the model's instance uniforms.
     pub fn new(device: &wgpu::Device, pipelines: &Pipelines, frame: &wgpu::Buffer, instance: &wgpu::Buffer) -> ShadowPass {
-        let size = SHADOW_MAP_SIZE.min(device.limits().max_texture_dimension_2d);
+        let limit = device.limits().max_texture_dimension_2d;
+        let mut sizes: Vec<u32> = SHADOW_MAP_SIZES.iter().map(|&s| s.min(limit)).collect();
+        sizes.dedup();
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let map = build::texture(device, "shadow map", (size, size, 1), DEPTH_FORMAT, 1, usage).create_view(&Default::default());
+        let maps = sizes
+            .iter()
+            .map(|&size| build::texture(device, "shadow map", (size, size, 1), DEPTH_FORMAT, 1, usage).create_view(&Default::default()))
+            .collect();
         let bind_group =
             build::bind_group(device, "shadow", &pipelines.shadow.layout, &[frame.as_entire_binding(), instance.as_entire_binding()]);
-        ShadowPass { pipeline: pipelines.shadow.pipeline.clone(), bind_group, map, size }
+        ShadowPass { pipeline: pipelines.shadow.pipeline.clone(), bind_group, maps, sizes }
     }
 
-    /// The shadow map's depth view.
-    pub fn map(&self) -> &wgpu::TextureView {
-        &self.map
+    /// The depth views of the maps, in the order of [`ShadowPass::sizes`].
+    pub fn maps(&self) -> &[wgpu::TextureView] {
+        &self.maps
     }
 
-    /// Side of the square shadow map in texels.
-    pub fn size(&self) -> u32 {
-        self.size
+    /// Sides of the square shadow maps in texels, ascending.
+    pub fn sizes(&self) -> &[u32] {
+        &self.sizes
     }
 
-    /// Begin the pass: the shadow map cleared to the far plane.
+    /// Which map has side `size` (the largest if none has).
+    pub fn index_of(&self, size: u32) -> usize {
+        self.sizes.iter().position(|&s| s == size).unwrap_or(self.sizes.len() - 1)
+    }
+
+    /// Begin the pass into map `index`: cleared to the far plane.
     pub fn begin<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
+        index: usize,
         timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) -> wgpu::RenderPass<'e> {
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("shadow"),
             color_attachments: &[],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &self.map,
+                view: &self.maps[index],
                 depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                 stencil_ops: None,
             }),

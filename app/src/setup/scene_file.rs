@@ -119,6 +119,10 @@ pub struct EnvSection {
     pub exposure: Option<f64>,
     /// Heading (degrees clockwise from north) of the map's front (+Z) face.
     pub heading: f64,
+    /// The map is a capture of the live session's place and moment: `previz live` lights the
+    /// model with NREL SPA's sun for the clock. False (a downloaded map, the demo's): the map's
+    /// own sun (or `sun.direction`), whatever the clock says.
+    pub captured_here: bool,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -198,7 +202,7 @@ impl Default for PlacementSection {
 
 impl Default for EnvSection {
     fn default() -> Self {
-        EnvSection { exposure: None, heading: 0.0 }
+        EnvSection { exposure: None, heading: 0.0, captured_here: false }
     }
 }
 

@@ -86,3 +86,76 @@ fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, 
     }
     return lit / 9.0;
 }
+
+// Light measured from the environment (setup::light), for the sh9-ggx method and the soft
+// ground shadow. Rust mirror: render::uniforms::LightUniforms.
+struct Light {
+    // Sky without the sun as SH9 irradiance over pi per unit of frame.daylight (rgb;
+    // coefficients already multiplied by the clamped-cosine factors A_l / pi), in the map's own
+    // ENU frame (before its heading): daylight * sum_i sh[i] Y_i(n) is what a white Lambertian
+    // surface facing n reflects.
+    sh: array<vec4<f32>, 9>,
+    // rgb: the sun's colour (luminance 1; frame.sunlight scales it); w: tangent of the sun's
+    // angular radius.
+    sun: vec4<f32>,
+};
+
+// A world direction in the environment map's own ENU frame (frame.wgsl env_dir before the
+// cube-space swizzle).
+fn env_map_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
+    let c = frame.env_rotation.x;
+    let s = frame.env_rotation.y;
+    return vec3<f32>(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+}
+
+// Fraction of sunlight reaching world point p with a penumbra that follows the sun's angular
+// size and the blocker's distance (PCSS, Fernando 2005 "Percentage-Closer Soft Shadows"): the
+// mean depth of the blockers found around p gives the penumbra width
+// (receiver - blocker) * 2 tan(angular radius); a 5x5 percentage-closer filter of that width
+// (at least one shadow-map texel) gives the visibility. The sun camera is orthographic, so
+// metres per texel and per unit depth come from the rows of its matrix.
+fn sun_visibility_soft(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, p: vec3<f32>, tan_radius: f32) -> f32 {
+    let m = frame.light_view_proj;
+    let clip = m * vec4<f32>(p, 1.0);
+    let ndc = clip.xyz / clip.w;
+    let uv = vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+    if (any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0))) {
+        return 1.0;
+    }
+    let size = f32(frame.shadow_map_size);
+    let texel = 1.0 / size;
+    let receiver = min(ndc.z, 1.0) - 0.002;
+    // uv per metre across the sun's view, and depth units per metre along it.
+    let uv_per_m = 0.5 * length(vec3<f32>(m[0].x, m[1].x, m[2].x));
+    let depth_per_m = length(vec3<f32>(m[0].z, m[1].z, m[2].z));
+    // Blocker search: a blocker at depth 0 (the nearest the map holds) would cast the widest
+    // penumbra; search that far, between 2 and 24 texels.
+    let widest = receiver / depth_per_m * tan_radius * uv_per_m;
+    let search = clamp(widest, 2.0 * texel, 24.0 * texel);
+    var blockers = 0.0;
+    var blocker_depth = 0.0;
+    for (var y = -2; y <= 2; y++) {
+        for (var x = -2; x <= 2; x++) {
+            let q = uv + vec2<f32>(f32(x), f32(y)) * (search * 0.5);
+            let t = vec2<i32>(clamp(q * size, vec2<f32>(0.0), vec2<f32>(size - 1.0)));
+            let d = textureLoad(map, t, 0);
+            if (d < receiver) {
+                blockers += 1.0;
+                blocker_depth += d;
+            }
+        }
+    }
+    if (blockers == 0.0) {
+        return 1.0;
+    }
+    let distance = (receiver - blocker_depth / blockers) / depth_per_m;
+    let penumbra = max(distance * tan_radius * uv_per_m, texel);
+    var lit = 0.0;
+    for (var y = -2; y <= 2; y++) {
+        for (var x = -2; x <= 2; x++) {
+            let o = vec2<f32>(f32(x), f32(y)) * (penumbra * 0.5);
+            lit += textureSampleCompareLevel(map, smp, uv + o, receiver);
+        }
+    }
+    return lit / 25.0;
+}

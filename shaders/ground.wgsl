@@ -5,6 +5,7 @@
 @group(0) @binding(1) var<uniform> plane: Instance;
 @group(0) @binding(2) var shadow_map: texture_depth_2d;
 @group(0) @binding(3) var shadow_smp: sampler_comparison;
+@group(0) @binding(4) var<uniform> light: Light;
 
 struct GroundOut {
     @builtin(position) clip: vec4<f32>,
@@ -31,7 +32,7 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     if (frame.camera_pos.z <= plane.model[3].z) {
         return vec4<f32>(0.0);
     }
-    let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world);
+    let visibility = sun_visibility_soft(shadow_map, shadow_smp, frame, in.world, light.sun.w);
     // The shadow removes the sun's share of the ground's light: shadow_opacity is that share
     // (measured from the environment by setup::light), none when there is no sunlight.
     let sun_up = select(0.0, 1.0, frame.sun_dir.z > 0.0 && frame.sunlight > 0.0);

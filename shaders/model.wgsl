@@ -1,4 +1,5 @@
-// Model pass: one fragment shader for every lighting method (seed 000 §5.3-5.5, Appendix D/E).
+// Model pass: one fragment shader for every lighting method (seed 000 §5.3-5.5, Appendix D/E);
+// the sh9-ggx method's shading is its own file (sh9_ggx.wgsl), appended to this one.
 // All lighting happens in world space (ENU), in linear light.
 //
 // The METHOD_* constants are generated from render::Method (prepended by render::shaders).
@@ -30,26 +31,45 @@ struct Material {
 @group(1) @binding(1) var diffuse_tex: texture_2d<f32>;
 @group(1) @binding(2) var diffuse_smp: sampler;
 
+// The model's vertex (render::pipelines::Vertex; `ao` at render::pipelines::AO_LOCATION).
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    // Fraction of the sky the vertex sees (1 until the model's occlusion is computed).
+    @location(3) ao: f32,
+};
+
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
+    @location(3) ao: f32,
 };
 
 @vertex
-fn vs_main(
-    @location(0) position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) uv: vec2<f32>,
-) -> VertexOut {
+fn vs_main(vertex: VertexIn) -> VertexOut {
     var out: VertexOut;
-    let world = instance.model * vec4<f32>(position, 1.0);
+    let world = instance.model * vec4<f32>(vertex.position, 1.0);
     out.world = world.xyz;
-    out.normal = (instance.normal * vec4<f32>(normal, 0.0)).xyz;
-    out.uv = uv;
+    out.normal = (instance.normal * vec4<f32>(vertex.normal, 0.0)).xyz;
+    out.uv = vertex.uv;
+    out.ao = vertex.ao;
     out.clip = frame.view_proj * world;
     return out;
+}
+
+// The surface's diffuse reflectance after colour correction (seed §5.6), which acts on what the
+// model priors were measured on: the diffuse texture's linear colour when there is one, else
+// the material's diffuse colour. A corrected reflectance is kept at or below 1.
+fn surface_albedo(uv: vec2<f32>) -> vec3<f32> {
+    let albedo = material.albedo.rgb;
+    if (material.albedo.a > 0.5) {
+        let texel = textureSample(diffuse_tex, diffuse_smp, uv).rgb;
+        return albedo * min(colour_correct(texel, colour_cc), vec3<f32>(1.0));
+    }
+    return min(colour_correct(albedo, colour_cc), vec3<f32>(1.0));
 }
 
 // Eq. 6: blend factor of the upper hemisphere for a normal (1 = facing straight up; world up
@@ -87,6 +107,9 @@ fn specular_factor(n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> f32 {
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let method = METHOD;
+    if (method == METHOD_SH9_GGX) {
+        return shade_sh9_ggx(in);
+    }
     var n = normalize(in.normal);
     let e = normalize(frame.camera_pos - in.world); // towards the camera
     let l = frame.sun_dir;                               // towards the sun
@@ -114,16 +137,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
 
     // Opaque, one-sided lighting (Eq. 3): factors are clamped at zero, so a surface facing away
     // from the sun gets only ambient light.
-    // Colour correction (seed §5.6) acts on what the model priors were measured on: the diffuse
-    // texture's linear colour when there is one, else the material's diffuse colour. A corrected
-    // reflectance is kept at or below 1.
-    var albedo = material.albedo.rgb;
-    if (material.albedo.a > 0.5) {
-        let texel = textureSample(diffuse_tex, diffuse_smp, in.uv).rgb;
-        albedo = albedo * min(colour_correct(texel, colour_cc), vec3<f32>(1.0));
-    } else {
-        albedo = min(colour_correct(albedo, colour_cc), vec3<f32>(1.0));
-    }
+    let albedo = surface_albedo(in.uv);
     let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
     let df = max(dot(n, l), 0.0) * visibility;
     let sf = specular_factor(n, l, e) * visibility * select(0.0, 1.0, dot(n, l) > 0.0);

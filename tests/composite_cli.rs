@@ -59,7 +59,7 @@ fn layers_and_json() {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["width"], 320);
     assert_eq!(json["height"], 200);
-    assert_eq!(json["method"], "hemisphere");
+    assert_eq!(json["method"], "sh9-ggx");
     assert_eq!(json["colour_correction"]["method"], "reinhard");
     assert_eq!(json["colour_correction"]["strength"], 1.0);
     let pixels = json["model_pixels"].as_u64().unwrap();

@@ -89,6 +89,14 @@ fn hemisphere_occlusion_top_front_bottom() {
     bunny("hemisphere-occlusion", 89.0, "hemisphere_occlusion_bottom");
 }
 
+// The default method (issue 9): light measured from the map, SH9 sky, coloured sun with soft
+// shadows, GGX specular from the prefiltered map; the bunny seen from the top and the front.
+#[test]
+fn sh9_ggx_top_front() {
+    bunny("sh9-ggx", -89.0, "sh9_ggx_top");
+    bunny("sh9-ggx", 0.0, "sh9_ggx_front");
+}
+
 // Seed Fig. 27: cube-map reflection and refraction of the Stanford bunny.
 #[test]
 fn bunny_cube_reflection_and_refraction() {

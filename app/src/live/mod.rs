@@ -489,7 +489,8 @@ impl LiveSession {
         let exposure = exposure(&scene, env);
         self.compositor.set_environment(gpu, env, exposure, (heading_deg as f32).to_radians())?;
         let priors = self.compositor.priors().context("environment priors")?;
-        let (light, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians());
+        let (unit, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians());
+        let light = crate::setup::lighting(&scene, &unit);
         self.unit_light = scene_light.unit;
         self.full_sunlight = scene.sun.sunlight as f32 * self.unit_light.sunlight;
         // A capture just taken here: from now on the sun is SPA's for the place and the clock.
@@ -497,6 +498,9 @@ impl LiveSession {
         self.sun_from_clock = true;
         self.params.lighting.daylight = light.daylight;
         self.params.lighting.shadow_opacity = light.shadow_opacity;
+        self.params.lighting.sky_sh = light.sky_sh;
+        self.params.lighting.sun_colour = light.sun_colour;
+        self.params.lighting.sun_angular_radius = light.sun_angular_radius;
         if let Some(c) = &mut self.controls {
             c.daylight = light.daylight;
         }

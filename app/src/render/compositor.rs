@@ -5,7 +5,7 @@
 //! so per-frame work allocates no GPU resources.
 
 use super::environment::{self, Environment};
-use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, lod_level};
+use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::GroundPass;
@@ -13,7 +13,7 @@ use super::passes::model::{ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::pipelines::Pipelines;
 use super::targets::Targets;
-use super::uniforms::{FrameUniforms, InstanceUniforms};
+use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use crate::gpu::{Gpu, GpuTimer, build};
 use crate::scene::{CubeMap, Model, Rgba8Image};
 use anyhow::{Result, anyhow};
@@ -48,6 +48,8 @@ pub struct Compositor {
     frame_buf: wgpu::Buffer,
     /// The model's transform, read by the shadow and model passes.
     instance_buf: wgpu::Buffer,
+    /// The light measured from the environment (`Light`), read by the ground and model passes.
+    light_buf: wgpu::Buffer,
     targets: Targets,
     shadow: ShadowPass,
     background: BackgroundPass,
@@ -84,16 +86,18 @@ impl Compositor {
         let pipelines = Pipelines::shared(gpu)?;
         let frame_buf = build::uniform_buffer::<FrameUniforms>(device, "frame");
         let instance_buf = build::uniform_buffer::<InstanceUniforms>(device, "instance");
+        let light_buf = build::uniform_buffer::<LightUniforms>(device, "light");
         let targets = Targets::new(device, (width, height))?;
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
-        let ground = GroundPass::new(device, &pipelines, &frame_buf, shadow.map());
+        let ground = GroundPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.map());
         let model_pass = ModelPass::new(gpu, &pipelines);
         Ok(Compositor {
             width,
             height,
             frame_buf,
             instance_buf,
+            light_buf,
             targets,
             shadow,
             background,
@@ -119,12 +123,12 @@ impl Compositor {
     /// On an error the current environment stays.
     pub fn set_environment(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
         let (env, env_view_bg, model_bg) = gpu.checked("the environment cube map", || {
-            let (cube_view, env) = environment::upload(gpu, cube, exposure, heading)?;
-            let env_view_bg = BackgroundPass::env_view_bind_group(&gpu.device, &self.pipelines, &self.frame_buf, &cube_view);
+            let (views, env) = environment::upload(gpu, cube, exposure, heading)?;
+            let env_view_bg = BackgroundPass::env_view_bind_group(&gpu.device, &self.pipelines, &self.frame_buf, &views.cube);
             let model_bg = self.model_pass.bind_group(
                 &gpu.device,
-                (&self.frame_buf, &self.instance_buf),
-                &cube_view,
+                (&self.frame_buf, &self.instance_buf, &self.light_buf),
+                &views,
                 self.background.view(),
                 self.shadow.map(),
             );
@@ -197,6 +201,7 @@ impl Compositor {
             shadow_map_size: self.shadow.size(),
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
+        let light = light_uniforms(&p.lighting);
         let colour = colour_correction(p.colour, &env.colour, &model.colour)?;
         let level =
             if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(&model.lod_errors, model.bounds, p, self.height).0 };
@@ -207,7 +212,7 @@ impl Compositor {
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
         let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
-        Ok(FrameData { frame, instance, ground, colour, level, shadow_pass, ground_pass })
+        Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass })
     }
 
     /// Render one image of `layer` and read it back.
@@ -259,6 +264,7 @@ impl Compositor {
         let queue = &gpu.queue;
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
+        queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
         self.ground.write(queue, &data.ground);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;

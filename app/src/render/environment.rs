@@ -4,6 +4,7 @@
 use super::params::HemispherePriors;
 use crate::colour::stats::ColourStats;
 use crate::gpu::{Gpu, build};
+use crate::light::ggx;
 use crate::priors;
 use crate::scene::{CubeMap, FACE_NAMES};
 use anyhow::{Context, Result, bail};
@@ -24,9 +25,49 @@ pub fn rgba16f_texels(face: &[[f32; 3]]) -> Vec<half::f16> {
     face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect()
 }
 
-/// Upload `cube` (the shader scales it by `exposure`) and compute its priors. Returns the cube
-/// view and the environment; changes nothing else.
-pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<(wgpu::TextureView, Environment)> {
+/// The environment's views on the GPU.
+pub struct EnvironmentViews {
+    /// The map as given.
+    pub cube: wgpu::TextureView,
+    /// The map convolved with the GGX lobe, one mip level per roughness (light::ggx::prefilter).
+    pub specular: wgpu::TextureView,
+}
+
+/// Upload the GGX-prefiltered levels of `cube` (light::ggx::prefilter) as one cube texture with
+/// a mip level each.
+fn upload_prefiltered(gpu: &Gpu, cube: &CubeMap) -> wgpu::TextureView {
+    let levels = ggx::prefilter(cube);
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("prefiltered environment"),
+        size: wgpu::Extent3d { width: ggx::PREFILTER_SIZE, height: ggx::PREFILTER_SIZE, depth_or_array_layers: 6 },
+        mip_level_count: ggx::PREFILTER_LEVELS,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba16Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (mip, level) in levels.iter().enumerate() {
+        for (layer, face) in level.faces.iter().enumerate() {
+            gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: mip as u32,
+                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&rgba16f_texels(face)),
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(8 * level.size), rows_per_image: None },
+                wgpu::Extent3d { width: level.size, height: level.size, depth_or_array_layers: 1 },
+            );
+        }
+    }
+    build::cube_view(&texture)
+}
+
+/// Upload `cube` (the shader scales it by `exposure`) and its GGX-prefiltered levels, and compute
+/// its priors. Returns the views and the environment; changes nothing else.
+pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<(EnvironmentViews, Environment)> {
     if !(exposure.is_finite() && exposure > 0.0) {
         bail!("environment exposure must be a positive number, got {exposure}");
     }
@@ -44,7 +85,7 @@ pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<
     }
     let env_priors = priors::environment_priors_scaled(cube, exposure).context("environment colour priors")?;
     let env = Environment { priors: HemispherePriors::from_environment(&env_priors), colour: env_priors.horizontal, exposure, heading };
-    Ok((build::cube_view(&texture), env))
+    Ok((EnvironmentViews { cube: build::cube_view(&texture), specular: upload_prefiltered(gpu, cube) }, env))
 }
 
 #[cfg(test)]

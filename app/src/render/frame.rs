@@ -1,9 +1,10 @@
 //! The frame maths: from the frame's parameters and what the loaded scene fixes, the uniform
 //! values every pass reads. Pure functions, no GPU access.
 
+use super::params::Lighting;
 use super::params::{ColourSettings, FrameParams, HemispherePriors};
 use super::shadow_fit;
-use super::uniforms::{FrameUniforms, InstanceUniforms};
+use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use super::view;
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
@@ -37,6 +38,8 @@ pub struct FrameData {
     pub instance: InstanceUniforms,
     pub ground: InstanceUniforms,
     pub colour: ColourCorrection,
+    /// The light measured from the environment (sh9-ggx and the soft ground shadow).
+    pub light: LightUniforms,
     /// The level of detail drawn (0: the model as loaded).
     pub level: usize,
     /// Whether the shadow pass has anything to do: sunlight to block and the model or its
@@ -100,6 +103,13 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
     let instance = InstanceUniforms { model: mat(model), normal: mat(view::normal_matrix(&model)) };
     let ground = InstanceUniforms { model: mat(ground), normal: mat(Mat4::IDENTITY) };
     (frame, instance, ground)
+}
+
+/// The `Light` uniform of a frame's lighting: the sky's SH9 coefficients and the sun's colour
+/// (alpha 0 and 1), and tan of the sun's angular radius.
+pub fn light_uniforms(l: &Lighting) -> LightUniforms {
+    let [r, g, b] = l.sun_colour;
+    LightUniforms { sh: l.sky_sh.map(|[r, g, b]| [r, g, b, 0.0]), sun: [r, g, b, l.sun_angular_radius.tan()] }
 }
 
 /// The frame's shadow: the shadow camera fitted to the model, the ground quad where its shadow
@@ -180,6 +190,9 @@ mod tests {
                 ior: 1.5,
                 shadow_opacity: 0.6,
                 live_depth: 2.0,
+                sky_sh: std::array::from_fn(|i| [i as f32, 0.5, 0.25]),
+                sun_colour: [1.2, 0.9, 0.7],
+                sun_angular_radius: 0.01,
             },
             placement: Placement { position: Vec3::new(0.0, 0.0, -10.0), rotation: Vec3::ZERO, scale },
             colour: ColourSettings::NONE,
@@ -261,6 +274,16 @@ mod tests {
         let c = FrameContext { env_heading: PI, ..c };
         let rot = frame_uniforms(&p, &c).0.env_rotation;
         assert!((rot[0] + 1.0).abs() < 1e-6 && rot[1].abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_light_uniform_carries_the_sky_and_the_suns_colour_and_size() {
+        let (p, _) = scene(1.0);
+        let l = light_uniforms(&p.lighting);
+        assert_eq!(l.sh[3], [3.0, 0.5, 0.25, 0.0]);
+        // tan(0.01) = 0.010000333 (series x + x³/3).
+        assert_eq!(&l.sun[..3], &[1.2, 0.9, 0.7]);
+        assert!((l.sun[3] - 0.010_000_333).abs() < 1e-8);
     }
 
     #[test]

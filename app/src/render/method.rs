@@ -23,10 +23,14 @@ pub enum LightingMethod {
     LiveReflection,
     /// Transparent material (Eq. 7) refracting the camera image behind it (§5.5.3).
     LiveRefraction,
+    /// Light measured from the environment, in colour (issue 9; shaders/sh9_ggx.wgsl): the sky
+    /// without the sun as SH9 irradiance times ambient occlusion, the sun with soft (PCSS)
+    /// shadows, GGX specular from the prefiltered environment (split-sum, Karis 2013).
+    Sh9Ggx,
 }
 
 impl LightingMethod {
-    pub const ALL: [LightingMethod; 7] = [
+    pub const ALL: [LightingMethod; 8] = [
         LightingMethod::BlinnPhong,
         LightingMethod::Hemisphere,
         LightingMethod::HemisphereOcclusion,
@@ -34,6 +38,7 @@ impl LightingMethod {
         LightingMethod::CubeRefraction,
         LightingMethod::LiveReflection,
         LightingMethod::LiveRefraction,
+        LightingMethod::Sh9Ggx,
     ];
 
     /// Whether the method reflects or refracts the view ray off the surface: its image follows
@@ -77,6 +82,7 @@ impl LightingMethod {
             LightingMethod::CubeRefraction => "cube-refraction",
             LightingMethod::LiveReflection => "live-reflection",
             LightingMethod::LiveRefraction => "live-refraction",
+            LightingMethod::Sh9Ggx => "sh9-ggx",
         }
     }
 }

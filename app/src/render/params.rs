@@ -79,6 +79,14 @@ pub struct Lighting {
     pub shadow_opacity: f32,
     /// Live-feed refraction: how far behind the surface (metres) the refracted ray meets the scene.
     pub live_depth: f32,
+    /// The sky without the sun (sh9-ggx): SH9 coefficients of irradiance / π in linear RGB, in
+    /// the environment map's own ENU frame (before its heading), per unit of `daylight`:
+    /// daylight · Σ c_i Y_i(n) is what a white Lambertian surface facing n reflects.
+    pub sky_sh: [[f32; 3]; 9],
+    /// The sun's colour (sh9-ggx): linear RGB of BT.709 luminance 1, scaled by `sunlight`.
+    pub sun_colour: [f32; 3],
+    /// Angular radius of the sun, radians: the width of the soft shadows' penumbra.
+    pub sun_angular_radius: f32,
 }
 
 /// The camera of one frame.

@@ -17,14 +17,20 @@ pub const SAMPLES: u32 = 4;
 /// Side of the square sun shadow map.
 pub const SHADOW_MAP_SIZE: u32 = 2048;
 
-/// Interleaved model vertex: position, normal, uv.
+/// Interleaved model vertex: position, normal, uv, ambient occlusion.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vertex {
     pub position: [f32; 3],
     pub normal: [f32; 3],
     pub uv: [f32; 2],
+    /// Fraction of the sky the vertex sees, 0..1 (shaders/model.wgsl `VertexIn.ao`, location
+    /// [`AO_LOCATION`]); 1 until the model's occlusion is computed.
+    pub ao: f32,
 }
+
+/// Shader location of [`Vertex::ao`].
+pub const AO_LOCATION: u32 = 3;
 
 pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
     let label = format!("{:?}", spec.technique);

@@ -25,6 +25,9 @@ impl Technique {
     }
 }
 
+/// The sh9-ggx lighting method's shading, appended to the model shader (which calls it).
+pub const SH9_GGX_WGSL: &str = include_str!("../../../shaders/sh9_ggx.wgsl");
+
 /// Shared structs and helpers, prepended to every technique.
 pub const FRAME_WGSL: &str = include_str!("../../../shaders/frame.wgsl");
 
@@ -34,8 +37,9 @@ pub fn source(t: Technique) -> String {
     let own = match t {
         Technique::Model => {
             format!(
-                "{FRAME_WGSL}\n{}\n{}\n{}",
+                "{FRAME_WGSL}\n{}const PREFILTER_LEVELS: f32 = {}.0;\n{}\n{}\n{SH9_GGX_WGSL}",
                 super::LightingMethod::wgsl_consts(),
+                crate::light::ggx::PREFILTER_LEVELS,
                 crate::colour::correction::COLOUR_CORRECT_WGSL,
                 t.file()
             )

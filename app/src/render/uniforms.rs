@@ -38,6 +38,14 @@ pub struct InstanceUniforms {
     pub normal: [[f32; 4]; 4],
 }
 
+/// Mirrors `struct Light` in shaders/frame.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct LightUniforms {
+    pub sh: [[f32; 4]; 9],
+    pub sun: [f32; 4],
+}
+
 /// Mirrors `struct Material` in shaders/model.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -51,6 +59,19 @@ pub struct MaterialUniforms {
 mod tests {
     use super::*;
     use crate::render::shaders::{Technique, source};
+
+    #[test]
+    fn the_vertex_ao_attribute_is_at_its_named_location() {
+        let module = crate::gpu::wgsl::validate(&source(Technique::Model)).unwrap();
+        let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("VertexIn")).expect("struct VertexIn").1;
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("VertexIn is not a struct") };
+        let ao = members.iter().find(|m| m.name.as_deref() == Some("ao")).expect("VertexIn.ao");
+        assert!(
+            matches!(ao.binding, Some(naga::Binding::Location { location, .. }) if location == crate::render::pipelines::AO_LOCATION),
+            "{:?}",
+            ao.binding
+        );
+    }
 
     #[test]
     fn layouts_match_naga() {
@@ -84,6 +105,7 @@ mod tests {
             ]
         );
         crate::assert_wgsl_layout!(module, InstanceUniforms, "Instance", [model, normal]);
+        crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun]);
         crate::assert_wgsl_layout!(module, MaterialUniforms, "Material", [albedo, specular, terms]);
     }
 }

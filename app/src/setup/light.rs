@@ -11,6 +11,7 @@
 
 use crate::light::measure::{MeasureOptions, MeasuredLight, SunSource, measure};
 use crate::light::samples::from_cube;
+use crate::light::sh9::COSINE_LOBE;
 use crate::light::sun_finder;
 use crate::render::{HemispherePriors, LightingMethod};
 use crate::scene::CubeMap;
@@ -39,16 +40,17 @@ pub fn map_to_world(m: Vec3, heading: f32) -> Vec3 {
 }
 
 /// The light measured in a scene's environment, kept with the compositor it was set up for: what
-/// the map holds, and the frame's light terms with the scene's multipliers (sun.sunlight,
-/// sun.daylight, effects.shadow_opacity) at 1 before the twilight fade — what the live view's
-/// sliders and its export scale.
+/// the map holds, and the frame's light terms with the scene's multipliers at 1
+/// ([`light_terms`]) — what the live view's sliders and its export scale.
 #[derive(Clone, Debug)]
 pub struct SceneLight {
     pub measured: MeasuredLight,
     pub unit: LightTerms,
 }
 
-/// The light terms of a frame.
+/// The light terms of a scene's environment with every multiplier (sun.sunlight, sun.daylight,
+/// effects.shadow_opacity) at 1; [`super::frame_params`] applies the multipliers and the twilight
+/// fade once.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightTerms {
     /// Unit direction to the sun, world (ENU): the scene's when it gives one, else the map's
@@ -56,18 +58,31 @@ pub struct LightTerms {
     pub sun_dir: Vec3,
     /// The map's sun in the world (None: no sun found).
     pub map_sun_dir: Option<Vec3>,
-    /// l_s = SL · E_sun / π (luminance, after exposure).
+    /// l_s = E_sun / π (luminance, after exposure), before the twilight fade.
     pub sunlight: f32,
-    /// l_d = DL · the factor that makes the method's ambient term E_sky / π.
+    /// l_d: the factor that makes the method's ambient term E_sky / π.
     pub daylight: f32,
-    /// SO · the sun's share of the ground's irradiance (what the ground loses in the model's
-    /// shadow, sky kept).
+    /// The sun's share of the ground's irradiance (what the ground loses in the model's shadow,
+    /// sky kept), twilight fade included.
     pub shadow_opacity: f32,
+    /// Irradiance (luminance, after exposure) the sun gives the ground, before the fade, and the
+    /// sky gives it: the shadow's share is computed from these with the multipliers.
+    pub ground_sun: f32,
+    pub ground_sky: f32,
+    /// The sun's colour: linear RGB with BT.709 luminance 1 (white without a sun).
+    pub sun_colour: [f32; 3],
+    /// The sky without the sun as SH9 coefficients of irradiance / π over `daylight` (linear RGB,
+    /// the map's own ENU frame): l_d · Σ c_i Y_i(n) is the light a white Lambertian surface
+    /// facing n reflects (sh9-ggx).
+    pub sky_sh: [[f32; 3]; 9],
+    /// Angular radius of the sun (rad).
+    pub sun_angular_radius: f32,
 }
 
 /// The light terms for `scene` from the measured light of its environment, at `exposure`, with
 /// the environment turned by `heading` (rad); `priors` are the hemisphere methods' ambient
-/// colours (after exposure) that the daylight factor scales.
+/// colours (after exposure) that the daylight factor scales. The scene's light multipliers are
+/// not applied (see [`LightTerms`]).
 pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePriors, exposure: f32, heading: f32) -> LightTerms {
     let lum = crate::colour::luminance_bt709;
     let pi = std::f32::consts::PI;
@@ -77,30 +92,49 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
         None => map_sun_dir.unwrap_or(Vec3::Z),
     };
     let has_sun = light.source != SunSource::None && map_sun_dir.is_some();
-    let fade = crate::sun::twilight::sunlight_factor_toward(sun_dir);
-    let sun = if has_sun { lum(light.sun_irradiance) * exposure / pi } else { 0.0 };
+    let sun_luminance = lum(light.sun_irradiance);
+    let sun = if has_sun { sun_luminance * exposure / pi } else { 0.0 };
+    let sun_colour = if has_sun && sun_luminance > 0.0 { light.sun_irradiance.map(|c| c / sun_luminance) } else { [1.0; 3] };
     // The sky's ambient radiance E/π, averaged over up and down normals (the hemisphere
     // methods blend between these two).
     let up = lum(light.sky.irradiance(Vec3::Z)) * exposure / pi;
     let down = lum(light.sky.irradiance(-Vec3::Z)) * exposure / pi;
     let reference = match scene.method {
-        LightingMethod::BlinnPhong => 1.0,
+        LightingMethod::BlinnPhong | LightingMethod::Sh9Ggx => 1.0,
         LightingMethod::HemisphereOcclusion => 0.5 * (priors.light + priors.shadow),
         _ => 0.5 * (lum(priors.sky) + lum(priors.ground)),
     };
     let daylight = if reference > 0.0 { 0.5 * (up + down) / reference } else { 0.0 };
+    // sh9-ggx's sky: irradiance / π per unit of its daylight (reference 1: daylight = 0.5 (up + down)).
+    let sky_daylight = 0.5 * (up + down);
+    let sky_sh = std::array::from_fn(|i| {
+        let scale = if sky_daylight > 0.0 { COSINE_LOBE[i] / pi * exposure / sky_daylight } else { 0.0 };
+        light.sky.coeffs[i].map(|c| c * scale)
+    });
     // The sun's share of the ground's irradiance with the direction used (the scene's sun is
     // given the map's energy).
-    let ground_sun = sun * pi * sun_dir.z.max(0.0) * scene.sun.sunlight as f32 * fade;
-    let ground_sky = up * pi * scene.sun.daylight as f32;
-    let share = if ground_sun + ground_sky > 0.0 { ground_sun / (ground_sun + ground_sky) } else { 0.0 };
+    let ground_sun = sun * pi * sun_dir.z.max(0.0);
+    let ground_sky = up * pi;
+    let shadow_opacity = shadow_opacity(ground_sun * crate::sun::twilight::sunlight_factor_toward(sun_dir), ground_sky);
     LightTerms {
         sun_dir,
         map_sun_dir,
-        sunlight: scene.sun.sunlight as f32 * sun * fade,
-        daylight: scene.sun.daylight as f32 * daylight,
-        shadow_opacity: (scene.effects.shadow_opacity as f32 * crate::light::measure::shadow_strength(share, 1.0)).clamp(0.0, 1.0),
+        sunlight: sun,
+        daylight,
+        shadow_opacity,
+        ground_sun,
+        ground_sky,
+        sun_colour,
+        sky_sh,
+        sun_angular_radius: light.sun_angular_radius,
     }
+}
+
+/// How dark the model's shadow makes the ground: the sun's share of the ground's irradiance
+/// (what the shadow removes, the sky kept), from the sun's and the sky's irradiance there.
+pub fn shadow_opacity(ground_sun: f32, ground_sky: f32) -> f32 {
+    let share = if ground_sun + ground_sky > 0.0 { ground_sun / (ground_sun + ground_sky) } else { 0.0 };
+    crate::light::measure::shadow_strength(share, 1.0)
 }
 
 #[cfg(test)]
@@ -119,5 +153,13 @@ mod tests {
         let (s, c) = h.sin_cos();
         let back = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
         assert!((back - m).length() < 1e-6);
+    }
+
+    #[test]
+    fn the_shadow_removes_the_suns_share_of_the_grounds_light() {
+        // Sun 3, sky 1 on the ground: the shadow keeps the sky's quarter.
+        assert!((shadow_opacity(3.0, 1.0) - 0.75).abs() < 1e-6);
+        assert_eq!(shadow_opacity(0.0, 1.0), 0.0);
+        assert_eq!(shadow_opacity(0.0, 0.0), 0.0);
     }
 }

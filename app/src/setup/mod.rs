@@ -91,30 +91,43 @@ pub fn camera_and_placement(scene: &Scene, bounds: (Vec3, Vec3)) -> (Camera, Pla
 }
 
 /// The frame parameters a scene describes, given the loaded model's bounds and the light terms
-/// measured from its environment ([`light_terms`]).
+/// measured from its environment ([`light_terms`]): the scene's sunlight, daylight and shadow
+/// multipliers and the sun's twilight fade apply here, once.
 pub fn frame_params(scene: &Scene, bounds: (Vec3, Vec3), light: &LightTerms) -> FrameParams {
     let (camera, placement) = camera_and_placement(scene, bounds);
-    let m = &scene.material;
     FrameParams {
         camera,
         method: scene.method,
-        lighting: Lighting {
-            sun_dir: light.sun_dir,
-            sunlight: light.sunlight,
-            daylight: light.daylight,
-            material: MaterialTerms {
-                ambient: m.ambient as f32,
-                diffuse: m.diffuse as f32,
-                specular: m.specular as f32,
-                gloss: m.gloss.map(|g| g as f32),
-            },
-            reflection: scene.effects.reflection as f32,
-            ior: scene.effects.ior as f32,
-            shadow_opacity: light.shadow_opacity,
-            live_depth: scene.effects.live_depth as f32,
-        },
+        lighting: lighting(scene, light),
         placement,
         colour: ColourSettings { method: scene.colour.correction, strength: scene.colour.strength as f32 },
+    }
+}
+
+/// The lighting of a scene's frame from the unit light terms of its environment: the scene's
+/// sunlight, daylight and shadow multipliers and the sun's twilight fade apply here, once.
+pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
+    let m = &scene.material;
+    let fade = crate::sun::twilight::sunlight_factor_toward(light.sun_dir);
+    let (sl, dl) = (scene.sun.sunlight as f32, scene.sun.daylight as f32);
+    let shadow = light::shadow_opacity(sl * light.ground_sun * fade, dl * light.ground_sky);
+    Lighting {
+        sun_dir: light.sun_dir,
+        sunlight: sl * light.sunlight * fade,
+        daylight: dl * light.daylight,
+        material: MaterialTerms {
+            ambient: m.ambient as f32,
+            diffuse: m.diffuse as f32,
+            specular: m.specular as f32,
+            gloss: m.gloss.map(|g| g as f32),
+        },
+        reflection: scene.effects.reflection as f32,
+        ior: scene.effects.ior as f32,
+        shadow_opacity: (scene.effects.shadow_opacity as f32 * shadow).clamp(0.0, 1.0),
+        live_depth: scene.effects.live_depth as f32,
+        sky_sh: light.sky_sh,
+        sun_colour: light.sun_colour,
+        sun_angular_radius: light.sun_angular_radius,
     }
 }
 
@@ -153,8 +166,8 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
 }
 
 /// The light of `scene` measured in `env` (uploaded with `priors`, at `exposure` and `heading`
-/// radians): the frame's light terms, and the measured light with the unit terms (the scene's
-/// multipliers at 1, before the twilight fade).
+/// radians): the light terms with the scene's multipliers at 1, before the twilight fade
+/// ([`lighting`] applies them), and the measured light with those terms.
 pub fn environment_light(
     scene: &Scene,
     env: &CubeMap,
@@ -163,13 +176,6 @@ pub fn environment_light(
     heading: f32,
 ) -> (LightTerms, SceneLight) {
     let measured = measure_environment(scene, env);
-    let light = light_terms(scene, &measured, priors, exposure, heading);
-    let mut unit = scene.clone();
-    unit.sun.sunlight = 1.0;
-    unit.sun.daylight = 1.0;
-    unit.effects.shadow_opacity = 1.0;
-    let mut unit = light_terms(&unit, &measured, priors, exposure, heading);
-    let fade = crate::sun::twilight::sunlight_factor_toward(unit.sun_dir);
-    unit.sunlight = if fade > 0.0 { unit.sunlight / fade } else { 0.0 };
-    (light, SceneLight { measured, unit })
+    let unit = light_terms(scene, &measured, priors, exposure, heading);
+    (unit, SceneLight { measured, unit })
 }

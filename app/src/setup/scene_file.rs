@@ -164,7 +164,7 @@ impl Default for Scene {
             output: PathBuf::from("composite.png"),
             width: 960,
             height: 640,
-            method: LightingMethod::Hemisphere,
+            method: LightingMethod::Sh9Ggx,
             camera: CameraSection::default(),
             sun: SunSection::default(),
             material: MaterialSection::default(),

@@ -1,5 +1,6 @@
 //! The ground pass (step 4 of DESIGN.md "One frame"): an invisible shadow-catcher plane under the
-//! model darkens the background where the shadow map says the sun is blocked.
+//! model darkens the background where the shadow map says the sun is blocked, with a penumbra
+//! that follows the sun's size (frame.wgsl `sun_visibility_soft`).
 
 use super::super::uniforms::InstanceUniforms;
 use crate::gpu::build;
@@ -19,6 +20,7 @@ pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
             build::uniform(1, vs_fs),
             build::depth_texture_entry(2, fs),
             build::sampler_entry(3, fs, wgpu::SamplerBindingType::Comparison),
+            build::uniform(4, fs),
         ],
     );
     let pipeline = make(
@@ -43,8 +45,13 @@ pub struct GroundPass {
 }
 
 impl GroundPass {
-    /// Reads the Frame uniform buffer `frame` and the sun's `shadow_map`.
-    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, frame: &wgpu::Buffer, shadow_map: &wgpu::TextureView) -> GroundPass {
+    /// Reads the Frame and Light uniform buffers and the sun's `shadow_map`.
+    pub fn new(
+        device: &wgpu::Device,
+        pipelines: &Pipelines,
+        (frame, light): (&wgpu::Buffer, &wgpu::Buffer),
+        shadow_map: &wgpu::TextureView,
+    ) -> GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
         let bind_group = build::bind_group(
             device,
@@ -55,6 +62,7 @@ impl GroundPass {
                 instance.as_entire_binding(),
                 wgpu::BindingResource::TextureView(shadow_map),
                 wgpu::BindingResource::Sampler(&pipelines.shadow_sampler),
+                light.as_entire_binding(),
             ],
         );
         GroundPass { pipeline: pipelines.ground.pipeline.clone(), bind_group, instance }

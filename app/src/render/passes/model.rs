@@ -6,10 +6,12 @@
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::gpu::{Gpu, build};
+use crate::light::ggx;
 use crate::priors;
 use crate::render::LightingMethod;
+use crate::render::environment::EnvironmentViews;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
+use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
 use crate::scene::lod::{IndexRange, LodChain};
@@ -23,7 +25,8 @@ use wgpu::util::DeviceExt;
 
 /// What the model pass's pipelines share.
 pub struct ModelPipelines {
-    /// Bind group 0: frame, instance, environment, background, shadow map, colour correction.
+    /// Bind group 0: frame, instance, environment, background, shadow map, colour correction,
+    /// measured light, prefiltered environment, split-sum table.
     pub layout: wgpu::BindGroupLayout,
     /// Bind group 1: one per material.
     pub material_layout: wgpu::BindGroupLayout,
@@ -49,6 +52,9 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
             build::depth_texture_entry(6, fs),
             build::sampler_entry(7, fs, Comparison),
             build::uniform(8, fs),
+            build::uniform(9, fs),
+            build::texture_entry(10, fs, Cube, true),
+            build::texture_entry(11, fs, D2, true),
         ],
     );
     let material_layout = build::layout(
@@ -59,7 +65,7 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
     let vertex_layout = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, AO_LOCATION => Float32],
     };
     let module = build::shader(device, "model", source(Technique::Model));
     let by_method = LightingMethod::ALL
@@ -99,7 +105,12 @@ pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
         bail!("a mesh index ({bad}) points past its {n} vertices");
     }
     Ok((0..n)
-        .map(|i| Vertex { position: mesh.positions[i], normal: mesh.normals[i], uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]) })
+        .map(|i| Vertex {
+            position: mesh.positions[i],
+            normal: mesh.normals[i],
+            uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
+            ao: 1.0,
+        })
         .collect())
 }
 
@@ -112,6 +123,14 @@ pub fn material_uniforms(base: &MaterialUniforms, terms: &MaterialTerms) -> Mate
         m.specular[3] = g;
     }
     m
+}
+
+/// The split-sum table as RGBA16F texels (A, B, 0, 1), computed once per process.
+fn brdf_lut_texels() -> &'static [half::f16] {
+    static TEXELS: std::sync::OnceLock<Vec<half::f16>> = std::sync::OnceLock::new();
+    TEXELS.get_or_init(|| {
+        ggx::brdf_lut(ggx::LUT_SIZE, ggx::LUT_SAMPLES).iter().flat_map(|&[a, b]| [a, b, 0.0, 1.0]).map(half::f16::from_f32).collect()
+    })
 }
 
 struct MeshGpu {
@@ -168,6 +187,8 @@ pub struct ModelPass {
     colour: wgpu::Buffer,
     /// The texture of untextured materials.
     white: wgpu::TextureView,
+    /// The split-sum BRDF table (light::ggx::brdf_lut): A, B in red and green.
+    brdf_lut: wgpu::TextureView,
     /// Bind group 0, once there is an environment.
     bind_group: Option<wgpu::BindGroup>,
 }
@@ -184,17 +205,26 @@ impl ModelPass {
             shadow_sampler: pipelines.shadow_sampler.clone(),
             colour: build::uniform_buffer::<ColourCorrection>(device, "colour correction"),
             white: build::sampled_texture(device, &gpu.queue, "white", (1, 1), COLOR_FORMAT, &[255; 4]),
+            brdf_lut: build::sampled_texture(
+                device,
+                &gpu.queue,
+                "split-sum BRDF",
+                (ggx::LUT_SIZE, ggx::LUT_SIZE),
+                wgpu::TextureFormat::Rgba16Float,
+                bytemuck::cast_slice(brdf_lut_texels()),
+            ),
             bind_group: None,
         }
     }
 
-    /// Bind group 0 for a new environment: the frame and instance uniforms, the environment
-    /// cube map, the background, the shadow map and the colour correction.
+    /// Bind group 0 for a new environment: the frame, instance and light uniforms, the
+    /// environment cube map and its prefiltered levels, the background, the shadow map and the
+    /// colour correction.
     pub fn bind_group(
         &self,
         device: &wgpu::Device,
-        (frame, instance): (&wgpu::Buffer, &wgpu::Buffer),
-        cube: &wgpu::TextureView,
+        (frame, instance, light): (&wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer),
+        env: &EnvironmentViews,
         background: &wgpu::TextureView,
         shadow_map: &wgpu::TextureView,
     ) -> wgpu::BindGroup {
@@ -206,13 +236,16 @@ impl ModelPass {
             &[
                 frame.as_entire_binding(),
                 instance.as_entire_binding(),
-                TextureView(cube),
+                TextureView(&env.cube),
                 Sampler(&self.linear_sampler),
                 TextureView(background),
                 Sampler(&self.linear_sampler),
                 TextureView(shadow_map),
                 Sampler(&self.shadow_sampler),
                 self.colour.as_entire_binding(),
+                light.as_entire_binding(),
+                TextureView(&env.specular),
+                TextureView(&self.brdf_lut),
             ],
         )
     }

@@ -1,0 +1,72 @@
+// The sh9-ggx lighting method (issue 9), appended to model.wgsl's module: light measured from
+// the environment, in colour.
+//   diffuse  = albedo * (SH9 irradiance of the sky without the sun / pi * ao * a_c
+//                        + the sun's irradiance / pi * max(n.l, 0) * soft shadow * d_c)
+//   specular = the environment prefiltered for the GGX lobe at the surface's roughness, times the
+//              split-sum BRDF terms F0 * A + B (Karis 2013), times ao * s_c
+// The sky's and sun's levels are frame.daylight and frame.sunlight, so the DL/SL multipliers
+// and the live view's sliders act on them; a_c, d_c, s_c (the scene's material terms, seed
+// Eq. 3) scale the sky, sun and specular terms: s_c = 0 gives a Lambertian surface, the
+// references' material for a model without one (tests/reference).
+// Two-sided, like the references (tests/reference): the normal faces the viewer.
+// F0 = the material's specular colour (MTL Ks; glTF: mix(0.04, base colour, metallic)); GGX
+// roughness from its Blinn-Phong exponent (light::ggx::roughness_from_exponent, Walter 2007).
+
+@group(0) @binding(9) var<uniform> light: Light;
+@group(0) @binding(10) var specular_env: texture_cube<f32>;
+@group(0) @binding(11) var brdf_lut: texture_2d<f32>;
+
+// PREFILTER_LEVELS (mip levels of specular_env; level k holds roughness k / (n - 1)) is
+// generated from light::ggx::PREFILTER_LEVELS by render::shaders.
+
+// Sum of the SH9 coefficients weighted by the real SH basis at unit direction d (light::sh9::basis).
+fn sh9_eval(d: vec3<f32>) -> vec3<f32> {
+    let x = d.x;
+    let y = d.y;
+    let z = d.z;
+    var e = light.sh[0].rgb * 0.282095;
+    e += light.sh[1].rgb * (0.488603 * y);
+    e += light.sh[2].rgb * (0.488603 * z);
+    e += light.sh[3].rgb * (0.488603 * x);
+    e += light.sh[4].rgb * (1.092548 * x * y);
+    e += light.sh[5].rgb * (1.092548 * y * z);
+    e += light.sh[6].rgb * (0.315392 * (3.0 * z * z - 1.0));
+    e += light.sh[7].rgb * (1.092548 * x * z);
+    e += light.sh[8].rgb * (0.546274 * (x * x - y * y));
+    return max(e, vec3<f32>(0.0));
+}
+
+// GGX roughness of a Blinn-Phong exponent (light::ggx::roughness_from_exponent).
+fn roughness_from_exponent(exponent: f32) -> f32 {
+    return sqrt(sqrt(2.0 / (max(exponent, 0.0) + 2.0)));
+}
+
+fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
+    var n = normalize(in.normal);
+    let v = normalize(frame.camera_pos - in.world);
+    if (dot(n, v) < 0.0) {
+        n = -n;
+    }
+    let albedo = surface_albedo(in.uv);
+    let ao = in.ao;
+    let sky = sh9_eval(env_map_dir(frame, n)) * (frame.daylight * ao * material.terms.x);
+    let l = frame.sun_dir;
+    let n_dot_l = max(dot(n, l), 0.0);
+    var visibility = 0.0;
+    if (n_dot_l > 0.0) {
+        visibility = sun_visibility_soft(shadow_map, shadow_smp, frame, in.world + n * 0.002, light.sun.w);
+    }
+    let sun = light.sun.rgb * (frame.sunlight * n_dot_l * visibility * material.terms.y);
+    var colour = albedo * (sky + sun);
+
+    let f0 = material.specular.rgb;
+    if (max(f0.r, max(f0.g, f0.b)) * material.terms.z > 0.0) {
+        let roughness = roughness_from_exponent(material.specular.a);
+        let n_dot_v = clamp(dot(n, v), 1e-3, 1.0);
+        let r = reflect(-v, n);
+        let prefiltered = textureSampleLevel(specular_env, env_smp, env_dir(frame, r), roughness * (PREFILTER_LEVELS - 1.0)).rgb;
+        let ab = textureSampleLevel(brdf_lut, background_smp, vec2<f32>(n_dot_v, roughness), 0.0).xy;
+        colour += prefiltered * frame.env_exposure * (f0 * ab.x + ab.y) * (ao * material.terms.z);
+    }
+    return vec4<f32>(colour, 1.0);
+}

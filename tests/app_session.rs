@@ -212,7 +212,9 @@ fn capture_then_composite_with_it_then_export() {
 
 #[test]
 fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_manual_place() {
-    let s = scene(SCENE);
+    // The environment is declared a capture of this place and moment: the sun follows the
+    // place and time the user types.
+    let s = scene(&format!("{SCENE}[env]\ncaptured_here = true\n"));
     let inp = inputs(&s);
     let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
     let mut app = App::new(session, tempdir("app_session", "refused"));

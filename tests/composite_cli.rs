@@ -182,3 +182,44 @@ fn no_gpu_adapter_says_how_to_install_lavapipe() {
     assert_clean_failure(&out, &dir, &[], &["no GPU adapter", "mesa-vulkan-drivers"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn json_reports_the_spa_sun_for_the_scenes_place_and_time() {
+    let dir = tempdir("cli", "spa_json");
+    let sphere = data("meshes/icosphere-320.obj");
+    let env = data("cubemaps/humus_Park2_512");
+    let common =
+        ["composite", "--model", sphere.to_str().unwrap(), "--env", env.to_str().unwrap(), "--width", "64", "--height", "48", "--json"];
+    // NREL SPA's published test case (Reda & Andreas 2004, Table A4.1): Golden, Colorado,
+    // 2003-10-17 12:30:30 −7 h: azimuth 194.34024°, topocentric zenith 50.11162° (elevation
+    // 1830 m, 820 mbar, 11 °C there; sea level and standard-atmosphere defaults move it < 0.05°).
+    let place = ["--set", "sun.latitude=39.742476", "--set", "sun.longitude=-105.1786", "--set", "sun.time=\"2003-10-17T12:30:30-07:00\""];
+    let args: Vec<&str> = common.iter().chain(&place).chain(&["-o", "spa.png"]).copied().collect();
+    let out = previz(&dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let light = &json["light"];
+    let spa = &light["spa_sun_dir"];
+    assert!((spa["azimuth_deg"].as_f64().unwrap() - 194.34024).abs() < 0.05, "{spa}");
+    assert!((spa["elevation_deg"].as_f64().unwrap() - (90.0 - 50.11162)).abs() < 0.05, "{spa}");
+    // The angle to the sun used is the one between the two reported directions.
+    let v = |d: &serde_json::Value| glam::DVec3::from_array(std::array::from_fn(|i| d["enu"][i].as_f64().unwrap())).normalize();
+    let angle = v(spa).angle_between(v(&light["sun_dir"])).to_degrees();
+    assert!((light["used_to_spa_deg"].as_f64().unwrap() - angle).abs() < 0.01, "{light}");
+    // Without a place: no SPA sun.
+    let args: Vec<&str> = common.iter().chain(&["-o", "none.png"]).copied().collect();
+    let out = previz(&dir, &args);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(json["light"]["spa_sun_dir"].is_null() && json["light"]["map_to_spa_deg"].is_null());
+    // A place without a time, or a time that is not one: the keys are named, nothing is written.
+    let before = files(&dir);
+    for (extra, needle) in [
+        (vec!["--set", "sun.latitude=39.7"], "sun.latitude, sun.longitude and sun.time"),
+        (vec!["--set", "sun.latitude=39.7", "--set", "sun.longitude=-105", "--set", "sun.time=\"noon\""], "sun.time"),
+        (vec!["--set", "sun.latitude=95", "--set", "sun.longitude=-105", "--set", "sun.time=\"2003-10-17T12:30:30Z\""], "sun.latitude"),
+    ] {
+        let args: Vec<&str> = common.iter().copied().chain(extra).chain(["-o", "bad.png"]).collect();
+        assert_clean_failure(&previz(&dir, &args), &dir, &before, &[needle]);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -16,6 +16,11 @@ use std::sync::Arc;
 
 const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
 [camera]\nheading = 90.0\npitch = -5.0\n";
+/// The same scene with its environment declared a capture of the session's place and moment:
+/// the model is lit by SPA's sun for the clock.
+fn captured_here() -> String {
+    format!("{SCENE}[env]\ncaptured_here = true\n")
+}
 
 fn config(time: &str, noise: NoiseLevel) -> LiveConfig {
     LiveConfig {
@@ -32,7 +37,7 @@ fn config(time: &str, noise: NoiseLevel) -> LiveConfig {
 
 #[test]
 fn camera_image_is_the_background_model_at_the_pose_sun_from_spa() {
-    let s = scene(SCENE);
+    let s = scene(&captured_here());
     let inputs = load_inputs(&s, false).unwrap();
     let env = Arc::new(inputs.env);
     let cfg = config("2003-10-17T12:30:30-07:00", NoiseLevel::None);
@@ -89,7 +94,7 @@ fn camera_image_is_the_background_model_at_the_pose_sun_from_spa() {
 
 #[test]
 fn no_sunlight_at_night_and_noisy_sensors_stay_within_a_few_degrees() {
-    let s = scene(SCENE);
+    let s = scene(&captured_here());
     let inputs = load_inputs(&s, false).unwrap();
     // Local midnight in Golden: the sun is far below the horizon.
     let cfg = config("2003-10-17T00:30:00-07:00", NoiseLevel::Phone);
@@ -202,4 +207,30 @@ fn window_runs_a_scripted_capture_composite_export_session_under_xvfb() {
     }
     let toml = std::fs::read_to_string(export.join("scene.toml")).unwrap();
     assert!(toml.contains(&*capture.file_name().unwrap().to_string_lossy()), "the capture lights the exported frame:\n{toml}");
+}
+
+#[test]
+fn a_map_that_is_not_a_capture_of_here_and_now_lights_with_its_own_sun() {
+    // Park2 is a downloaded map: its sun, not SPA's for the clock, lights the model, at noon and
+    // at midnight alike (as `previz composite` does).
+    let s = scene(SCENE);
+    let inputs = load_inputs(&s, false).unwrap();
+    let env = Arc::new(inputs.env);
+    let (_, params, light) = previz::setup::compositor_and_light(gpu(), &s, &env, &inputs.model).unwrap();
+    let map_sun = light.unit.map_sun_dir.expect("the 8-bit Park2 map has a (clipped) sun");
+    assert!((params.lighting.sun_dir - map_sun).length() < 1e-6);
+    for time in ["2003-10-17T12:30:30-07:00", "2003-10-17T00:30:00-07:00"] {
+        let mut cfg = config(time, NoiseLevel::None);
+        cfg.duration_s = 1.0;
+        let mut session = LiveSession::simulated(gpu(), env.clone(), &inputs.model, &s, cfg).unwrap();
+        for _ in 0..5 {
+            let f = session.advance(gpu()).unwrap().expect("a camera frame");
+            assert!((session.params().lighting.sun_dir - map_sun).length() < 1e-6, "{time}");
+            assert_eq!(f.sunlight, params.lighting.sunlight, "{time}");
+            // SPA's sun is still computed and reported: far from the map's at midnight.
+            let spa_up = f.sun.apparent_elevation_deg() > 0.0;
+            assert_eq!(spa_up, time.contains("12:30"));
+        }
+    }
+    assert!(params.lighting.sunlight > 0.0);
 }

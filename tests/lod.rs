@@ -46,7 +46,10 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     assert_eq!(c.lod_level(), chosen);
     assert_eq!(c.lod_triangles().unwrap(), &chain.triangles[..]);
     let drawn_flip = previz::capture::replay::mean_flip(&reference, &drawn, 320, 240).unwrap();
-    assert!((drawn_flip - chosen_flip).abs() < 1e-6, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
+    // Not bit-identical since per-vertex ambient occlusion: the drawn level's is computed against
+    // the full mesh, the level-alone model's against its own coarser triangles (measured
+    // difference 1.7e-6 on this bunny).
+    assert!((drawn_flip - chosen_flip).abs() < 1e-5, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
     // Moved twice as far away, it draws a coarser level.
     let mut far = p;
     let toward = far.placement.position - far.camera.position;

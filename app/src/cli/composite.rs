@@ -165,19 +165,29 @@ fn flag_for_error(msg: &str) -> String {
     "invalid scene".into()
 }
 
-/// The frame's light and where it came from: the sun used (the scene's or the map's) and the
-/// sun found in the map, both as ENU directions with azimuth/elevation in degrees.
-fn light_json(scene: &crate::setup::scene_file::Scene, light: &SceneLight, params: &crate::render::FrameParams) -> serde_json::Value {
+/// The frame's light and where it came from: the sun used (the scene's or the map's), the sun
+/// found in the map and the sun SPA gives for the scene's place and time (when it has them),
+/// as ENU directions with azimuth/elevation in degrees.
+fn light_json(
+    scene: &crate::setup::scene_file::Scene,
+    light: &SceneLight,
+    params: &crate::render::FrameParams,
+    spa: Option<glam::Vec3>,
+) -> serde_json::Value {
     let measured = &light.measured;
     let dir = |d: glam::Vec3| {
         let (az, el) = crate::light::sun_finder::azimuth_elevation(d);
         serde_json::json!({ "enu": d.to_array(), "azimuth_deg": az.to_degrees(), "elevation_deg": el.to_degrees() })
     };
     let l = &params.lighting;
+    let angle = |a: Option<glam::Vec3>, b: Option<glam::Vec3>| a.zip(b).map(|(a, b)| a.normalize().angle_between(b).to_degrees());
     serde_json::json!({
         "sun_from": if scene.sun.direction.is_some() { "scene" } else { "map" },
         "sun_dir": dir(l.sun_dir),
         "map_sun_dir": light.unit.map_sun_dir.map(dir),
+        "spa_sun_dir": spa.map(dir),
+        "map_to_spa_deg": angle(light.unit.map_sun_dir, spa),
+        "used_to_spa_deg": angle(Some(l.sun_dir), spa),
         "map_sun": format!("{:?}", measured.source).to_lowercase(),
         "map_sun_irradiance": measured.sun_irradiance,
         "sunlight": l.sunlight,
@@ -193,6 +203,8 @@ fn ms(t: Instant) -> f64 {
 pub fn run(args: Args) -> Result<()> {
     let t_total = Instant::now();
     let (scene, demo) = scene_from_args(&args.scene, args.output.as_deref())?;
+    // Before anything is written: a place/time SPA cannot take is an error with no output.
+    let spa_sun = crate::setup::spa_sun(&scene)?;
     if let Some(dir) = &args.layers {
         std::fs::create_dir_all(dir).with_context(|| format!("--layers {}: cannot create the directory", dir.display()))?;
     }
@@ -258,7 +270,7 @@ pub fn run(args: Args) -> Result<()> {
                 "why": choice.why,
             },
             "colour_correction": { "method": scene.colour.correction.name(), "strength": scene.colour.strength },
-            "light": light_json(&scene, &light, &params),
+            "light": light_json(&scene, &light, &params, spa_sun.map(|s| s.direction_enu())),
             "adapter": gpu.describe(),
             "timings_ms": {
                 "load": load_ms,

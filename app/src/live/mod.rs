@@ -8,8 +8,10 @@
 //!    swims against the background, exactly as on a phone);
 //! 2. the sensors deliver their readings up to the frame's time, the fusion filter updates,
 //!    and a GPS fix moves the place the sun is computed for;
-//! 3. the sun is computed for the place and the frame's instant (NREL SPA) and faded through
-//!    twilight;
+//! 3. the sun is computed for the place and the frame's instant (NREL SPA); the model is lit
+//!    by it when the environment is a capture of this place and moment (`env.captured_here`, or
+//!    a capture the app just took), otherwise by the map's own sun as `composite` is (a
+//!    downloaded map's sun has nothing to do with today's clock); faded through twilight;
 //! 4. the compositor draws camera image, ground shadow and model at the estimated pose.
 //!
 //! The simulated user stands still and looks at the model, panning slowly left and right and
@@ -53,6 +55,7 @@ use crate::sun::{Algorithm, SunInput, SunPosition, position};
 use crate::ui::controls::Controls;
 use anyhow::{Context, Result, bail};
 use chrono::{DateTime, NaiveDate, Utc};
+use glam::Vec3;
 use std::sync::Arc;
 
 /// Where, when and how the live session runs (the place is where the session starts; GPS
@@ -217,6 +220,8 @@ pub struct LiveFrame {
     pub pose: Option<Pose>,
     /// Angle between the estimated and the true camera orientation, degrees.
     pub pose_error_deg: Option<f64>,
+    /// NREL SPA's sun for the place and the frame's instant (the model is lit with it only when
+    /// the environment is a capture of this place and moment, `env.captured_here`).
     pub sun: SunPosition,
     /// Sunlight intensity after the twilight fade.
     pub sunlight: f32,
@@ -246,6 +251,12 @@ pub struct LiveSession {
     controls: Option<Controls>,
     /// The sun's intensity of the current frame before SL (place, time, twilight).
     sun_intensity: f32,
+    /// Light with SPA's sun for the place and the clock (the environment is a capture of this
+    /// place and moment); false: with the map's sun (or the scene's), as `composite` does.
+    sun_from_clock: bool,
+    /// The sun direction measured in the map (or set by the scene) the frames use when not
+    /// `sun_from_clock`.
+    map_sun_dir: Vec3,
     /// The current camera image (the background of the frame).
     camera_image: Option<crate::scene::Rgba8Image>,
     /// The light measured in the environment with the scene's multipliers at 1 (unfaded): the
@@ -270,6 +281,7 @@ impl LiveSession {
         cfg.validate()?;
         let (compositor, params, light) = compositor_and_light(gpu, scene, env, model)?;
         let unit_light = light.unit;
+        let map_sun_dir = params.lighting.sun_dir;
         // True north from the first GPS fix and the World Magnetic Model for the date.
         let mut filter = OrientationFilter::new(FusionConfig::default());
         filter.set_date(magnetic_model_date(cfg.start.date_naive()));
@@ -285,6 +297,8 @@ impl LiveSession {
             readings: Vec::new(),
             controls: None,
             sun_intensity: scene.sun.sunlight as f32 * unit_light.sunlight,
+            sun_from_clock: scene.env.captured_here,
+            map_sun_dir,
             camera_image: None,
             unit_light,
             scene: scene.clone(),
@@ -329,11 +343,14 @@ impl LiveSession {
         let instant = self.cfg.start + chrono::Duration::microseconds((t * 1e6).round() as i64);
         let sun = position(&SunInput::new(instant, self.location.0, self.location.1), Algorithm::Spa)?;
         let t3 = std::time::Instant::now();
-        let sunlight = self.full_sunlight * sun.sunlight_factor();
+        // SPA's sun for a capture of this place and moment; otherwise the map's own sun (the
+        // demo's picture, a downloaded HDR), whatever the clock says.
+        let sun_dir = if self.sun_from_clock { sun.direction_enu() } else { self.map_sun_dir };
+        let sunlight = self.full_sunlight * crate::sun::twilight::sunlight_factor_toward(sun_dir);
         if let Some(p) = pose {
             self.params.camera.pose = p.q;
         }
-        self.params.lighting.sun_dir = sun.direction_enu();
+        self.params.lighting.sun_dir = sun_dir;
         self.params.lighting.sunlight = sunlight;
         self.sun_intensity = sunlight;
         if let Some(c) = &self.controls {
@@ -481,6 +498,9 @@ impl LiveSession {
         let light = crate::setup::lighting(&scene, &unit);
         self.unit_light = scene_light.unit;
         self.full_sunlight = scene.sun.sunlight as f32 * self.unit_light.sunlight;
+        // A capture just taken here: from now on the sun is SPA's for the place and the clock.
+        scene.env.captured_here = true;
+        self.sun_from_clock = true;
         self.params.lighting.daylight = light.daylight;
         self.params.lighting.shadow_opacity = light.shadow_opacity;
         self.params.lighting.sky_sh = light.sky_sh;

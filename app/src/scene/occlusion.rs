@@ -204,6 +204,17 @@ pub fn sky_visibility(occluders: &Occluders, point: Vec3, up: Vec3, rays: u32, s
     occluders.visibility(point, up, rays, seed)
 }
 
+/// Visibility including the light the occluders themselves reflect: Jimenez et al. 2016,
+/// "Practical real-time strategies for accurate indirect occlusion" (GTAO), Eq. 10, a cubic fit
+/// of multi-bounce ambient occlusion against path-traced ground truth for a surface of diffuse
+/// `albedo` surrounded by the same albedo. Never below `ao`; 1 stays 1.
+pub fn multi_bounce(ao: f32, albedo: f32) -> f32 {
+    let a = 2.0404 * albedo - 0.3324;
+    let b = -4.7951 * albedo + 0.6417;
+    let c = 2.7552 * albedo + 0.6903;
+    ao.max(((ao * a + b) * ao + c) * ao)
+}
+
 /// Texels per side of the ground's sky-visibility map.
 pub const GROUND_TEXELS: u32 = 64;
 /// Rays per texel of the ground map.
@@ -650,6 +661,19 @@ mod tests {
         let sky = ground_sky(&occ, (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0)), Mat4::IDENTITY, 25, 1024);
         let under = sky.at(Vec2::ZERO);
         assert!((under - 0.75).abs() < 0.01, "{under}");
+    }
+
+    #[test]
+    fn multi_bounce_adds_the_light_the_occluders_reflect() {
+        for i in 0..=20 {
+            let ao = i as f32 / 20.0;
+            // Black occluders reflect nothing: plain AO (the fit stays below it at albedo 0).
+            assert_eq!(multi_bounce(ao, 0.0), ao);
+            // An open point stays open whatever the albedo (the fit's a + b + c = 1 ± 0.001).
+            assert!((multi_bounce(1.0, ao) - 1.0).abs() < 1e-3);
+            // Brighter surroundings give back more light.
+            assert!(multi_bounce(ao, 0.8) >= multi_bounce(ao, 0.4) && multi_bounce(ao, 0.4) >= ao);
+        }
     }
 
     #[test]

@@ -16,6 +16,15 @@ pub mod method_choice;
 pub mod scene_file;
 pub use light::{LightTerms, SceneLight, light_terms, measure_environment};
 
+/// The sun NREL SPA gives for the scene's place and instant (`sun.latitude`, `sun.longitude`,
+/// `sun.time`), None when the scene gives no place: the direction to compare with the map's sun
+/// (they agree once the map's heading is right and the map was taken there and then).
+pub fn spa_sun(scene: &Scene) -> Result<Option<crate::sun::SunPosition>> {
+    let Some((lat, lon, time)) = scene.sun.place_time()? else { return Ok(None) };
+    let input = crate::sun::SunInput::new(time, lat, lon);
+    crate::sun::position(&input, crate::sun::Algorithm::Spa).map(Some).context("the sun for sun.latitude, sun.longitude, sun.time")
+}
+
 /// Everything loaded from disk (or the embedded demo) for a scene.
 pub struct Inputs {
     pub model: Model,

@@ -62,6 +62,26 @@ pub struct SunSection {
     pub sunlight: f64,
     /// Multiplier on the daylight (sky without the sun) measured in the environment.
     pub daylight: f64,
+    /// Where and when the scene is (degrees north, degrees east, RFC 3339 time): reported
+    /// beside the map's sun as the sun NREL SPA gives there and then (all three or none).
+    pub latitude: Option<f64>,
+    pub longitude: Option<f64>,
+    pub time: Option<String>,
+}
+
+impl SunSection {
+    /// The scene's place and instant, when it gives them (checked by `Scene::validate`).
+    pub fn place_time(&self) -> Result<Option<(f64, f64, chrono::DateTime<chrono::Utc>)>> {
+        match (self.latitude, self.longitude, &self.time) {
+            (None, None, None) => Ok(None),
+            (Some(lat), Some(lon), Some(t)) => {
+                let t = chrono::DateTime::parse_from_rfc3339(t)
+                    .with_context(|| format!("sun.time = {t:?} is not an RFC 3339 time (e.g. 2003-10-17T12:30:30-07:00)"))?;
+                Ok(Some((lat, lon, t.with_timezone(&chrono::Utc))))
+            }
+            _ => bail!("sun.latitude, sun.longitude and sun.time go together: give all three or none"),
+        }
+    }
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -101,6 +121,10 @@ pub struct EnvSection {
     pub exposure: Option<f64>,
     /// Heading (degrees clockwise from north) of the map's front (+Z) face.
     pub heading: f64,
+    /// The map is a capture of the live session's place and moment: `previz live` lights the
+    /// model with NREL SPA's sun for the clock. False (a downloaded map, the demo's): the map's
+    /// own sun (or `sun.direction`), whatever the clock says.
+    pub captured_here: bool,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -162,7 +186,7 @@ impl Default for CameraSection {
 
 impl Default for SunSection {
     fn default() -> Self {
-        SunSection { direction: None, sunlight: 1.0, daylight: 1.0 }
+        SunSection { direction: None, sunlight: 1.0, daylight: 1.0, latitude: None, longitude: None, time: None }
     }
 }
 
@@ -180,7 +204,7 @@ impl Default for PlacementSection {
 
 impl Default for EnvSection {
     fn default() -> Self {
-        EnvSection { exposure: None, heading: 0.0 }
+        EnvSection { exposure: None, heading: 0.0, captured_here: false }
     }
 }
 
@@ -303,6 +327,10 @@ impl Scene {
         }
         check("sun.sunlight", self.sun.sunlight, 0.0, 100.0)?;
         check("sun.daylight", self.sun.daylight, 0.0, 100.0)?;
+        if let Some((lat, lon, _)) = self.sun.place_time()? {
+            check("sun.latitude", lat, -90.0, 90.0)?;
+            check("sun.longitude", lon, -180.0, 180.0)?;
+        }
         let m = &self.material;
         check("material.ambient", m.ambient, 0.0, 100.0)?;
         check("material.diffuse", m.diffuse, 0.0, 100.0)?;

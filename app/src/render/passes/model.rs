@@ -15,6 +15,7 @@ use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, SAMPLES, Ve
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
 use crate::scene::lod::{IndexRange, LodChain};
+use crate::scene::occlusion;
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::Vec3;
@@ -311,8 +312,16 @@ impl ModelPass {
         let mut meshes = Vec::new();
         let mut materials = Vec::new();
         // Checked before simplifying: the simplifier indexes the vertices.
-        let vertex_lists =
+        let mut vertex_lists =
             model.meshes.iter().map(|m| if m.indices.is_empty() { Ok(Vec::new()) } else { interleave(m) }).collect::<Result<Vec<_>>>()?;
+        // Ambient occlusion, once per model: each vertex's share of the sky past the model itself.
+        // Occluders reflect light too: the multi-bounce fit for the mesh material's albedo.
+        for ((vertices, ao), mesh) in vertex_lists.iter_mut().zip(occlusion::model_ao(model)).zip(&model.meshes) {
+            let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
+            for (v, a) in vertices.iter_mut().zip(ao) {
+                v.ao = occlusion::multi_bounce(a, albedo);
+            }
+        }
         let chain = LodChain::build(model);
         for ((mesh, lods), vertices) in model.meshes.iter().zip(&chain.meshes).zip(vertex_lists) {
             if mesh.indices.is_empty() {

@@ -113,3 +113,4 @@ pub mod environment;
 pub mod lod;
 pub mod model;
 pub mod normals;
+pub mod occlusion;

@@ -276,3 +276,56 @@ fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_m
     let f = app.last_frame().unwrap();
     assert!(f.sun.apparent_elevation_deg() < -10.0 && f.sunlight == 0.0, "sun at {}°", f.sun.apparent_elevation_deg());
 }
+
+#[test]
+fn x_y_z_sliders_turn_the_model_by_the_dragged_angle() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
+    let mut app = App::new(session, tempdir("app_session", "xyz"));
+    let ctx = egui::Context::default();
+    // A taller screen so the whole panel shows.
+    let input = |events| egui::RawInput {
+        screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 900.0))),
+        events,
+        ..Default::default()
+    };
+    let mut run = |app: &mut App, events: Vec<egui::Event>| {
+        let mut out = ctx.run_pass(input(events), |ctx| app.ui(ctx, None, ""));
+        out.textures_delta.set.drain().for_each(drop);
+        out.textures_delta.free.drain().for_each(drop);
+        out
+    };
+    run(&mut app, vec![]);
+    for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
+        let out = run(&mut app, vec![]);
+        let texts: Vec<(String, egui::Rect)> = out
+            .shapes
+            .iter()
+            .filter_map(|s| match &s.shape {
+                egui::Shape::Text(t) => Some((t.galley.text().to_string(), t.visual_bounding_rect())),
+                _ => None,
+            })
+            .collect();
+        let row = texts.iter().find(|(t, _)| t == label).unwrap_or_else(|| panic!("no {label} slider")).1;
+        // The slider's value box ("0°") left of the label; press on the rail left of it and
+        // drag to the far right: the rail's end is +180°.
+        let value = texts
+            .iter()
+            .filter(|(t, r)| t.ends_with('°') && (r.center().y - row.center().y).abs() < 6.0 && r.right() <= row.left())
+            .map(|(_, r)| *r)
+            .max_by(|a, b| a.left().total_cmp(&b.left()))
+            .expect("the value box");
+        let press = egui::pos2(value.left() - 60.0, row.center().y);
+        let far = egui::pos2(value.left() - 8.0, row.center().y);
+        let button =
+            |pos, pressed| egui::Event::PointerButton { pos, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() };
+        run(&mut app, vec![egui::Event::PointerMoved(press), button(press, true)]);
+        run(&mut app, vec![egui::Event::PointerMoved(far)]);
+        run(&mut app, vec![button(far, false)]);
+        let r = app.session().params().placement.rotation;
+        let turned = [r.x, r.y, r.z][axis].to_degrees();
+        assert!((turned - 180.0).abs() < 1e-3, "{label} dragged to the right end: the model turned {turned}° about {label}");
+        assert_eq!(app.controls().rotation_deg[axis], 180.0);
+    }
+}

@@ -329,3 +329,25 @@ fn x_y_z_sliders_turn_the_model_by_the_dragged_angle() {
         assert_eq!(app.controls().rotation_deg[axis], 180.0);
     }
 }
+
+#[test]
+fn a_model_file_opened_joins_the_picker_and_a_bad_one_is_named_and_changes_nothing() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
+    let dir = tempdir("app_session", "models");
+    let mut app = App::new(session, dir.clone());
+    // The scene's model and the bundled demo teapot.
+    assert_eq!(app.models().len(), 2);
+    let bad = dir.join("not_a_model.obj");
+    std::fs::write(&bad, b"v 1 2\nf 1 2 3 4 5\n").unwrap();
+    let before = app.session().params().placement;
+    let e = app.open_model(gpu(), &bad).unwrap_err();
+    assert!(format!("{e:#}").contains("not_a_model.obj"), "{e:#}");
+    assert_eq!(app.models().len(), 2, "a model that did not load is not offered");
+    assert_eq!(app.session().params().placement, before);
+    let teapot = common::data("meshes/suzanne.obj");
+    app.open_model(gpu(), &teapot).unwrap();
+    assert_eq!(app.models().len(), 3);
+    assert_eq!(app.session().scene().model.as_deref(), Some(teapot.as_path()));
+}

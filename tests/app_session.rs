@@ -290,7 +290,7 @@ fn x_y_z_sliders_turn_the_model_by_the_dragged_angle() {
         events,
         ..Default::default()
     };
-    let mut run = |app: &mut App, events: Vec<egui::Event>| {
+    let run = |app: &mut App, events: Vec<egui::Event>| {
         let mut out = ctx.run_pass(input(events), |ctx| app.ui(ctx, None, ""));
         out.textures_delta.set.drain().for_each(drop);
         out.textures_delta.free.drain().for_each(drop);

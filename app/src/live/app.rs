@@ -273,16 +273,29 @@ impl App {
     }
 
     /// Offer a model file the user opened (a file dropped on the window, say) and switch to it.
+    /// An error (not a model, unreadable) is also shown in the status line; the current model
+    /// stays.
     pub fn open_model(&mut self, gpu: &Gpu, path: &Path) -> Result<()> {
+        let result = self.try_open_model(gpu, path);
+        match &result {
+            Ok(()) => self.status = format!("model {}", file_label(path)),
+            Err(e) => self.status = format!("{}: {e:#}", path.display()),
+        }
+        result
+    }
+
+    fn try_open_model(&mut self, gpu: &Gpu, path: &Path) -> Result<()> {
         let choice = ModelChoice { name: file_label(path), path: Some(path.to_path_buf()) };
-        let index = match self.models.iter().position(|m| *m == choice) {
-            Some(i) => i,
-            None => {
-                self.models.push(choice);
-                self.models.len() - 1
-            }
-        };
-        self.select_model(gpu, index)
+        if let Some(i) = self.models.iter().position(|m| *m == choice) {
+            return self.select_model(gpu, i);
+        }
+        self.models.push(choice);
+        let index = self.models.len() - 1;
+        let result = self.select_model(gpu, index);
+        if result.is_err() {
+            self.models.pop();
+        }
+        result
     }
 
     fn select_model(&mut self, gpu: &Gpu, index: usize) -> Result<()> {

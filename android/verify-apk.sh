@@ -3,9 +3,9 @@
 #   android/verify-apk.sh [target/android/previz-debug.apk]
 # - `aapt dump badging`: package org.previz.app, minSdk 26, the NativeActivity launcher,
 #   arm64-v8a native code, the CAMERA and location permissions;
-# - the library lib/arm64-v8a/libpreviz.so (unpacked from the APK): AArch64, exports exactly
-#   ANativeActivity_onCreate, NEEDs only Android platform libraries (readelf), every loadable
-#   segment aligned for 16 KiB pages;
+# - the library lib/arm64-v8a/libpreviz.so (unpacked from the APK): AArch64, stored
+#   uncompressed, exports ANativeActivity_onCreate (and android_main, nothing else), NEEDs only
+#   Android platform libraries (readelf), every loadable segment aligned for 16 KiB pages;
 # - `apksigner verify`.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -30,12 +30,17 @@ tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 unzip -q -o "$apk" lib/arm64-v8a/libpreviz.so -d "$tmp" 2>/dev/null || fail "lib/arm64-v8a/libpreviz.so missing"
 lib="$tmp/lib/arm64-v8a/libpreviz.so"
-# Stored uncompressed (extractNativeLibs is false by default for minSdk >= 23 with aapt's -0 so)
-# and 4-byte aligned by zipalign -p (page-aligned .so entries).
+# Stored uncompressed (aapt -0 so; zipalign -p page-aligns it).
 unzip -v "$apk" lib/arm64-v8a/libpreviz.so | grep -q " Stored " || fail "libpreviz.so is compressed in the APK"
 llvm-readelf -h "$lib" | grep -q "Machine:.*AArch64" || fail "libpreviz.so is not AArch64"
-exports="$(llvm-readelf --dyn-syms -W "$lib" | awk '$7 != "UND" && $5 != "LOCAL" && $8 != "" { print $8 }' | sort -u | tr '\n' ' ')"
-[ "$exports" = "ANativeActivity_onCreate " ] || fail "libpreviz.so exports '$exports', expected only ANativeActivity_onCreate"
+# Defined, non-local dynamic symbols (the table's rows start "N:"). The activity's entry point
+# must be there; besides it only android_main: rustc's own version script for a cdylib exports
+# every #[no_mangle] function, and android-activity's glue calls android_main by that name.
+exports="$(llvm-readelf --dyn-syms -W "$lib" | awk '$1 ~ /^[0-9]+:$/ && $7 != "UND" && $5 != "LOCAL" && $8 != "" { print $8 }' | sort -u | tr '\n' ' ')"
+case " $exports" in *" ANativeActivity_onCreate "*) ;; *) fail "libpreviz.so does not export ANativeActivity_onCreate (exports: $exports)" ;; esac
+for e in $exports; do
+    case "$e" in ANativeActivity_onCreate | android_main) ;; *) fail "libpreviz.so exports $e (only ANativeActivity_onCreate and android_main expected)" ;; esac
+done
 platform=" libc.so libm.so libdl.so liblog.so libandroid.so libcamera2ndk.so libmediandk.so libEGL.so libGLESv3.so libvulkan.so libnativewindow.so "
 needed="$(llvm-readelf -d "$lib" | sed -n 's/.*(NEEDED).*\[\(.*\)\]/\1/p' | tr '\n' ' ')"
 for n in $needed; do

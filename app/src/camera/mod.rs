@@ -5,6 +5,7 @@
 //! - [`yuv`]: camera YUV 4:2:0 planes converted to R'G'B' on the GPU (the phone cameras' format).
 //!
 //! - `android`: the back camera through the NDK Camera2 API (Android only).
+//! - `ios`: the back camera through AVFoundation (iOS only).
 //! - [`platform`]: the phone cameras' chroma layout and field of view (pure, host-tested).
 //!
 //! Phone backends implement the same trait.
@@ -13,6 +14,8 @@
 pub mod android;
 pub mod exposure;
 pub mod file;
+#[cfg(target_os = "ios")]
+pub mod ios;
 pub mod platform;
 pub mod sim;
 pub mod yuv;

@@ -18,7 +18,8 @@
 #[cfg(target_os = "android")]
 pub mod android;
 pub mod export;
-#[cfg(not(target_os = "ios"))]
+#[cfg(target_os = "ios")]
+pub mod ios;
 pub mod window;
 
 #[cfg(test)]

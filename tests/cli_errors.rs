@@ -45,11 +45,11 @@ fn scene_file_output_is_checked_and_relative_to_the_scene_folder() {
     // Relative to the scene's folder, as the help says (checked with the parsed scene: a
     // render is not needed to see where the path points).
     std::fs::write(dir.join("scenes/s.toml"), "output = \"out/c.png\"\n").unwrap();
-    let scene = previz::scene::file::SceneBuilder::from_file(&dir.join("scenes/s.toml")).unwrap().build().unwrap();
+    let scene = previz::setup::scene_file::SceneBuilder::from_file(&dir.join("scenes/s.toml")).unwrap().build().unwrap();
     assert_eq!(scene.output, dir.join("scenes/out/c.png"));
     // Without the key the default stays in the current directory.
     std::fs::write(dir.join("scenes/d.toml"), "width = 64\n").unwrap();
-    let scene = previz::scene::file::SceneBuilder::from_file(&dir.join("scenes/d.toml")).unwrap().build().unwrap();
+    let scene = previz::setup::scene_file::SceneBuilder::from_file(&dir.join("scenes/d.toml")).unwrap().build().unwrap();
     assert_eq!(scene.output, std::path::Path::new("composite.png"));
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -8,8 +8,8 @@ use previz::colour::gpu::CorrectPass;
 use previz::gpu::Gpu;
 use previz::priors::gpu::PriorsReducer;
 use previz::render::{Compositor, Layer};
-use previz::scene::file::SceneBuilder;
 use previz::scene::{CubeMap, Material, Mesh, Model, Rgba8Image};
+use previz::setup::scene_file::SceneBuilder;
 use previz::setup::{Inputs, prepare};
 use previz::ui::headless::HeadlessUi;
 

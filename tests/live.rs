@@ -151,11 +151,12 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     }
 }
 
-/// The window: under a virtual X server the live view opens, presents every frame of a short
-/// session through the surface (lavapipe), and exits cleanly when the session ends. CI installs
-/// Xvfb (`.ci/run`).
+/// The app in its window under a virtual X server, scripted as a user would go through it: the
+/// live view opens and presents (lavapipe), capture mode with the simulated user following the
+/// assistant, composite with the new capture, the shutter, quit. It ends with the capture folder
+/// and the exported files present. CI installs Xvfb (`.ci/run`).
 #[test]
-fn window_runs_a_session_under_xvfb() {
+fn window_runs_a_scripted_capture_composite_export_session_under_xvfb() {
     // -displayfd: Xvfb picks a free display and writes its number once it accepts connections,
     // so the test waits for exactly that (a generous deadline guards against a hung server).
     let mut xvfb = std::process::Command::new("Xvfb")
@@ -176,10 +177,13 @@ fn window_runs_a_session_under_xvfb() {
     let display = format!(":{number}");
     let env = data("cubemaps/humus_Park2_512");
     let model = data("meshes/stanford-bunny.obj");
+    let dir = tempdir("live", "window");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_previz"))
+        .current_dir(&dir)
         .env("DISPLAY", &display)
         .args(["live", "--env", env.to_str().unwrap(), "--model", model.to_str().unwrap(), "--width", "320", "--height", "240"])
-        .args(["--duration", "1", "--fps", "10", "--time", "2026-06-21T12:00:00Z"])
+        .args(["--duration", "60", "--fps", "15", "--noise", "none", "--time", "2026-06-21T12:00:00Z"])
+        .args(["--script", "capture,composite,shutter,quit"])
         .output()
         .unwrap();
     let _ = xvfb.kill();
@@ -187,4 +191,15 @@ fn window_runs_a_session_under_xvfb() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "previz live failed under Xvfb: {stderr}");
     assert!(!stderr.contains("GPU error") && !stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("first frame presented"), "the window never presented a frame: {stderr}");
+    let made = files(&dir);
+    let find = |prefix: &str| made.iter().find(|p| p.file_name().unwrap().to_string_lossy().starts_with(prefix)).cloned();
+    let capture = find("previz-capture-").unwrap_or_else(|| panic!("no capture folder in {made:?}"));
+    previz::capture::load_capture(&capture).unwrap();
+    let export = find("previz-export-").unwrap_or_else(|| panic!("no export folder in {made:?}"));
+    for name in previz::live::export::FILES {
+        assert!(export.join(name).is_file(), "{name} missing from {}", export.display());
+    }
+    let toml = std::fs::read_to_string(export.join("scene.toml")).unwrap();
+    assert!(toml.contains(&*capture.file_name().unwrap().to_string_lossy()), "the capture lights the exported frame:\n{toml}");
 }

@@ -45,7 +45,7 @@ pub fn hdr_exr(data: &[u8]) -> bool {
 /// A scene file (TOML) checked as `previz composite` checks it.
 pub fn scene_toml(data: &[u8]) -> bool {
     let Ok(text) = std::str::from_utf8(data) else { return false };
-    let Ok(builder) = crate::scene::file::SceneBuilder::from_toml(text, Path::new("/nonexistent-fuzz-dir")) else { return false };
+    let Ok(builder) = crate::setup::scene_file::SceneBuilder::from_toml(text, Path::new("/nonexistent-fuzz-dir")) else { return false };
     match builder.build() {
         Ok(scene) => {
             assert!(scene.width >= 1 && scene.height >= 1);

@@ -6,8 +6,8 @@ pub mod cli;
 
 use previz::gpu::Gpu;
 use previz::render::{Layer, Rendered};
-use previz::scene::file::{Scene, SceneBuilder};
 use previz::scene::{Material, Mesh, Model};
+use previz::setup::scene_file::{Scene, SceneBuilder};
 use previz::setup::{Inputs, load_inputs, prepare};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;

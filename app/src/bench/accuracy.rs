@@ -7,7 +7,7 @@
 //! and the reference reads that.
 
 use crate::render::view;
-use crate::scene::file::Scene;
+use crate::setup::scene_file::Scene;
 use crate::setup::{Inputs, camera_and_placement, exposure};
 use anyhow::{Context, Result, anyhow, bail};
 use glam::{Mat3, Vec3};

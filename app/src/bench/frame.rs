@@ -6,7 +6,7 @@ use super::median;
 use crate::colour::transfer::TransferMethod;
 use crate::gpu::Gpu;
 use crate::render::{ColourSettings, FrameParams, Layer, LightingMethod};
-use crate::scene::file::Scene;
+use crate::setup::scene_file::Scene;
 use crate::setup::{Inputs, prepare};
 use anyhow::Result;
 use serde::Serialize;

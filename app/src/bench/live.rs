@@ -4,9 +4,9 @@
 use super::{median, percentile};
 use crate::gpu::Gpu;
 use crate::live::{LiveConfig, LiveSession};
-use crate::scene::file::Scene;
 use crate::sensors::sim::NoiseLevel;
 use crate::setup::Inputs;
+use crate::setup::scene_file::Scene;
 use anyhow::{Result, anyhow};
 use std::sync::Arc;
 

@@ -1,9 +1,11 @@
 //! Measurements: speed side by side with accuracy, recorded in docs/PERFORMANCE.md.
 
 pub mod accuracy;
+pub mod colour;
 pub mod frame;
 pub mod live;
 pub mod lod;
+pub mod priors;
 
 /// Median of a sample (NaN-free input; empty gives NaN).
 pub fn median(values: &[f64]) -> f64 {

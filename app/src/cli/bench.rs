@@ -3,7 +3,7 @@
 use crate::bench::{frame, live, lod};
 use crate::cli::composite::{SceneArgs, scene_from_args};
 use crate::gpu::Gpu;
-use crate::scene::file::Scene;
+use crate::setup::scene_file::Scene;
 use crate::setup::{Inputs, load_inputs};
 use anyhow::{Result, bail};
 use std::path::PathBuf;

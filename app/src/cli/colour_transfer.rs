@@ -1,7 +1,7 @@
 //! `previz colour-transfer`: give TARGET the colour statistics of SOURCE (as the model shader
 //! does for model vs environment), and `previz colour-transfer bench`.
 
-use crate::colour::bench;
+use crate::bench::colour as bench;
 use crate::colour::correction::ColourCorrection;
 use crate::colour::images::{apply, counted_linear, image_stats, load_rgba8};
 use crate::colour::report::{HistogramSet, histogram_report};

@@ -4,7 +4,7 @@
 use crate::gpu::Gpu;
 use crate::render::{Layer, LightingMethod};
 use crate::scene::demo;
-use crate::scene::file::{Scene, SceneBuilder};
+use crate::setup::scene_file::{Scene, SceneBuilder};
 use crate::setup::{SceneLight, load_inputs, prepare_with_light};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -163,7 +163,7 @@ fn flag_for_error(msg: &str) -> String {
 
 /// The frame's light and where it came from: the sun used (the scene's or the map's) and the
 /// sun found in the map, both as ENU directions with azimuth/elevation in degrees.
-fn light_json(scene: &crate::scene::file::Scene, light: &SceneLight, params: &crate::render::FrameParams) -> serde_json::Value {
+fn light_json(scene: &crate::setup::scene_file::Scene, light: &SceneLight, params: &crate::render::FrameParams) -> serde_json::Value {
     let measured = &light.measured;
     let dir = |d: glam::Vec3| {
         let (az, el) = crate::light::sun_finder::azimuth_elevation(d);

@@ -48,6 +48,11 @@ pub struct Args {
     /// Headless: print each frame's pose, pose error and sun as JSON lines
     #[arg(long)]
     pub json: bool,
+    /// Window: run these steps in order, each as soon as it can (comma-separated: capture,
+    /// composite, shutter, quit). With `capture` the simulated user follows the capture
+    /// assistant first (taps at the front, holds each face), then looks around
+    #[arg(long, conflicts_with = "frames")]
+    pub script: Option<String>,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -68,12 +73,13 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(dir) = &a.output {
         std::fs::create_dir_all(dir).with_context(|| format!("--output {}: cannot create the directory", dir.display()))?;
     }
+    let script = a.script.as_deref().map(crate::live::app::Step::parse_list).transpose()?;
     let inputs = load_inputs(&scene, demo)?;
     let env = Arc::new(inputs.env);
     let model = inputs.model;
     match (a.frames, &a.output) {
         (Some(n), Some(dir)) => headless(&scene, env, &model, cfg, n, dir, a.json),
-        _ => run_window(scene, env, model, cfg),
+        _ => run_window(scene, env, model, cfg, script.unwrap_or_default()),
     }
 }
 
@@ -91,7 +97,7 @@ fn frame_json(f: &LiveFrame) -> serde_json::Value {
 }
 
 fn headless(
-    scene: &crate::scene::file::Scene,
+    scene: &crate::setup::scene_file::Scene,
     env: Arc<crate::scene::CubeMap>,
     model: &crate::scene::Model,
     cfg: LiveConfig,
@@ -123,18 +129,45 @@ fn headless(
     Ok(())
 }
 
+/// The app on the virtual phone in a window; the shutter and captures save into the working
+/// directory.
 #[cfg(not(any(target_os = "android", target_os = "ios")))]
 fn run_window(
-    scene: crate::scene::file::Scene,
+    scene: crate::setup::scene_file::Scene,
     env: Arc<crate::scene::CubeMap>,
     model: crate::scene::Model,
     cfg: LiveConfig,
+    script: Vec<crate::live::app::Step>,
 ) -> Result<()> {
+    use crate::live::Sources;
+    use crate::live::app::{App, Step};
     let size = (scene.width, scene.height);
-    crate::live::window::run("previz live", size, Box::new(move |gpu: &Gpu| LiveSession::simulated(gpu, env, &model, &scene, cfg)))
+    let export_dir = std::env::current_dir().context("the working directory")?;
+    crate::live::window::run(
+        "previz live",
+        size,
+        Box::new(move |gpu: &Gpu| {
+            let exposure = crate::setup::exposure(&scene, &env);
+            let sources = if script.contains(&Step::Capture) {
+                Sources::simulated_capture(env.clone(), &scene, exposure, &cfg)?
+            } else {
+                Sources::simulated(env.clone(), &scene, exposure, &cfg)?
+            };
+            let session = LiveSession::new(gpu, &env, &model, &scene, cfg, sources)?;
+            let mut app = App::new(session, export_dir);
+            app.set_script(script);
+            Ok(app)
+        }),
+    )
 }
 
 #[cfg(any(target_os = "android", target_os = "ios"))]
-fn run_window(_: crate::scene::file::Scene, _: Arc<crate::scene::CubeMap>, _: crate::scene::Model, _: LiveConfig) -> Result<()> {
+fn run_window(
+    _: crate::setup::scene_file::Scene,
+    _: Arc<crate::scene::CubeMap>,
+    _: crate::scene::Model,
+    _: LiveConfig,
+    _: Vec<crate::live::app::Step>,
+) -> Result<()> {
     bail!("the desktop window is not available on phones")
 }

@@ -134,9 +134,9 @@ fn print_table(env: &EnvironmentPriors, model: Option<&ModelPriors>) {
 
 fn run_bench(args: BenchArgs) -> Result<()> {
     let gpu = crate::gpu::Gpu::headless()?;
-    let (cube, frame) = crate::priors::bench::default_inputs(&args.data)?;
-    let rows = crate::priors::bench::run(&gpu, &cube, &frame, args.repeats)?;
-    let md = crate::priors::bench::markdown(&rows, &gpu.describe(), args.repeats);
+    let (cube, frame) = crate::bench::priors::default_inputs(&args.data)?;
+    let rows = crate::bench::priors::run(&gpu, &cube, &frame, args.repeats)?;
+    let md = crate::bench::priors::markdown(&rows, &gpu.describe(), args.repeats);
     if let Some(out) = &args.output {
         let json = serde_json::to_string_pretty(&rows)?;
         write_atomic(out, md.as_bytes())?;

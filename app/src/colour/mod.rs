@@ -4,7 +4,6 @@
 //!
 //! Encoding: every function here takes and returns linear-light RGB unless its name says sRGB.
 
-pub mod bench;
 pub mod correction;
 pub mod distance;
 pub mod gpu;

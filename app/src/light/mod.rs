@@ -4,6 +4,7 @@
 //! them ([`measure`]), restoring a clipped sun with a clear-sky model ([`clear_sky`]).
 
 pub mod clear_sky;
+pub mod ggx;
 pub mod measure;
 pub mod samples;
 pub mod sh9;

@@ -11,6 +11,7 @@
 //! camera's image turned upright for the screen. Until the camera permission is granted the
 //! background is grey ([`PhoneCamera`] tries to open the camera again twice a second).
 
+use super::app::App;
 use super::window;
 use super::{LiveConfig, LiveSession, Sources};
 use crate::camera::android::{Camera2, query_back_camera};
@@ -19,11 +20,11 @@ use crate::camera::{Frame, FrameImage, FrameSink, FrameSource};
 use crate::pose::DisplayRotation;
 use crate::scene::Rgba8Image;
 use crate::scene::demo;
-use crate::scene::file::SceneBuilder;
 use crate::sensors::android::AndroidSensors;
 use crate::sensors::jni_location;
-use crate::sensors::permissions::PermissionFlow;
+use crate::sensors::permissions::{Permission, PermissionFlow};
 use crate::sensors::sim::NoiseLevel;
+use crate::setup::scene_file::SceneBuilder;
 use anyhow::{Context, Result};
 use jni::Env;
 use jni::objects::JObject;
@@ -51,7 +52,8 @@ fn android_main(app: AndroidApp) {
 fn run(app: AndroidApp) -> Result<()> {
     // The first-start system dialog for the camera and location permissions; the camera opens
     // once granted (PhoneCamera), the location bridge asks again on its first poll.
-    if let Err(e) = with_activity(|env, activity| PermissionFlow::default().start(env, activity)) {
+    let mut flow = PermissionFlow::default();
+    if let Err(e) = with_activity(|env, activity| flow.start(env, activity)) {
         log(&format!("previz: cannot ask for permissions: {e:#}"));
     }
     // The app is landscape-only (AndroidManifest.xml): the rotation read now holds.
@@ -76,16 +78,24 @@ fn run(app: AndroidApp) -> Result<()> {
         noise: NoiseLevel::Phone,
         seed: 1,
     };
-    let make = move |gpu: &crate::gpu::Gpu| -> Result<LiveSession> {
+    let make = move |gpu: &crate::gpu::Gpu| -> Result<App> {
         let sources = Sources {
             camera: Box::new(PhoneCamera::new(CAMERA_SIZE, display, info)),
             sensors: Box::new(AndroidSensors::start()?),
             rotation: display,
             truth: None,
         };
-        LiveSession::new(gpu, &env, &model, &scene, cfg, sources)
+        let mut app = App::new(LiveSession::new(gpu, &env, &model, &scene, cfg, sources)?, export_dir);
+        // The answers as they are when the window first shows (a refusal from an earlier start
+        // shows the refusal screen; a dialog still open counts as pending). Not refreshed while
+        // the app runs yet: the window shell has no per-frame platform hook (docs/mobile.md).
+        match with_activity(|env, activity| flow.refresh(env, activity)) {
+            Ok(()) => app.set_permissions(flow.answer(Permission::Camera), flow.answer(Permission::Location)),
+            Err(e) => log(&format!("previz: cannot read the permissions: {e:#}")),
+        }
+        Ok(app)
     };
-    window::run_on(event_loop, "Previz", (width, height), export_dir, Box::new(make))
+    window::run_app_on(event_loop, "Previz", (width, height), Box::new(make))
 }
 
 /// The back camera, opened once the CAMERA permission is granted; until then grey frames of the

@@ -17,6 +17,7 @@
 
 #[cfg(target_os = "android")]
 pub mod android;
+pub mod app;
 pub mod export;
 #[cfg(target_os = "ios")]
 pub mod ios;
@@ -45,11 +46,11 @@ use crate::pose::hand_motion::{HandShake, UserPathParams};
 use crate::pose::trace::{TruthSample, TruthTrace};
 use crate::pose::{DisplayRotation, FusionConfig, OrientationEstimator, OrientationFilter, Pose};
 use crate::render::{Compositor, FrameParams, Layer, Rendered};
-use crate::scene::file::Scene;
 use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
-use crate::setup::{LightTerms, compositor_and_light, exposure};
+use crate::setup::scene_file::Scene;
+use crate::setup::{LightTerms, camera_and_placement, compositor_and_light, environment_light, exposure};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
 use crate::ui::controls::Controls;
 use anyhow::{Context, Result, bail};
@@ -125,6 +126,20 @@ impl Sources {
     /// exposure fixed at `exposure`), held by the simulated user ([`look_around_path`] around
     /// the scene's camera heading and pitch), with simulated sensors at `cfg`'s place and noise.
     pub fn simulated(env: Arc<CubeMap>, scene: &Scene, exposure: f32, cfg: &LiveConfig) -> Result<Sources> {
+        let truth = look_around_path(scene.camera.heading, scene.camera.pitch, cfg.duration_s, cfg.seed)?;
+        Sources::simulated_along(env, scene, exposure, cfg, truth)
+    }
+
+    /// [`Sources::simulated`] with the user of [`capture_then_look_around_path`]: the desktop
+    /// app's capture mode on the virtual phone.
+    pub fn simulated_capture(env: Arc<CubeMap>, scene: &Scene, exposure: f32, cfg: &LiveConfig) -> Result<Sources> {
+        let camera = crate::capture::projection::Pinhole::from_vfov(scene.width, scene.height, scene.camera.vfov as f32)?;
+        let truth = capture_then_look_around_path(&camera, scene.camera.heading, scene.camera.pitch, cfg.duration_s, cfg.seed)?;
+        Sources::simulated_along(env, scene, exposure, cfg, truth)
+    }
+
+    /// The virtual phone and simulated sensors held along `truth`.
+    pub fn simulated_along(env: Arc<CubeMap>, scene: &Scene, exposure: f32, cfg: &LiveConfig, truth: TruthTrace) -> Result<Sources> {
         cfg.validate()?;
         let settings = SimSettings {
             width: scene.width,
@@ -133,7 +148,6 @@ impl Sources {
             exposure: ExposureMode::Fixed(exposure),
         };
         let phone = VirtualPhone::new(env, &settings)?;
-        let truth = look_around_path(scene.camera.heading, scene.camera.pitch, cfg.duration_s, cfg.seed)?;
         let frames = (truth.end() * cfg.frame_hz).floor() as usize;
         let poses = (0..=frames)
             .map(|k| {
@@ -147,6 +161,42 @@ impl Sources {
         let sensors = SimSensors::with_config(truth.clone(), sim)?;
         Ok(Sources { camera: Box::new(SimSequence::new(phone, poses)?), sensors: Box::new(sensors), rotation, truth: Some(truth) })
     }
+}
+
+/// A simulated user who first follows the capture assistant (aims at the front and taps, then
+/// turns to each face in turn and holds it, [`crate::capture::guided_path`]) and then looks
+/// around the point of interest ([`look_around_path`]) for the rest of `duration_s`. The
+/// capture's front is the scene camera's heading. Taps are marked in the samples.
+pub fn capture_then_look_around_path(
+    camera: &crate::capture::projection::Pinhole,
+    heading_deg: f64,
+    pitch_deg: f64,
+    duration_s: f64,
+    seed: u64,
+) -> Result<TruthTrace> {
+    use crate::capture::{Mode, guided_path, targets};
+    let plan =
+        targets::plan_targets(Mode::Stretch, camera, crate::capture::assistant::AssistantConfig::new(Mode::Stretch, *camera).tolerance_deg);
+    // Holds long enough for the assistant's dwell and a settling filter at every face.
+    let params = UserPathParams { reference_heading_deg: Some(heading_deg), hold_s: (1.5, 2.0), ..UserPathParams::default() };
+    let capture = guided_path::simulate_capture_path(seed, &plan, &params)?;
+    // The user first holds the phone where the path starts while the fusion filter settles on
+    // a first attitude (the assistant needs a pose for the tap).
+    const SETTLE_S: f64 = 2.5;
+    let first = capture.samples.first().map(|s| s.q).unwrap_or_default();
+    let mut samples: Vec<TruthSample> =
+        (0..(SETTLE_S * 100.0) as usize).map(|i| TruthSample { t: i as f64 / 100.0, q: first, tap: false }).collect();
+    samples.extend(capture.samples.iter().map(|s| TruthSample { t: s.t + SETTLE_S, ..*s }));
+    let end = samples.last().map_or(0.0, |s| s.t);
+    let rest = look_around_path(heading_deg, pitch_deg, (duration_s - end).max(1.0), seed)?;
+    // Turn from where the capture ended to the look-around's first aim in half a second.
+    let (from, to) = (samples.last().map_or(rest.samples()[0].q, |s| s.q), rest.samples()[0].q);
+    for i in 1..=50 {
+        let f = i as f64 / 50.0;
+        samples.push(TruthSample { t: end + 0.5 * f, q: from.slerp(to, f * f * (3.0 - 2.0 * f)), tap: false });
+    }
+    samples.extend(rest.samples().iter().skip(1).map(|s| TruthSample { t: s.t + end + 0.5, ..*s }));
+    TruthTrace::new(samples)
 }
 
 /// The date the simulated magnetometer (and the filter's magnetic reference) uses: the
@@ -177,6 +227,9 @@ pub struct LiveFrame {
     pub camera_ms: f64,
     pub pose_ms: f64,
     pub sun_ms: f64,
+    /// The simulated user tapped the screen since the previous frame (never on a phone: there
+    /// the taps are real touch events).
+    pub user_tapped: bool,
 }
 
 /// The live loop's state: compositor, camera, sensors, filter and the frame parameters.
@@ -207,6 +260,10 @@ pub struct LiveSession {
     scene: Scene,
     /// Camera and sensors stopped ([`LiveSession::suspend`]).
     suspended: bool,
+    /// Draw the model (false: the camera image only, as capture mode shows it).
+    show_model: bool,
+    /// The time of the previous frame (the simulated user's taps between two frames).
+    last_t: Option<f64>,
 }
 
 impl LiveSession {
@@ -238,6 +295,8 @@ impl LiveSession {
             unit_light,
             scene: scene.clone(),
             suspended: false,
+            show_model: true,
+            last_t: None,
         })
     }
 
@@ -280,6 +339,7 @@ impl LiveSession {
         if !delivered {
             return Ok(None);
         }
+        let previous = self.last_t.replace(t);
         if let Some(rotation) = self.sources.sensors.display_rotation() {
             self.sources.rotation = rotation;
         }
@@ -307,13 +367,27 @@ impl LiveSession {
         if let Some(c) = &self.controls {
             c.apply(&mut self.params, sunlight);
         }
-        self.layer = if pose.is_some() { Layer::Composite } else { Layer::Background };
+        self.layer = if pose.is_some() && self.show_model { Layer::Composite } else { Layer::Background };
+        let user_tapped = match &self.sources.truth {
+            Some(truth) => truth.samples().iter().any(|s| s.tap && s.t <= t && previous.is_none_or(|p| s.t > p)),
+            None => false,
+        };
         let pose_error_deg = match (pose, &self.sources.truth) {
             (Some(p), Some(truth)) => Some(angle_between(p.q.as_dquat(), truth.orientation_at(t)).to_degrees()),
             _ => None,
         };
         let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
-        Ok(Some(LiveFrame { t, pose, pose_error_deg, sun, sunlight, camera_ms: ms(t0, t1), pose_ms: ms(t1, t2), sun_ms: ms(t2, t3) }))
+        Ok(Some(LiveFrame {
+            t,
+            pose,
+            pose_error_deg,
+            sun,
+            sunlight,
+            camera_ms: ms(t0, t1),
+            pose_ms: ms(t1, t2),
+            sun_ms: ms(t2, t3),
+            user_tapped,
+        }))
     }
 
     /// The app went to the background (another app, the screen locked): stop the camera and the
@@ -414,6 +488,66 @@ impl LiveSession {
 
     pub fn config(&self) -> &LiveConfig {
         &self.cfg
+    }
+
+    /// Draw the model over the camera image (true) or the camera image alone (capture mode),
+    /// from the next frame on.
+    pub fn set_show_model(&mut self, on: bool) {
+        self.show_model = on;
+        if !on {
+            self.layer = Layer::Background;
+        }
+    }
+
+    /// Light the model with a new environment (a capture folder the app just saved, say): `env`
+    /// loaded from `path`, its front face towards `heading_deg`. The light is measured in it
+    /// again (sunlight, daylight, shadow strength; the panel's multipliers stay); the scene
+    /// the export writes names the new environment. On an error nothing changes.
+    pub fn set_environment(&mut self, gpu: &Gpu, env: &CubeMap, path: &std::path::Path, heading_deg: f64) -> Result<()> {
+        let mut scene = self.scene.clone();
+        scene.environment = Some(path.to_path_buf());
+        scene.env.heading = heading_deg;
+        scene.env.exposure = None;
+        let exposure = exposure(&scene, env);
+        self.compositor.set_environment(gpu, env, exposure, (heading_deg as f32).to_radians())?;
+        let priors = self.compositor.priors().context("environment priors")?;
+        let (light, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians());
+        self.unit_light = scene_light.unit;
+        self.full_sunlight = scene.sun.sunlight as f32 * self.unit_light.sunlight;
+        self.params.lighting.daylight = light.daylight;
+        self.params.lighting.shadow_opacity = light.shadow_opacity;
+        if let Some(c) = &mut self.controls {
+            c.daylight = light.daylight;
+        }
+        self.scene = scene;
+        Ok(())
+    }
+
+    /// Replace the model (a bundled one or a file the user opened), placed as the scene places
+    /// a model of its size. On an error the current model stays.
+    pub fn set_model(&mut self, gpu: &Gpu, model: &Model, path: Option<&std::path::Path>) -> Result<()> {
+        self.compositor.set_model(gpu, model)?;
+        let bounds = self.compositor.model_bounds().context("model bounds")?;
+        self.scene.model = path.map(std::path::Path::to_path_buf);
+        let mut placement = camera_and_placement(&self.scene, bounds).1;
+        placement.rotation = self.params.placement.rotation;
+        self.params.placement = placement;
+        Ok(())
+    }
+
+    /// The place and the instant of the session's first frame the sun is computed for: what the
+    /// user sets by hand when location is not allowed. Later GPS fixes still move the place.
+    pub fn set_place(&mut self, lat_deg: f64, lon_deg: f64, start: DateTime<Utc>) -> Result<()> {
+        let cfg = LiveConfig { lat_deg, lon_deg, start, ..self.cfg.clone() };
+        cfg.validate()?;
+        self.cfg = cfg;
+        self.location = (lat_deg, lon_deg);
+        Ok(())
+    }
+
+    /// Latitude and longitude the sun is computed for now.
+    pub fn location(&self) -> (f64, f64) {
+        self.location
     }
 
     /// A description of the sensor source, for the overlay.

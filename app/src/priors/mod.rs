@@ -17,7 +17,6 @@
 //! Every statistic is computed from linear light (see `colour::stats`). The CPU functions here
 //! are the reference; [`gpu`] computes the same numbers with compute shaders.
 
-pub mod bench;
 pub mod gpu;
 pub mod mask;
 

@@ -110,7 +110,7 @@ pub mod cubemap;
 pub mod decode;
 pub mod demo;
 pub mod environment;
-pub mod file;
 pub mod lod;
 pub mod model;
 pub mod normals;
+pub mod occlusion;

@@ -14,7 +14,7 @@ use crate::light::samples::from_cube;
 use crate::light::sun_finder;
 use crate::render::{HemispherePriors, LightingMethod};
 use crate::scene::CubeMap;
-use crate::scene::file::Scene;
+use crate::setup::scene_file::Scene;
 use glam::Vec3;
 
 /// Measure the light in the scene's environment map. An 8-bit map (every value ≤ 1: JPEG cube

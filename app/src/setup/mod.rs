@@ -6,12 +6,13 @@
 
 use crate::gpu::Gpu;
 use crate::render::{Camera, ColourSettings, Compositor, FrameParams, Lighting, MaterialTerms, Placement, view};
-use crate::scene::file::Scene;
 use crate::scene::{CubeMap, Model, Rgba8Image, demo};
+use crate::setup::scene_file::Scene;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
 pub mod light;
+pub mod scene_file;
 pub use light::{LightTerms, SceneLight, light_terms, measure_environment};
 
 /// Everything loaded from disk (or the embedded demo) for a scene.
@@ -137,14 +138,29 @@ pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Mod
     compositor.set_model(gpu, model)?;
     let bounds = compositor.model_bounds().context("model bounds")?;
     let priors = compositor.priors().context("environment priors")?;
+    let (light, scene_light) = environment_light(scene, env, &priors, exposure, heading);
+    let params = frame_params(scene, bounds, &light);
+    Ok((compositor, params, scene_light))
+}
+
+/// The light of `scene` measured in `env` (uploaded with `priors`, at `exposure` and `heading`
+/// radians): the frame's light terms, and the measured light with the unit terms (the scene's
+/// multipliers at 1, before the twilight fade).
+pub fn environment_light(
+    scene: &Scene,
+    env: &CubeMap,
+    priors: &crate::render::HemispherePriors,
+    exposure: f32,
+    heading: f32,
+) -> (LightTerms, SceneLight) {
     let measured = measure_environment(scene, env);
-    let params = frame_params(scene, bounds, &light_terms(scene, &measured, &priors, exposure, heading));
+    let light = light_terms(scene, &measured, priors, exposure, heading);
     let mut unit = scene.clone();
     unit.sun.sunlight = 1.0;
     unit.sun.daylight = 1.0;
     unit.effects.shadow_opacity = 1.0;
-    let mut unit = light_terms(&unit, &measured, &priors, exposure, heading);
+    let mut unit = light_terms(&unit, &measured, priors, exposure, heading);
     let fade = crate::sun::twilight::sunlight_factor_toward(unit.sun_dir);
     unit.sunlight = if fade > 0.0 { unit.sunlight / fade } else { 0.0 };
-    Ok((compositor, params, SceneLight { measured, unit }))
+    (light, SceneLight { measured, unit })
 }

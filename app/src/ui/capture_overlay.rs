@@ -106,18 +106,15 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
     };
     let top = Pos2::new(centre.x, screen.top() + 28.0);
     banner(&painter, top, &instruction, 24.0, white, shade);
+    // Progress: a ring of six segments, one per face, filled as the faces come in (and the
+    // shot count in stitch mode).
     if g.phase != Phase::WaitingForTap {
-        let mut text = format!("{}/6", g.faces_done);
+        let ring = Pos2::new(screen.right() - 44.0, screen.top() + 44.0);
+        draw_progress_ring(&painter, ring, 26.0, &g.face_done);
         if g.shots_total > 6 {
-            text += &format!("  ({}/{} shots)", g.shots_done, g.shots_total);
+            let text = format!("{}/{} shots", g.shots_done, g.shots_total);
+            painter.text(ring + Vec2::new(0.0, 40.0), Align2::CENTER_TOP, text, FontId::proportional(14.0), white);
         }
-        let galley = painter.layout_no_wrap(text, FontId::proportional(22.0), white);
-        let rect = Rect::from_min_size(
-            Pos2::new(screen.right() - galley.size().x - 30.0, screen.top() + 14.0),
-            galley.size() + Vec2::new(20.0, 8.0),
-        );
-        painter.rect_filled(rect, 6.0, shade);
-        painter.galley(rect.min + Vec2::new(10.0, 4.0), galley, white);
     }
     if g.hold_still {
         banner(
@@ -153,6 +150,79 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
         }
         painter.text(rect.center_bottom() + Vec2::new(0.0, 3.0), Align2::CENTER_TOP, face.name(), FontId::proportional(14.0), white);
     }
+}
+
+/// Colour of a face that is taken (ring segment, thumbnail frame).
+pub const DONE: Color32 = Color32::from_rgb(60, 220, 90);
+
+/// A ring of six segments in [`Face::ALL`] order clockwise from the top, filled green for the
+/// faces taken, outlined for the others.
+pub fn draw_progress_ring(painter: &egui::Painter, centre: Pos2, radius: f32, done: &[bool; 6]) {
+    let gap = 0.12;
+    for (i, taken) in done.iter().enumerate() {
+        let a0 = -std::f32::consts::FRAC_PI_2 + i as f32 * std::f32::consts::TAU / 6.0 + gap * 0.5;
+        let a1 = a0 + std::f32::consts::TAU / 6.0 - gap;
+        let points: Vec<Pos2> = (0..=12)
+            .map(|k| {
+                let a = a0 + (a1 - a0) * k as f32 / 12.0;
+                centre + radius * Vec2::new(a.cos(), a.sin())
+            })
+            .collect();
+        let stroke = if *taken { Stroke::new(8.0, DONE) } else { Stroke::new(8.0, Color32::from_white_alpha(90)) };
+        painter.add(egui::Shape::line(points, stroke));
+    }
+    let n = done.iter().filter(|d| **d).count();
+    painter.text(centre, Align2::CENTER_CENTER, format!("{n}/6"), FontId::proportional(16.0), Color32::WHITE);
+}
+
+/// The feedback of a shot `age_s` seconds after it was taken, for `for_s` seconds: a white
+/// flash over the screen fading out, and a tick with the target's name.
+pub fn draw_shot_feedback(ctx: &egui::Context, name: &str, age_s: f64, for_s: f64) {
+    if !(0.0..for_s).contains(&age_s) {
+        return;
+    }
+    let fade = 1.0 - (age_s / for_s) as f32;
+    let screen = ctx.content_rect();
+    let painter = ctx.layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("shot-feedback")));
+    painter.rect_filled(screen, 0.0, Color32::from_white_alpha((150.0 * fade * fade) as u8));
+    let c = screen.center() + Vec2::new(0.0, -90.0);
+    let tick = [c + Vec2::new(-22.0, 0.0), c + Vec2::new(-6.0, 16.0), c + Vec2::new(24.0, -18.0)];
+    painter.add(egui::Shape::line(tick.to_vec(), Stroke::new(8.0, DONE.gamma_multiply(fade.max(0.3)))));
+    banner(&painter, c + Vec2::new(0.0, 42.0), &format!("{name} taken"), 20.0, Color32::WHITE, Color32::from_black_alpha(150));
+}
+
+/// The faces of a finished capture, large, as an unfolded cube (up above front, down below,
+/// right, back and left beside it), with the next step written above.
+pub fn draw_faces_preview(ctx: &egui::Context, thumbs: &[Option<egui::TextureHandle>; 6]) {
+    let screen = ctx.content_rect();
+    // Behind the windows and areas (the buttons), over the camera image.
+    let painter = ctx.layer_painter(egui::LayerId::background());
+    painter.rect_filled(screen, 0.0, Color32::from_black_alpha(200));
+    let side = (screen.width() / 4.0).min(screen.height() / 3.6).floor();
+    let origin = screen.center() - Vec2::new(2.0 * side, 1.5 * side);
+    // Grid cells (column, row) in Face::ALL order: front, up, down, right, back, left.
+    let cells = [(1.0, 1.0), (1.0, 0.0), (1.0, 2.0), (2.0, 1.0), (3.0, 1.0), (0.0, 1.0)];
+    for (i, face) in Face::ALL.iter().enumerate() {
+        let (cx, cy) = cells[i];
+        let rect = Rect::from_min_size(origin + Vec2::new(cx * side, cy * side), Vec2::splat(side)).shrink(1.0);
+        match &thumbs[i] {
+            Some(t) => {
+                painter.image(t.id(), rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
+            }
+            None => {
+                painter.rect_filled(rect, 0.0, Color32::from_gray(40));
+            }
+        }
+        painter.text(rect.left_top() + Vec2::new(4.0, 2.0), Align2::LEFT_TOP, face.name(), FontId::proportional(14.0), Color32::WHITE);
+    }
+    banner(
+        &painter,
+        Pos2::new(screen.center().x, screen.top() + 24.0),
+        "Capture complete: it now lights the model",
+        22.0,
+        Color32::WHITE,
+        Color32::from_black_alpha(150),
+    );
 }
 
 #[cfg(test)]

@@ -1,11 +1,11 @@
 //! `previz priors bench`: the priors of a 6×512² cube map and of one 960×640 camera frame,
 //! computed on the CPU (reference) and on the GPU (compute reductions), side by side.
 
-use super::gpu::PriorsReducer;
-use crate::bench::median;
+use super::median;
 use crate::colour::images::{counted_linear, load_rgba8};
 use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
+use crate::priors::gpu::PriorsReducer;
 use crate::scene::{CubeMap, Rgba8Image};
 use anyhow::{Context, Result, bail};
 use std::path::Path;
@@ -72,11 +72,11 @@ pub fn run(gpu: &Gpu, cube: &CubeMap, frame: &Rgba8Image, repeats: u32) -> Resul
     let mut reducer = PriorsReducer::new(gpu)?;
     let mut rows = Vec::new();
     // Cube map.
-    let (cpu_t, cpu) = time_ms(repeats, || super::environment_priors(cube))?;
+    let (cpu_t, cpu) = time_ms(repeats, || crate::priors::environment_priors(cube))?;
     reducer.environment(gpu, cube)?; // warm-up (pipeline compilation, buffer allocation)
     let mut gpu_times = Vec::new();
     let (wall_t, g) = time_ms(repeats, || {
-        let input = super::gpu::GpuInput::from_cube(cube)?;
+        let input = crate::priors::gpu::GpuInput::from_cube(cube)?;
         let r = reducer.reduce(gpu, &input)?;
         gpu_times.extend(r.gpu_ms);
         Ok(r)
@@ -113,7 +113,7 @@ pub fn run(gpu: &Gpu, cube: &CubeMap, frame: &Rgba8Image, repeats: u32) -> Resul
 pub fn default_inputs(data: &Path) -> Result<(CubeMap, Rgba8Image)> {
     let faces = ["px", "nx", "py", "ny", "pz", "nz"].map(|f| data.join(format!("cubemaps/pisa_hdr/{f}.hdr")));
     let cube = cube_from_face_files(&faces, 512)?;
-    let frame = crate::colour::bench::to_frame(&load_rgba8(&data.join("photos/colour_transfer/astronaut.png"))?)?;
+    let frame = crate::bench::colour::to_frame(&load_rgba8(&data.join("photos/colour_transfer/astronaut.png"))?)?;
     Ok((cube, frame))
 }
 

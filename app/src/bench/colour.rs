@@ -3,15 +3,15 @@
 //! costs per 960×640 frame in the shader (GPU timestamps) and in the CPU tool — all methods on
 //! the same images in one run. Also the single-colour-texture figure for the docs.
 
-use super::correction::ColourCorrection;
-use super::distance::{sliced_wasserstein, subsample};
-use super::gpu::CorrectPass;
-use super::images::{apply, counted_linear, image_stats};
-use super::lab::{LabSpace, rgb_to_lab};
-use super::report::{Raster, SpeedPoint, montage, speed_accuracy_chart};
-use super::stats::ColourStats;
-use super::transfer::TransferMethod;
-use crate::bench::median;
+use super::median;
+use crate::colour::correction::ColourCorrection;
+use crate::colour::distance::{sliced_wasserstein, subsample};
+use crate::colour::gpu::CorrectPass;
+use crate::colour::images::{apply, counted_linear, image_stats};
+use crate::colour::lab::{LabSpace, rgb_to_lab};
+use crate::colour::report::{Raster, SpeedPoint, montage, speed_accuracy_chart};
+use crate::colour::stats::ColourStats;
+use crate::colour::transfer::TransferMethod;
 use crate::gpu::Gpu;
 use crate::scene::Rgba8Image;
 use anyhow::{Context, Result};
@@ -121,8 +121,8 @@ pub fn run(pairs: &[PairSpec], gpu: Option<&Gpu>, repeats: u32, mut tick: impl F
     let pass = gpu.map(CorrectPass::new).transpose()?;
     let mut rows = Vec::new();
     for pair in pairs {
-        let source = super::images::load_rgba8(&pair.source).with_context(|| format!("source of pair {}", pair.name))?;
-        let target = to_frame(&super::images::load_rgba8(&pair.target).with_context(|| format!("target of pair {}", pair.name))?)?;
+        let source = crate::colour::images::load_rgba8(&pair.source).with_context(|| format!("source of pair {}", pair.name))?;
+        let target = to_frame(&crate::colour::images::load_rgba8(&pair.target).with_context(|| format!("target of pair {}", pair.name))?)?;
         let source_stats = image_stats(&source, false, "SOURCE")?;
         let source_points = lab_points(&counted_linear(&source, false));
         let target_stats = image_stats(&target, false, "TARGET")?;
@@ -261,7 +261,7 @@ pub fn chart(report: &BenchReport) -> Result<Raster> {
 /// A Lambert-shaded sphere of one sRGB colour on a transparent background: what a model with a
 /// single-colour texture looks like when rendered.
 pub fn shaded_sphere(size: u32, srgb: [u8; 3]) -> Rgba8Image {
-    let lut = super::stats::srgb8_to_linear_table();
+    let lut = crate::colour::stats::srgb8_to_linear_table();
     let albedo = Vec3::new(lut[srgb[0] as usize], lut[srgb[1] as usize], lut[srgb[2] as usize]);
     let light = Vec3::new(-0.4, 0.5, 0.77).normalize();
     let r = size as f32 * 0.45;
@@ -277,7 +277,7 @@ pub fn shaded_sphere(size: u32, srgb: [u8; 3]) -> Rgba8Image {
             }
             let n = Vec3::new(dx, dy, (1.0 - d2).sqrt());
             let lit = albedo * (0.12 + 0.88 * n.dot(light).max(0.0));
-            pixels.extend([0, 1, 2].map(|i| (super::linear_to_srgb(lit[i]) * 255.0).round() as u8));
+            pixels.extend([0, 1, 2].map(|i| (crate::colour::linear_to_srgb(lit[i]) * 255.0).round() as u8));
             pixels.push(255);
         }
     }
@@ -312,7 +312,7 @@ fn manual_diagonal(space: LabSpace, source: &ColourStats, target: &ColourStats, 
 pub fn single_colour_figure(environment: &Rgba8Image, environment_stats: &ColourStats, albedo_srgb: [u8; 3]) -> Result<Raster> {
     let size = 200;
     let sphere = shaded_sphere(size, albedo_srgb);
-    let lut = super::stats::srgb8_to_linear_table();
+    let lut = crate::colour::stats::srgb8_to_linear_table();
     let texture_stats = ColourStats::from_linear(&[albedo_srgb.map(|c| lut[c as usize])])?;
     let env_tile = {
         let img = image::RgbaImage::from_raw(environment.width, environment.height, environment.pixels.clone())

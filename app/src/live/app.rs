@@ -1,0 +1,717 @@
+//! The one interactive app: what the desktop window (`previz live`) and the phone shells run.
+//! It owns the modes (capture, composite), the UI state and the frame loop; a platform shell
+//! only makes a [`LiveSession`] from its camera ([`crate::camera::FrameSource`]) and sensors
+//! ([`crate::sensors::SensorSource`]), wraps it in an [`App`] and, per display frame, calls
+//! [`App::frame`] (advance + draw into the compositor's target), runs one egui pass with
+//! [`App::ui`], then [`App::apply`] (what the pass asked for: export, mode switch, model), and
+//! forwards touch and mouse events to [`App::window_event`] and the lifecycle to
+//! [`App::suspend`] / [`App::resume`].
+//!
+//! Modes:
+//! - **Capture**: the camera image alone with the capture assistant's guidance over it (target
+//!   marker, arrow to the next shot, "Hold still", a flash and a tick per shot, a progress ring
+//!   of the six faces); the user taps to take the front, the other faces are taken as the
+//!   camera holds still on them. When the six faces are in, they are assembled, saved as a
+//!   capture folder (the format `previz capture` writes) in the export folder, and become the
+//!   environment that lights the model; the faces are shown until the user goes on.
+//! - **Composite**: the model over the camera image, the control panel (seed 000 Fig. 23), the
+//!   method and model pickers, reset, the shutter, and the gestures on the model.
+//!
+//! Permissions: camera refused → a screen saying what is missing and how to grant it, nothing
+//! else; location refused → the composite runs with the sun for a place and time set by hand.
+
+use super::{LiveFrame, LiveSession};
+use crate::capture::Mode as CaptureMode;
+use crate::capture::assistant::{Assistant, AssistantConfig, Phase};
+use crate::capture::projection::Pinhole;
+use crate::capture::targets::Face;
+use crate::gpu::Gpu;
+use crate::render::Placement;
+use crate::sensors::permissions::{Answer, Permission, refusal_message};
+use crate::ui::capture_overlay::{THUMB, draw_capture_overlay, draw_faces_preview, draw_shot_feedback, thumbnail};
+use crate::ui::controls::{Controls, apply_gesture, drag_on_ground, pinch_twist};
+use anyhow::{Context, Result};
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Which mode the app is in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AppMode {
+    Composite,
+    /// The assistant is taking the faces.
+    Capturing,
+    /// The capture is saved and lights the model; its faces are shown.
+    CaptureDone,
+}
+
+/// One step of a scripted session (`previz live --script`, demos and tests): each runs as soon
+/// as the app can do it, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// Start capture mode.
+    Capture,
+    /// Wait for the capture to be saved, then composite with it.
+    Composite,
+    /// Wait for a pose (the model on screen), then press the shutter.
+    Shutter,
+    /// End the session.
+    Quit,
+}
+
+impl Step {
+    /// Parse a comma-separated list of `capture`, `composite`, `shutter`, `quit`.
+    pub fn parse_list(text: &str) -> Result<Vec<Step>> {
+        text.split(',')
+            .map(|s| match s.trim() {
+                "capture" => Ok(Step::Capture),
+                "composite" => Ok(Step::Composite),
+                "shutter" => Ok(Step::Shutter),
+                "quit" => Ok(Step::Quit),
+                other => anyhow::bail!("--script: unknown step {other:?} (steps: capture, composite, shutter, quit)"),
+            })
+            .collect()
+    }
+}
+
+/// How long the flash and the tick of a shot stay on screen, seconds of camera time.
+pub const SHOT_FEEDBACK_S: f64 = 0.6;
+/// Side of the faces of a capture taken in the app (pixels).
+pub const CAPTURE_FACE_SIZE: u32 = 256;
+
+struct CaptureRun {
+    assistant: Assistant,
+    thumbs: [Option<egui::TextureHandle>; 6],
+    /// The last shot's target name and camera time.
+    last_shot: Option<(String, f64)>,
+    /// The user tapped; used at the next frame with a pose.
+    tap: bool,
+    /// Where the finished capture was saved.
+    saved: Option<PathBuf>,
+}
+
+/// A model the picker offers: the scene's, the bundled demo one, or a file the user opened.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelChoice {
+    pub name: String,
+    /// None: the bundled demo model.
+    pub path: Option<PathBuf>,
+}
+
+/// The place and time the sun is computed for when location is not allowed (the panel's text).
+#[derive(Clone, Debug, PartialEq)]
+struct ManualPlace {
+    lat: f64,
+    lon: f64,
+    time: String,
+}
+
+/// What one UI pass asked for; done by [`App::apply`].
+#[derive(Default)]
+struct Requests {
+    shutter: bool,
+    reset: bool,
+    capture: bool,
+    composite: bool,
+    model: Option<usize>,
+    place: bool,
+    ask_permissions: bool,
+}
+
+/// The interactive app (module docs).
+pub struct App {
+    session: LiveSession,
+    capture: Option<CaptureRun>,
+    controls: Controls,
+    initial: (Controls, Placement),
+    touches: Vec<(u64, glam::Vec2)>,
+    mouse: Option<glam::Vec2>,
+    cursor: glam::Vec2,
+    export_dir: PathBuf,
+    status: String,
+    last: Option<LiveFrame>,
+    camera_permission: Answer,
+    location_permission: Answer,
+    place: ManualPlace,
+    models: Vec<ModelChoice>,
+    model: usize,
+    requests: Requests,
+    script: VecDeque<Step>,
+    last_export: Option<PathBuf>,
+    captured: Option<PathBuf>,
+    ask_permissions: bool,
+    quit: bool,
+}
+
+impl App {
+    /// The app over `session`, in composite mode; the shutter and captures save into
+    /// `export_dir`.
+    pub fn new(mut session: LiveSession, export_dir: PathBuf) -> App {
+        let controls = Controls::from_params(session.params());
+        session.set_controls(controls);
+        let placement = session.params().placement;
+        let (lat, lon) = session.location();
+        let time = session.config().start.to_rfc3339_opts(chrono::SecondsFormat::Secs, true);
+        let scene_model = match &session.scene().model {
+            Some(p) => ModelChoice { name: file_label(p), path: Some(p.clone()) },
+            None => ModelChoice { name: "demo teapot".into(), path: None },
+        };
+        let mut models = vec![scene_model];
+        if models[0].path.is_some() {
+            models.push(ModelChoice { name: "demo teapot".into(), path: None });
+        }
+        App {
+            session,
+            capture: None,
+            controls,
+            initial: (controls, placement),
+            touches: Vec::new(),
+            mouse: None,
+            cursor: glam::Vec2::ZERO,
+            export_dir,
+            status: String::new(),
+            last: None,
+            camera_permission: Answer::Granted,
+            location_permission: Answer::Granted,
+            place: ManualPlace { lat, lon, time },
+            models,
+            model: 0,
+            requests: Requests::default(),
+            script: VecDeque::new(),
+            last_export: None,
+            captured: None,
+            ask_permissions: false,
+            quit: false,
+        }
+    }
+
+    /// What the platform reported for the camera and location permissions.
+    pub fn set_permissions(&mut self, camera: Answer, location: Answer) {
+        self.camera_permission = camera;
+        self.location_permission = location;
+    }
+
+    /// True once after the user pressed "Ask again" on the refusal screen (the shell asks the
+    /// system again).
+    pub fn take_permission_request(&mut self) -> bool {
+        std::mem::take(&mut self.ask_permissions)
+    }
+
+    /// Run these steps, in order, each as soon as the app can.
+    pub fn set_script(&mut self, steps: Vec<Step>) {
+        self.script = steps.into();
+    }
+
+    pub fn mode(&self) -> AppMode {
+        match &self.capture {
+            None => AppMode::Composite,
+            Some(c) if c.saved.is_some() => AppMode::CaptureDone,
+            Some(_) => AppMode::Capturing,
+        }
+    }
+
+    pub fn session(&self) -> &LiveSession {
+        &self.session
+    }
+
+    pub fn session_mut(&mut self) -> &mut LiveSession {
+        &mut self.session
+    }
+
+    pub fn controls(&self) -> &Controls {
+        &self.controls
+    }
+
+    /// The last frame the app advanced to.
+    pub fn last_frame(&self) -> Option<&LiveFrame> {
+        self.last.as_ref()
+    }
+
+    /// The folder of the last shutter press.
+    pub fn last_export(&self) -> Option<&Path> {
+        self.last_export.as_deref()
+    }
+
+    /// The capture folder saved by the current or last capture run.
+    pub fn capture_folder(&self) -> Option<&Path> {
+        self.captured.as_deref()
+    }
+
+    /// The capture assistant's guidance while capturing.
+    pub fn guidance(&self) -> Option<crate::capture::assistant::Guidance> {
+        self.capture.as_ref().map(|c| c.assistant.guidance())
+    }
+
+    /// The models the picker offers.
+    pub fn models(&self) -> &[ModelChoice] {
+        &self.models
+    }
+
+    /// Start capture mode (the camera image alone, the assistant's guidance over it).
+    pub fn start_capture(&mut self) -> Result<()> {
+        let s = self.session.scene();
+        let camera = Pinhole::from_vfov(s.width, s.height, s.camera.vfov as f32)?;
+        let mut cfg = AssistantConfig::new(CaptureMode::Stretch, camera);
+        cfg.face_size = CAPTURE_FACE_SIZE;
+        let assistant = Assistant::new(cfg)?;
+        self.capture = Some(CaptureRun { assistant, thumbs: Default::default(), last_shot: None, tap: false, saved: None });
+        self.session.set_show_model(false);
+        Ok(())
+    }
+
+    /// The user taps (capture mode, before the front is taken: the front is the next frame).
+    pub fn tap(&mut self) {
+        if let Some(c) = &mut self.capture {
+            c.tap = true;
+        }
+    }
+
+    /// Leave capture mode for the composite (with the capture's environment once it is saved).
+    pub fn composite(&mut self) {
+        self.capture = None;
+        self.session.set_show_model(true);
+    }
+
+    /// Offer a model file the user opened (a file dropped on the window, say) and switch to it.
+    pub fn open_model(&mut self, gpu: &Gpu, path: &Path) -> Result<()> {
+        let choice = ModelChoice { name: file_label(path), path: Some(path.to_path_buf()) };
+        let index = match self.models.iter().position(|m| *m == choice) {
+            Some(i) => i,
+            None => {
+                self.models.push(choice);
+                self.models.len() - 1
+            }
+        };
+        self.select_model(gpu, index)
+    }
+
+    fn select_model(&mut self, gpu: &Gpu, index: usize) -> Result<()> {
+        let choice = self.models.get(index).context("no such model")?.clone();
+        let model = match &choice.path {
+            Some(p) => crate::scene::model::load_model(p)?,
+            None => crate::scene::demo::model()?,
+        };
+        self.session.set_model(gpu, &model, choice.path.as_deref())?;
+        self.model = index;
+        self.initial.1 = self.session.params().placement;
+        Ok(())
+    }
+
+    /// Advance to the next camera frame and draw it into the compositor's target: in capture
+    /// mode the assistant sees the frame (and takes its shot); a scripted step runs when it can.
+    /// False when the session is over. With the camera refused nothing advances.
+    pub fn frame(&mut self, gpu: &Gpu) -> Result<bool> {
+        if self.quit || self.script.front() == Some(&Step::Quit) {
+            return Ok(false);
+        }
+        if refused(self.camera_permission) {
+            return Ok(true);
+        }
+        self.script_step(gpu)?;
+        let Some(f) = self.session.advance(gpu)? else { return Ok(false) };
+        self.last = Some(f);
+        self.capture_frame(gpu, &f)?;
+        self.session.draw(gpu)?;
+        Ok(true)
+    }
+
+    fn script_step(&mut self, gpu: &Gpu) -> Result<()> {
+        let Some(step) = self.script.front().copied() else { return Ok(()) };
+        let done = match step {
+            Step::Capture => {
+                self.start_capture()?;
+                true
+            }
+            Step::Composite => match self.mode() {
+                AppMode::Capturing => false,
+                _ => {
+                    self.composite();
+                    true
+                }
+            },
+            Step::Shutter => {
+                let ready = self.capture.is_none() && self.last.is_some_and(|f| f.pose.is_some());
+                if ready {
+                    self.shutter(gpu)?;
+                }
+                ready
+            }
+            Step::Quit => false,
+        };
+        if done {
+            self.script.pop_front();
+        }
+        Ok(())
+    }
+
+    fn capture_frame(&mut self, gpu: &Gpu, f: &LiveFrame) -> Result<()> {
+        let Some(run) = &mut self.capture else { return Ok(()) };
+        if run.saved.is_some() {
+            return Ok(());
+        }
+        run.tap |= f.user_tapped;
+        let Some(pose) = f.pose else { return Ok(()) };
+        // A phone camera's YUV frame stays on the GPU: read back only when a shot is taken.
+        let image = || self.session.camera_frame(gpu).map(Arc::new);
+        if run.tap && run.assistant.phase() == Phase::WaitingForTap {
+            run.tap = false;
+            run.assistant.tap(f.t, &pose, image()?)?;
+            run.last_shot = Some((Face::Front.name().to_string(), f.t));
+        } else if let Some(i) = run.assistant.observe(f.t, &pose)? {
+            run.assistant.capture(i, f.t, &pose, image()?)?;
+            let name = run.assistant.targets().get(i).map_or_else(String::new, |t| t.name.clone());
+            run.last_shot = Some((name, f.t));
+        }
+        run.tap = false;
+        if run.assistant.phase() == Phase::Complete {
+            self.finish_capture(gpu)?;
+        }
+        Ok(())
+    }
+
+    /// Assemble the faces, save them as a capture folder and light the model with them.
+    fn finish_capture(&mut self, gpu: &Gpu) -> Result<()> {
+        let Some(run) = &mut self.capture else { return Ok(()) };
+        let mut capture = run.assistant.finish()?;
+        let (lat, lon) = self.session.location();
+        capture.meta.location = Some(crate::capture::folder::Location { lat_deg: lat, lon_deg: lon, alt_m: 0.0 });
+        let dir = self.export_dir.join(format!("previz-capture-{}", chrono::Utc::now().format("%Y%m%d-%H%M%S%.3f")));
+        crate::capture::save_capture(&capture, &dir)?;
+        let env = capture.to_cube_map();
+        self.session.set_environment(gpu, &env, &dir, capture.meta.reference_heading_deg)?;
+        let daylight = self.session.params().lighting.daylight;
+        self.controls.daylight = daylight;
+        self.initial.0.daylight = daylight;
+        self.session.set_controls(self.controls);
+        self.status = format!("capture saved in {}", dir.display());
+        run.saved = Some(dir.clone());
+        self.captured = Some(dir);
+        Ok(())
+    }
+
+    /// Export the current frame into a new folder `previz-export-<time>` of the export folder.
+    pub fn shutter(&mut self, gpu: &Gpu) -> Result<PathBuf> {
+        let dir = self.export_dir.join(format!("previz-export-{}", chrono::Utc::now().format("%Y%m%d-%H%M%S%.3f")));
+        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        if let Err(e) = super::export::export(&mut self.session, gpu, &dir, None) {
+            let _ = std::fs::remove_dir(&dir);
+            return Err(e);
+        }
+        self.last_export = Some(dir.clone());
+        Ok(dir)
+    }
+
+    /// Draw the UI of the current mode. `frame` is the compositor's target registered with the
+    /// egui renderer (None when the caller draws the frame itself, as the headless tests do);
+    /// `perf` is the shell's frame-rate line.
+    pub fn ui(&mut self, ctx: &egui::Context, frame: Option<egui::TextureId>, perf: &str) {
+        if let Some(texture) = frame {
+            let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+            ctx.layer_painter(egui::LayerId::background()).image(texture, ctx.viewport_rect(), uv, egui::Color32::WHITE);
+        }
+        if refused(self.camera_permission) {
+            self.refusal_screen(ctx);
+            return;
+        }
+        match self.mode() {
+            AppMode::Composite => self.composite_ui(ctx, perf),
+            AppMode::Capturing | AppMode::CaptureDone => self.capture_ui(ctx),
+        }
+    }
+
+    fn refusal_screen(&mut self, ctx: &egui::Context) {
+        // (The bundled font has no arrow glyph.)
+        let text = refusal_message(Permission::Camera, self.camera_permission).unwrap_or_default().replace('→', ">");
+        let ask = self.camera_permission == Answer::Denied;
+        // A dark screen: there is no camera image to show.
+        ctx.layer_painter(egui::LayerId::background()).rect_filled(ctx.content_rect(), 0.0, egui::Color32::from_gray(24));
+        egui::Window::new("Camera not allowed")
+            .anchor(egui::Align2::CENTER_CENTER, egui::vec2(0.0, 0.0))
+            .collapsible(false)
+            .resizable(false)
+            .max_width(ctx.content_rect().width() * 0.8)
+            .show(ctx, |ui| {
+                ui.label(egui::RichText::new(text).size(18.0));
+                ui.add_space(12.0);
+                if ask && ui.button("Ask again").clicked() {
+                    self.requests.ask_permissions = true;
+                }
+            });
+    }
+
+    fn composite_ui(&mut self, ctx: &egui::Context, perf: &str) {
+        let sensors = self.session.sensors();
+        egui::Window::new("previz live").anchor(egui::Align2::LEFT_TOP, egui::vec2(8.0, 8.0)).resizable(false).show(ctx, |ui| {
+            ui.label(perf);
+            for line in status_lines(self.last.as_ref(), &sensors) {
+                ui.label(line);
+            }
+            let env = self.session.scene().environment.as_deref().map_or_else(|| "demo".to_string(), file_label);
+            ui.label(format!("environment: {env}"));
+        });
+        let mut controls = self.controls;
+        self.requests.reset |= controls.show(ctx);
+        if controls != self.controls {
+            self.controls = controls;
+            self.session.set_controls(controls);
+        }
+        egui::Window::new("model").anchor(egui::Align2::LEFT_BOTTOM, egui::vec2(8.0, -8.0)).resizable(false).show(ctx, |ui| {
+            let mut chosen = self.model;
+            egui::ComboBox::from_label("model").selected_text(self.models[self.model].name.clone()).show_ui(ui, |ui| {
+                for (i, m) in self.models.iter().enumerate() {
+                    ui.selectable_value(&mut chosen, i, m.name.clone());
+                }
+            });
+            if chosen != self.model {
+                self.requests.model = Some(chosen);
+            }
+            ui.label("(drop a model file on the window to add it)");
+            if self.location_permission != Answer::Granted {
+                ui.separator();
+                ui.label(refusal_message(Permission::Location, self.location_permission).unwrap_or_default().replace('→', ">"));
+                ui.horizontal(|ui| {
+                    ui.add(egui::DragValue::new(&mut self.place.lat).range(-90.0..=90.0).speed(0.01).prefix("lat "));
+                    ui.add(egui::DragValue::new(&mut self.place.lon).range(-180.0..=180.0).speed(0.01).prefix("lon "));
+                });
+                ui.add(egui::TextEdit::singleline(&mut self.place.time).desired_width(200.0));
+                self.requests.place |= ui.button("set place and time").clicked();
+            }
+        });
+        egui::Area::new(egui::Id::unique("shutter")).anchor(egui::Align2::CENTER_BOTTOM, egui::vec2(0.0, -12.0)).show(ctx, |ui| {
+            ui.horizontal(|ui| {
+                self.requests.capture |= ui.button("capture").clicked();
+                self.requests.shutter |= ui.button("shutter").clicked();
+                if !self.status.is_empty() {
+                    ui.label(&self.status);
+                }
+            });
+        });
+    }
+
+    fn capture_ui(&mut self, ctx: &egui::Context) {
+        let now = self.last.map_or(0.0, |f| f.t);
+        let Some(run) = &mut self.capture else { return };
+        // Thumbnails of the faces taken so far (loaded once each).
+        let targets = run.assistant.targets();
+        for (i, face) in Face::ALL.iter().enumerate() {
+            if run.thumbs[i].is_some() {
+                continue;
+            }
+            let Some(shot) = targets.iter().position(|t| t.primary && t.face == *face).and_then(|k| run.assistant.shot(k)) else {
+                continue;
+            };
+            run.thumbs[i] = Some(ctx.load_texture(face.name(), thumbnail(&shot.image, THUMB as usize), egui::TextureOptions::LINEAR));
+        }
+        let g = run.assistant.guidance();
+        if run.saved.is_some() {
+            draw_faces_preview(ctx, &run.thumbs);
+        } else {
+            draw_capture_overlay(ctx, &g, &run.thumbs);
+            if let Some((name, t)) = &run.last_shot {
+                draw_shot_feedback(ctx, name, now - t, SHOT_FEEDBACK_S);
+            }
+        }
+        let waiting = g.phase == Phase::WaitingForTap;
+        let done = run.saved.is_some();
+        // Top left, clear of the thumbnails and the progress ring.
+        egui::Area::new(egui::Id::unique("capture-buttons")).anchor(egui::Align2::LEFT_TOP, egui::vec2(8.0, 8.0)).show(ctx, |ui| {
+            ui.horizontal(|ui| {
+                if waiting && ui.button("tap").clicked() {
+                    run.tap = true;
+                }
+                let label = if done { "composite with it" } else { "cancel" };
+                self.requests.composite |= ui.button(label).clicked();
+            });
+        });
+    }
+
+    /// Do what the last UI pass asked for. Errors of an action are shown in the status line and
+    /// returned.
+    pub fn apply(&mut self, gpu: &Gpu) -> Result<()> {
+        let r = std::mem::take(&mut self.requests);
+        self.ask_permissions |= r.ask_permissions;
+        let mut result = Ok(());
+        if r.reset {
+            self.controls = Controls { open: self.controls.open, ..self.initial.0 };
+            self.session.params_mut().placement = self.initial.1;
+            self.session.set_controls(self.controls);
+        }
+        if r.capture {
+            result = result.and(self.start_capture());
+        }
+        if r.composite {
+            self.composite();
+        }
+        if let Some(i) = r.model {
+            result = result.and(self.select_model(gpu, i));
+        }
+        if r.place {
+            let place = self.place.clone();
+            let set = crate::sun::time::parse_time(&place.time, "time")
+                .and_then(|t| self.session.set_place(place.lat, place.lon, t.with_timezone(&chrono::Utc)));
+            result = result.and(set);
+        }
+        if r.shutter {
+            result = result.and_then(|_| self.shutter(gpu).map(|dir| self.status = format!("saved {}", dir.display())));
+        }
+        if let Err(e) = &result {
+            self.status = format!("{e:#}");
+        }
+        result
+    }
+
+    /// Touch and mouse gestures on the model (events egui did not take), in composite mode:
+    /// one finger or the left mouse button drags it across the ground, two fingers pinch to
+    /// scale and twist to turn it. `size` is the view's size in the events' pixels.
+    pub fn window_event(&mut self, event: &winit::event::WindowEvent, size: glam::Vec2) {
+        use winit::event::{ElementState, MouseButton, TouchPhase, WindowEvent};
+        if self.capture.is_some() {
+            // Capture mode: a tap anywhere (not on a button) takes the front.
+            let tapped = match event {
+                WindowEvent::MouseInput { state: ElementState::Pressed, button: MouseButton::Left, .. } => true,
+                WindowEvent::Touch(t) => t.phase == TouchPhase::Started,
+                _ => false,
+            };
+            if tapped {
+                self.tap();
+            }
+            return;
+        }
+        let mut moved = glam::Vec3::ZERO;
+        let (mut scale, mut twist) = (1.0, 0.0);
+        match event {
+            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+                self.mouse = (*state == ElementState::Pressed).then_some(self.cursor);
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                self.cursor = glam::Vec2::new(position.x as f32, position.y as f32);
+                if let Some(from) = self.mouse.replace(self.cursor) {
+                    moved = drag_on_ground(self.session.params(), size, from, self.cursor);
+                }
+            }
+            WindowEvent::Touch(t) => {
+                let at = glam::Vec2::new(t.location.x as f32, t.location.y as f32);
+                let i = self.touches.iter().position(|(id, _)| *id == t.id);
+                match (t.phase, i) {
+                    (TouchPhase::Started, None) => self.touches.push((t.id, at)),
+                    (TouchPhase::Moved, Some(i)) => {
+                        let before = self.touches.clone();
+                        self.touches[i].1 = at;
+                        match before.as_slice() {
+                            [(_, from)] => moved = drag_on_ground(self.session.params(), size, *from, at),
+                            [(_, a0), (_, b0), ..] => (scale, twist) = pinch_twist(*a0, *b0, self.touches[0].1, self.touches[1].1),
+                            _ => {}
+                        }
+                    }
+                    (TouchPhase::Ended | TouchPhase::Cancelled, Some(i)) => {
+                        self.touches.remove(i);
+                    }
+                    _ => {}
+                }
+            }
+            _ => return,
+        }
+        let before = self.controls;
+        apply_gesture(self.session.params_mut(), &mut self.controls, moved, scale, twist);
+        if self.controls != before {
+            self.session.set_controls(self.controls);
+        }
+    }
+
+    /// The app went to the background: camera and sensors stop; everything is kept.
+    pub fn suspend(&mut self) -> Result<()> {
+        self.session.suspend()
+    }
+
+    pub fn resume(&mut self) -> Result<()> {
+        self.session.resume()
+    }
+}
+
+fn refused(a: Answer) -> bool {
+    matches!(a, Answer::Denied | Answer::DeniedForever)
+}
+
+fn file_label(p: &Path) -> String {
+    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// The status panel's text (pure, so it is tested without a window).
+pub fn status_lines(last: Option<&LiveFrame>, sensors: &str) -> Vec<String> {
+    let mut lines = vec![format!("sensors: {sensors}")];
+    let Some(f) = last else {
+        lines.push("waiting for the first camera frame".into());
+        return lines;
+    };
+    match f.pose {
+        Some(p) => {
+            let hpr = crate::pose::frames::heading_pitch_roll(p.q.as_dquat());
+            lines.push(format!(
+                "heading {:.1}°, pitch {:.1}° (±{:.1}°, {})",
+                hpr.heading.to_degrees(),
+                hpr.pitch.to_degrees(),
+                p.accuracy_deg,
+                p.heading_source.label()
+            ));
+        }
+        None => lines.push("pose: settling (camera image only)".into()),
+    }
+    lines.push(format!(
+        "sun: azimuth {:.1}°, elevation {:.1}°, sunlight l_s {:.2}",
+        f.sun.azimuth_deg,
+        f.sun.apparent_elevation_deg(),
+        f.sunlight
+    ));
+    lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pose::{HeadingSource, Pose};
+    use crate::sun::{Algorithm, SunInput, position};
+
+    #[test]
+    fn status_lines_name_the_pose_and_the_sun() {
+        let waiting = status_lines(None, "sim");
+        assert!(waiting.iter().any(|l| l.contains("waiting")));
+        let time = chrono::DateTime::parse_from_rfc3339("2003-10-17T12:30:30-07:00").unwrap().with_timezone(&chrono::Utc);
+        let sun = position(&SunInput::new(time, 39.742476, -105.1786), Algorithm::Spa).unwrap();
+        // Camera looking East (heading 90°), level: camera −z → +x (East), +y → Up.
+        let q = crate::pose::frames::from_heading_pitch_roll(90f64.to_radians(), 0.0, 0.0).as_quat();
+        let pose = Pose {
+            t: 1.0,
+            q,
+            accuracy_deg: 2.0,
+            heading_accuracy_deg: 2.0,
+            tilt_accuracy_deg: 0.5,
+            heading_source: HeadingSource::GyroOnly,
+            magnetic_disturbance: true,
+        };
+        let frame = LiveFrame {
+            t: 1.0,
+            pose: Some(pose),
+            pose_error_deg: None,
+            sun,
+            sunlight: 0.8,
+            camera_ms: 0.0,
+            pose_ms: 0.0,
+            sun_ms: 0.0,
+            user_tapped: false,
+        };
+        let lines = status_lines(Some(&frame), "sim").join("\n");
+        assert!(lines.contains("heading 90.0°, pitch 0.0° (±2.0°, gyro only"), "{lines}");
+        // NREL SPA's published azimuth for this place and instant (Reda & Andreas 2004): 194.34°.
+        assert!(lines.contains("sun: azimuth 194.3°"), "{lines}");
+    }
+
+    #[test]
+    fn script_steps_parse_and_unknown_ones_are_named() {
+        assert_eq!(
+            Step::parse_list("capture, composite,shutter,quit").unwrap(),
+            [Step::Capture, Step::Composite, Step::Shutter, Step::Quit]
+        );
+        let e = Step::parse_list("capture,jump").unwrap_err().to_string();
+        assert!(e.contains("--script") && e.contains("jump"), "{e}");
+    }
+}

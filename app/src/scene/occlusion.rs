@@ -1,0 +1,661 @@
+//! Ambient occlusion computed once per model: the fraction of the cosine-weighted hemisphere
+//! above each vertex that sees past the model itself ("visibility", 1 = open sky, 0 = enclosed).
+//!
+//! Visibility does not depend on the view, so it is computed at load by casting deterministic
+//! cosine-distributed rays (a Hammersley set, shifted per vertex so that neighbours do not share
+//! one pattern) against a bounding-volume hierarchy of the model's triangles. The same
+//! [`Occluders`] answer the ground's question: how much of the sky a point under the model sees
+//! ([`sky_visibility`]). A compact BVH is written here rather than taken from a crate: the job is
+//! any-hit queries on a static triangle list (~150 lines), and `bvh`/`parry3d` would bring
+//! nalgebra and a second maths library next to glam.
+
+use super::{Mesh, Model};
+use glam::{Mat4, Vec2, Vec3};
+use std::f32::consts::TAU;
+
+/// Rays cast for a whole model at most (when that leaves each vertex at least [`MIN_RAYS`]): the
+/// load-time cost is bounded by the model's size, ~0.7 µs a ray on one core of the development
+/// machine (the 100k-triangle dragon: 50k vertices, 40 rays each).
+pub const RAY_BUDGET: u32 = 2_000_000;
+/// Rays per vertex for small models.
+pub const MAX_RAYS: u32 = 64;
+/// Rays per vertex for the largest models.
+pub const MIN_RAYS: u32 = 8;
+
+/// Rays per vertex for a model of `vertices` vertices under [`RAY_BUDGET`].
+pub fn rays_per_vertex(vertices: usize) -> u32 {
+    (RAY_BUDGET as usize / vertices.max(1)).clamp(MIN_RAYS as usize, MAX_RAYS as usize) as u32
+}
+
+/// Triangles per BVH leaf at most.
+const LEAF_SIZE: usize = 4;
+/// Deepest node: a traversal holds at most one pending sibling per level.
+const MAX_DEPTH: usize = 62;
+
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    lo: Vec3,
+    hi: Vec3,
+    /// Leaf: first triangle; inner node: index of the left child (the right one follows it).
+    first: u32,
+    /// Triangles in a leaf; 0 for an inner node.
+    count: u32,
+}
+
+/// The triangles that can block a ray, in a bounding-volume hierarchy (binned surface-area
+/// heuristic, Wald 2007).
+#[derive(Clone, Debug)]
+pub struct Occluders {
+    nodes: Vec<Node>,
+    triangles: Vec<[Vec3; 3]>,
+    /// Ray offset from the surface: a small fraction of the model's size.
+    epsilon: f32,
+}
+
+impl Occluders {
+    /// Every triangle of `model`, in model space.
+    pub fn of_model(model: &Model) -> Occluders {
+        Occluders::new(model.meshes.iter().flat_map(mesh_triangles).collect())
+    }
+
+    /// A hierarchy over `triangles` (degenerate ones are kept: they are never hit).
+    pub fn new(mut triangles: Vec<[Vec3; 3]>) -> Occluders {
+        let (lo, hi) = bounds(&triangles);
+        let diagonal = if triangles.is_empty() { 0.0 } else { (hi - lo).length() };
+        let mut nodes = vec![Node { lo, hi, first: 0, count: triangles.len() as u32 }];
+        // Split nodes breadth-first; each split appends the two children together.
+        let mut todo = vec![(0usize, 0usize)];
+        while let Some((i, depth)) = todo.pop() {
+            let Node { first, count, .. } = nodes[i];
+            let (first, count) = (first as usize, count as usize);
+            // The depth bound keeps every traversal inside `blocked`'s fixed stack.
+            if count <= LEAF_SIZE || depth >= MAX_DEPTH {
+                continue;
+            }
+            let Some(half) = sah_split(&mut triangles[first..first + count]) else { continue };
+            let left = nodes.len();
+            for (start, n) in [(first, half), (first + half, count - half)] {
+                let (lo, hi) = bounds(&triangles[start..start + n]);
+                nodes.push(Node { lo, hi, first: start as u32, count: n as u32 });
+            }
+            nodes[i].first = left as u32;
+            nodes[i].count = 0;
+            todo.extend([(left, depth + 1), (left + 1, depth + 1)]);
+        }
+        Occluders { nodes, triangles, epsilon: 1e-5 * diagonal.max(f32::MIN_POSITIVE) }
+    }
+
+    /// Whether the ray `origin + t·dir`, 0 < t < `t_max`, hits any triangle (either side).
+    pub fn blocked(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        if self.triangles.is_empty() {
+            return false;
+        }
+        let inv = dir.recip();
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !slab_hit(node.lo, node.hi, origin, inv, t_max) {
+                continue;
+            }
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                if self.triangles[range].iter().any(|t| triangle_hit(t, origin, dir, t_max)) {
+                    return true;
+                }
+            } else {
+                stack[top] = node.first;
+                stack[top + 1] = node.first + 1;
+                top += 2;
+            }
+        }
+        false
+    }
+
+    /// The cosine-weighted visibility of the hemisphere around unit `normal` at `point`, from
+    /// `rays` rays whose pattern is shifted by `seed` (deterministic).
+    pub fn visibility(&self, point: Vec3, normal: Vec3, rays: u32, seed: u32) -> f32 {
+        let Some(n) = normal.try_normalize() else { return 1.0 };
+        let (t, b) = orthonormal_basis(n);
+        let origin = point + n * self.epsilon;
+        let shift = (unit_hash(seed), unit_hash(seed.wrapping_mul(0x9E37_79B9) ^ 0x5bd1_e995));
+        let open = (0..rays.max(1))
+            .filter(|&i| {
+                let (u1, u2) = hammersley(i, rays.max(1));
+                let d = cosine_direction((u1 + shift.0).fract(), (u2 + shift.1).fract());
+                !self.blocked(origin, t * d.x + b * d.y + n * d.z, f32::INFINITY)
+            })
+            .count();
+        open as f32 / rays.max(1) as f32
+    }
+}
+
+/// Per-vertex visibility of `mesh` against `occluders` (1 = unoccluded), `rays` rays each; the
+/// work is split over the machine's cores. Vertices with a zero normal get 1.
+pub fn vertex_ao(mesh: &Mesh, occluders: &Occluders, rays: u32) -> Vec<f32> {
+    let n = mesh.positions.len();
+    // Each ray starts a little inside the vertex's own triangles (towards their mean centroid):
+    // a vertex on a concave hard edge (the corner of a room) would otherwise sit exactly in the
+    // plane of the neighbouring wall and see through it.
+    let mut towards = vec![(Vec3::ZERO, 0u32); n];
+    for t in mesh.indices.chunks_exact(3) {
+        let Some(tri) =
+            [t[0], t[1], t[2]].iter().map(|&i| mesh.positions.get(i as usize).map(|p| Vec3::from_array(*p))).collect::<Option<Vec<_>>>()
+        else {
+            continue;
+        };
+        let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+        for &i in t {
+            let e = &mut towards[i as usize];
+            *e = (e.0 + c, e.1 + 1);
+        }
+    }
+    let towards = &towards;
+    let mut ao = vec![1.0f32; n];
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(n.max(1));
+    let chunk = n.div_ceil(threads.max(1)).max(1);
+    std::thread::scope(|s| {
+        for (c, out) in ao.chunks_mut(chunk).enumerate() {
+            s.spawn(move || {
+                for (k, v) in out.iter_mut().enumerate() {
+                    let i = c * chunk + k;
+                    let normal = mesh.normals.get(i).map_or(Vec3::ZERO, |v| Vec3::from_array(*v));
+                    let p = Vec3::from_array(mesh.positions[i]);
+                    let (sum, count) = towards[i];
+                    let start = if count > 0 { p + (sum / count as f32 - p) * 1e-3 } else { p };
+                    *v = occluders.visibility(start, normal, rays, i as u32);
+                }
+            });
+        }
+    });
+    ao
+}
+
+/// Per-vertex visibility of every mesh of `model` against all of its triangles, with
+/// [`rays_per_vertex`] rays each, then averaged once over each vertex's neighbours (the vertices
+/// it shares a triangle with), which multiplies the rays behind each value about sevenfold at the
+/// cost of a one-edge blur.
+pub fn model_ao(model: &Model) -> Vec<Vec<f32>> {
+    let occluders = Occluders::of_model(model);
+    let rays = rays_per_vertex(model.meshes.iter().map(|m| m.positions.len()).sum());
+    model.meshes.iter().map(|m| smooth_over_neighbours(m, &vertex_ao(m, &occluders, rays))).collect()
+}
+
+/// Each vertex's value averaged with those of the vertices it shares a triangle with (each
+/// neighbour counted once per shared triangle edge, itself once per triangle).
+pub fn smooth_over_neighbours(mesh: &Mesh, values: &[f32]) -> Vec<f32> {
+    let mut sum = vec![(0.0f32, 0u32); values.len()];
+    for t in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+        if a.max(b).max(c) >= values.len() {
+            continue;
+        }
+        for (i, j, k) in [(a, b, c), (b, c, a), (c, a, b)] {
+            sum[i] = (sum[i].0 + values[i] + 0.5 * (values[j] + values[k]), sum[i].1 + 2);
+        }
+    }
+    values.iter().zip(&sum).map(|(&v, &(s, n))| if n == 0 { v } else { s / n as f32 }).collect()
+}
+
+/// The cosine-weighted fraction of the upper hemisphere (+`up`) that `point` sees past the
+/// occluders: the sky a ground point under the model still receives.
+pub fn sky_visibility(occluders: &Occluders, point: Vec3, up: Vec3, rays: u32, seed: u32) -> f32 {
+    occluders.visibility(point, up, rays, seed)
+}
+
+/// Texels per side of the ground's sky-visibility map.
+pub const GROUND_TEXELS: u32 = 64;
+/// Rays per texel of the ground map.
+pub const GROUND_RAYS: u32 = 64;
+
+/// The sky a horizontal ground square under a placed model still sees: the contact shadow an
+/// overcast sky (or the sky part of any light) leaves under the model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundSky {
+    /// World corners of the square (x, y) at height `z`.
+    pub min: Vec2,
+    pub max: Vec2,
+    pub z: f32,
+    /// Texels per side; `visibility` is row-major from `min` (row 0 at min.y), cosine-weighted
+    /// sky visibility in 0..=1 at each texel's centre.
+    pub size: u32,
+    pub visibility: Vec<f32>,
+}
+
+impl GroundSky {
+    /// The visibility at world (x, y) by bilinear interpolation between texel centres (1 outside
+    /// the square: far from the model the sky is whole).
+    pub fn at(&self, p: Vec2) -> f32 {
+        let uv = (p - self.min) / (self.max - self.min);
+        if !(0.0..=1.0).contains(&uv.x) || !(0.0..=1.0).contains(&uv.y) {
+            return 1.0;
+        }
+        let n = self.size as usize;
+        let f = (uv * self.size as f32 - 0.5).clamp(Vec2::ZERO, Vec2::splat(self.size as f32 - 1.0));
+        let (x0, y0) = (f.x as usize, f.y as usize);
+        let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
+        let (tx, ty) = (f.x - x0 as f32, f.y - y0 as f32);
+        let v = |x: usize, y: usize| self.visibility[y * n + x];
+        let top = v(x0, y0) * (1.0 - tx) + v(x1, y0) * tx;
+        let bottom = v(x0, y1) * (1.0 - tx) + v(x1, y1) * tx;
+        top * (1.0 - ty) + bottom * ty
+    }
+}
+
+/// The ground square that holds the model's contact shadow: the footprint of the placed model's
+/// box (model-space `bounds`, placement `model`, world z up) widened by twice its height on
+/// every side, at the box's lowest point. Past that margin a wall as tall as the box hides less
+/// than (1 − cos atan ½)/2 ≈ 5 % of the cosine-weighted sky.
+pub fn ground_square(bounds: (Vec3, Vec3), model: Mat4) -> (Vec2, Vec2, f32) {
+    let (lo, hi) = bounds;
+    let corners = (0..8).map(|i| model.transform_point3(Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][i >> 2])));
+    let (wlo, whi) = corners.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| (a.min(c), b.max(c)));
+    let margin = 2.0 * (whi.z - wlo.z);
+    let centre = 0.5 * (wlo.truncate() + whi.truncate());
+    let half = 0.5 * (whi.truncate() - wlo.truncate()).max_element() + margin;
+    (centre - Vec2::splat(half), centre + Vec2::splat(half), wlo.z)
+}
+
+/// The ground's sky visibility around a model placed by `model` (model space → world, a
+/// rotation, uniform scale and translation): `occluders` are the model's triangles in model
+/// space; `size`² texels over [`ground_square`], `rays` rays each. Computed once per placement.
+pub fn ground_sky(occluders: &Occluders, bounds: (Vec3, Vec3), model: Mat4, size: u32, rays: u32) -> GroundSky {
+    let (min, max, z) = ground_square(bounds, model);
+    let to_model = model.inverse();
+    let up = to_model.transform_vector3(Vec3::Z).normalize_or_zero();
+    let n = size.max(1) as usize;
+    let mut visibility = vec![1.0f32; n * n];
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(n);
+    let rows = n.div_ceil(threads);
+    std::thread::scope(|s| {
+        for (c, out) in visibility.chunks_mut(rows * n).enumerate() {
+            s.spawn(move || {
+                for (k, v) in out.iter_mut().enumerate() {
+                    let (x, y) = (k % n, c * rows + k / n);
+                    let uv = (Vec2::new(x as f32, y as f32) + 0.5) / n as f32;
+                    let world = (min + (max - min) * uv).extend(z);
+                    *v = occluders.visibility(to_model.transform_point3(world), up, rays, (y * n + x) as u32);
+                }
+            });
+        }
+    });
+    GroundSky { min, max, z, size: n as u32, visibility }
+}
+
+fn mesh_triangles(mesh: &Mesh) -> impl Iterator<Item = [Vec3; 3]> + '_ {
+    mesh.indices.chunks_exact(3).filter_map(|t| {
+        let p = |i: u32| mesh.positions.get(i as usize).map(|p| Vec3::from_array(*p));
+        Some([p(t[0])?, p(t[1])?, p(t[2])?])
+    })
+}
+
+/// Reorder `tris` so that the split that minimises the surface-area heuristic comes first and
+/// return where it falls; None when keeping them in one leaf is cheaper.
+fn sah_split(tris: &mut [[Vec3; 3]]) -> Option<usize> {
+    const BINS: usize = 16;
+    let (clo, chi) = tris.iter().map(centroid).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| (a.min(c), b.max(c)));
+    let extent = chi - clo;
+    let area = |lo: Vec3, hi: Vec3| {
+        let d = (hi - lo).max(Vec3::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    };
+    let mut best: Option<(f32, usize, f32)> = None; // (cost, axis, split position)
+    for axis in 0..3 {
+        if extent[axis] <= 0.0 {
+            continue;
+        }
+        let bin_of = |t: &[Vec3; 3]| (((centroid(t)[axis] - clo[axis]) / extent[axis] * BINS as f32) as usize).min(BINS - 1);
+        let mut bins = [(Vec3::INFINITY, Vec3::NEG_INFINITY, 0u32); BINS];
+        for t in tris.iter() {
+            let b = &mut bins[bin_of(t)];
+            for p in t {
+                b.0 = b.0.min(*p);
+                b.1 = b.1.max(*p);
+            }
+            b.2 += 1;
+        }
+        // Sweep from the right to know each right side's area and count.
+        let mut right = [(0.0f32, 0u32); BINS];
+        let (mut lo, mut hi, mut n) = (Vec3::INFINITY, Vec3::NEG_INFINITY, 0);
+        for i in (1..BINS).rev() {
+            (lo, hi, n) = (lo.min(bins[i].0), hi.max(bins[i].1), n + bins[i].2);
+            right[i] = (area(lo, hi), n);
+        }
+        let (mut lo, mut hi, mut n) = (Vec3::INFINITY, Vec3::NEG_INFINITY, 0);
+        for i in 0..BINS - 1 {
+            (lo, hi, n) = (lo.min(bins[i].0), hi.max(bins[i].1), n + bins[i].2);
+            let (ra, rn) = right[i + 1];
+            if n == 0 || rn == 0 {
+                continue;
+            }
+            let cost = area(lo, hi) * n as f32 + ra * rn as f32;
+            if best.is_none_or(|b| cost < b.0) {
+                best = Some((cost, axis, clo[axis] + extent[axis] * (i + 1) as f32 / BINS as f32));
+            }
+        }
+    }
+    let (lo, hi) = bounds(tris);
+    let leaf_cost = area(lo, hi) * tris.len() as f32;
+    match best {
+        // Splitting costs one more box test per ray, about one triangle test.
+        Some((cost, axis, at)) if cost + area(lo, hi) < leaf_cost || tris.len() > 4 * LEAF_SIZE => {
+            let mut i = 0;
+            for j in 0..tris.len() {
+                if centroid(&tris[j])[axis] < at {
+                    tris.swap(i, j);
+                    i += 1;
+                }
+            }
+            (i > 0 && i < tris.len()).then_some(i)
+        }
+        // All centroids in one point (or one bin): split in the middle of the list.
+        None if tris.len() > 4 * LEAF_SIZE => Some(tris.len() / 2),
+        _ => None,
+    }
+}
+
+fn centroid(t: &[Vec3; 3]) -> Vec3 {
+    (t[0] + t[1] + t[2]) / 3.0
+}
+
+fn bounds(tris: &[[Vec3; 3]]) -> (Vec3, Vec3) {
+    tris.iter().flatten().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+}
+
+/// Ray against an axis-aligned box (slab test), for 0 <= t <= t_max.
+fn slab_hit(lo: Vec3, hi: Vec3, origin: Vec3, inv: Vec3, t_max: f32) -> bool {
+    let a = (lo - origin) * inv;
+    let b = (hi - origin) * inv;
+    // NaN (0 · inf, a ray in a box's plane) must not reject the box: min/max ignore NaN.
+    let near = a.min(b).max_element().max(0.0);
+    let far = a.max(b).min_element().min(t_max);
+    near <= far
+}
+
+/// Möller–Trumbore ray/triangle test, both sides, hits with 0 < t < t_max.
+fn triangle_hit(t: &[Vec3; 3], origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+    let e1 = t[1] - t[0];
+    let e2 = t[2] - t[0];
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-20 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = origin - t[0];
+    let u = s.dot(p) * inv;
+    if !(-1e-6..=1.0 + 1e-6).contains(&u) {
+        return false;
+    }
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv;
+    if v < -1e-6 || u + v > 1.0 + 1e-6 {
+        return false;
+    }
+    let dist = e2.dot(q) * inv;
+    dist > 0.0 && dist < t_max
+}
+
+/// The i-th of n points of the Hammersley set in [0, 1)^2 (i/n, base-2 radical inverse of i).
+pub fn hammersley(i: u32, n: u32) -> (f32, f32) {
+    ((i as f32 + 0.5) / n as f32, i.reverse_bits() as f32 * (1.0 / 4_294_967_296.0))
+}
+
+/// A cosine-distributed direction about +z from a point of the unit square (Malley's method:
+/// uniform on the disc, lifted to the hemisphere).
+pub fn cosine_direction(u1: f32, u2: f32) -> Vec3 {
+    let r = u1.sqrt();
+    let phi = TAU * u2;
+    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
+
+/// Two unit vectors completing unit `n` to a right-handed orthonormal basis (Duff et al. 2017,
+/// "Building an orthonormal basis, revisited").
+pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+/// A hash of `x` mapped to [0, 1) (the lowbias32 integer hash).
+fn unit_hash(mut x: u32) -> f32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    (x >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two triangles spanning the rectangle [x0, x1] x [y0, y1] at height z.
+    fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32) -> [[Vec3; 3]; 2] {
+        let p = |x, y| Vec3::new(x, y, z);
+        [[p(x0, y0), p(x1, y0), p(x1, y1)], [p(x0, y0), p(x1, y1), p(x0, y1)]]
+    }
+
+    /// A UV sphere of radius r at the origin with outward unit normals.
+    fn sphere(r: f32, rings: u32, segments: u32) -> Mesh {
+        let mut mesh = Mesh::default();
+        for i in 0..=rings {
+            let theta = std::f32::consts::PI * i as f32 / rings as f32;
+            for j in 0..=segments {
+                let phi = TAU * j as f32 / segments as f32;
+                let n = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                mesh.positions.push((n * r).to_array());
+                mesh.normals.push(n.to_array());
+            }
+        }
+        let w = segments + 1;
+        for i in 0..rings {
+            for j in 0..segments {
+                let (a, b, c, d) = (i * w + j, i * w + j + 1, (i + 1) * w + j, (i + 1) * w + j + 1);
+                mesh.indices.extend([a, c, b, b, c, d]);
+            }
+        }
+        mesh
+    }
+
+    #[test]
+    fn hammersley_directions_are_cosine_distributed() {
+        // E[cos θ] under a cosine-weighted density is 2/3; E[d.x] = E[d.y] = 0.
+        let n = 4096;
+        let mean = (0..n).map(|i| hammersley(i, n)).map(|(a, b)| cosine_direction(a, b)).fold(Vec3::ZERO, |s, d| s + d) / n as f32;
+        assert!((mean.z - 2.0 / 3.0).abs() < 1e-3, "{mean}");
+        assert!(mean.x.abs() < 1e-3 && mean.y.abs() < 1e-3, "{mean}");
+    }
+
+    #[test]
+    fn the_basis_is_orthonormal_for_every_normal() {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize(), Vec3::new(1e-7, 0.0, -1.0).normalize()] {
+            let (t, b) = orthonormal_basis(n);
+            for (x, y) in [(t, b), (t, n), (b, n)] {
+                assert!(x.dot(y).abs() < 1e-5, "{n}");
+            }
+            assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
+            assert!((t.cross(b) - n).length() < 1e-5, "right-handed for {n}");
+        }
+    }
+
+    #[test]
+    fn a_plane_with_a_hole_above_lets_through_the_cone_it_frames() {
+        // A point on the floor under a ceiling at height d with a round hole of radius r straight
+        // above sees the cone of half-angle atan(r/d); its cosine-weighted share is sin² of that
+        // angle = r²/(r²+d²). The ceiling is an annulus of triangles out to 100 d
+        // (which lets through another 1/(1 + 100²) = 1e-4).
+        let (d, r) = (1.0f32, 1.0f32);
+        let segments = 256;
+        let mut tris = Vec::new();
+        for j in 0..segments {
+            let a0 = TAU * j as f32 / segments as f32;
+            let a1 = TAU * (j + 1) as f32 / segments as f32;
+            let at = |rad: f32, a: f32| Vec3::new(rad * a.cos(), rad * a.sin(), d);
+            let (outer, inner) = (100.0 * d, r / (std::f32::consts::PI / segments as f32).cos());
+            tris.push([at(inner, a0), at(outer, a0), at(outer, a1)]);
+            tris.push([at(inner, a0), at(outer, a1), at(inner, a1)]);
+        }
+        let occ = Occluders::new(tris);
+        let expected = r * r / (r * r + d * d);
+        let mean = (0..16).map(|s| occ.visibility(Vec3::ZERO, Vec3::Z, 512, s)).sum::<f32>() / 16.0;
+        assert!((mean - expected).abs() < 0.01, "visibility {mean}, expected {expected}");
+    }
+
+    #[test]
+    fn the_inside_of_a_closed_box_sees_nothing() {
+        // A unit cube with inward normals at its vertices: every ray hits a wall.
+        let mut mesh = Mesh::default();
+        let faces: [(Vec3, Vec3, Vec3); 6] = [
+            (Vec3::X, Vec3::Y, Vec3::Z),
+            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+            (Vec3::Y, Vec3::Z, Vec3::X),
+            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+            (Vec3::Z, Vec3::X, Vec3::Y),
+            (Vec3::NEG_Z, Vec3::Y, Vec3::X),
+        ];
+        for (outward, u, v) in faces {
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                mesh.positions.push((outward + u * a + v * b).to_array());
+                mesh.normals.push((-outward).to_array());
+            }
+            mesh.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        let ao = vertex_ao(&mesh, &Occluders::new(mesh_triangles(&mesh).collect()), 256);
+        assert!(ao.iter().all(|&v| v == 0.0), "{ao:?}");
+        // And from the middle of the box, every direction.
+        let occ = Occluders::new(mesh_triangles(&mesh).collect());
+        assert_eq!(occ.visibility(Vec3::new(0.2, -0.3, 0.1), Vec3::new(1.0, 2.0, 3.0), 512, 7), 0.0);
+    }
+
+    #[test]
+    fn a_lone_convex_shape_is_unoccluded() {
+        let mesh = sphere(2.0, 24, 48);
+        let model = Model { meshes: vec![mesh], materials: vec![Default::default()] };
+        let ao = model_ao(&model);
+        assert_eq!(ao[0].len(), model.meshes[0].positions.len());
+        assert!(ao[0].iter().all(|&v| v == 1.0), "min {}", ao[0].iter().copied().fold(1.0, f32::min));
+    }
+
+    #[test]
+    fn the_foot_of_a_wall_sees_half_the_cosine_weighted_sky() {
+        // Floor z = 0 and wall x = 0 (towards +x), both 1000 wide; a point on the floor at the
+        // foot of the wall sees the half hemisphere x < 0: by symmetry, half the cosine weight.
+        let mut tris = quad(-1000.0, 1000.0, -1000.0, 1000.0, 0.0).to_vec();
+        for t in quad(-1000.0, 1000.0, 0.0, 1000.0, 0.0) {
+            tris.push(t.map(|p| Vec3::new(0.0, p.x, p.y))); // the wall: x = 0, |y| < 1000, 0 < z < 1000
+        }
+        let occ = Occluders::new(tris);
+        let mean = (0..16).map(|s| occ.visibility(Vec3::new(-1e-3, 0.0, 0.0), Vec3::Z, 512, s)).sum::<f32>() / 16.0;
+        assert!((mean - 0.5).abs() < 0.01, "{mean}");
+    }
+
+    #[test]
+    fn sky_over_the_ground_under_a_sphere_matches_the_spherical_cap() {
+        // A sphere of radius R centred at height h over the ground: from the point right under
+        // it, the sphere hides the cone of half-angle asin(R/h) about the zenith, whose
+        // cosine-weighted share is sin² = (R/h)²; the sky visibility is 1 − (R/h)².
+        let (r, h) = (1.0f32, 2.0f32);
+        let mut mesh = sphere(r, 48, 96);
+        for p in &mut mesh.positions {
+            p[2] += h;
+        }
+        let occ = Occluders::new(mesh_triangles(&mesh).collect());
+        let under = (0..16).map(|s| sky_visibility(&occ, Vec3::ZERO, Vec3::Z, 512, s)).sum::<f32>() / 16.0;
+        let expected = 1.0 - (r / h).powi(2);
+        assert!((under - expected).abs() < 0.01, "under the sphere {under}, expected {expected}");
+        // Far away the sphere covers almost nothing: at distance 100 its cone is ~1e-4 sr.
+        let far = sky_visibility(&occ, Vec3::new(100.0, 0.0, 0.0), Vec3::Z, 512, 3);
+        assert!(far > 0.99, "{far}");
+    }
+
+    #[test]
+    fn smoothing_keeps_a_constant_and_spreads_a_spike_over_its_ring() {
+        // A fan of 6 triangles around vertex 0 (a hexagon): the centre is in all six, each rim
+        // vertex in two (with the centre and one rim neighbour on each side).
+        let mut mesh = Mesh::default();
+        mesh.positions.push([0.0; 3]);
+        for k in 0..6 {
+            let a = TAU * k as f32 / 6.0;
+            mesh.positions.push([a.cos(), a.sin(), 0.0]);
+        }
+        for k in 0..6u32 {
+            mesh.indices.extend([0, 1 + k, 1 + (k + 1) % 6]);
+        }
+        assert!(smooth_over_neighbours(&mesh, &[0.4; 7]).iter().all(|&v| (v - 0.4).abs() < 1e-6));
+        let mut spike = [0.0; 7];
+        spike[0] = 1.0;
+        let s = smooth_over_neighbours(&mesh, &spike);
+        // Centre: itself in 6 triangles (weight 6 of 12); a rim vertex: the centre at weight 1/2
+        // in each of its 2 triangles (1 of 4).
+        assert!((s[0] - 0.5).abs() < 1e-6, "{s:?}");
+        assert!(s[1..].iter().all(|&v| (v - 0.25).abs() < 1e-6), "{s:?}");
+    }
+
+    #[test]
+    fn the_ray_count_follows_the_budget() {
+        assert_eq!(rays_per_vertex(100), MAX_RAYS);
+        assert_eq!(rays_per_vertex(50_000), 40);
+        assert_eq!(rays_per_vertex(10_000_000), MIN_RAYS);
+    }
+
+    #[test]
+    fn the_ground_under_a_placed_sphere_is_darkest_below_it_and_whole_far_away() {
+        // A model-space (y-up) unit sphere centred 2 above its origin, placed by a scale of 1.5,
+        // a turn of 0.7 rad about world z and a move to (3, -1, 0.5): in the world a sphere of
+        // radius 1.5 centred at (3, -1, 3.5), resting on the ground square at z = 2.
+        let mut mesh = sphere(1.0, 48, 96);
+        for p in &mut mesh.positions {
+            p[1] += 2.0;
+        }
+        let y_up = Mat4::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        let model =
+            Mat4::from_translation(Vec3::new(3.0, -1.0, 0.5)) * Mat4::from_rotation_z(0.7) * Mat4::from_scale(Vec3::splat(1.5)) * y_up;
+        let bounds = (Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 3.0, 1.0));
+        let occ = Occluders::new(mesh_triangles(&mesh).collect());
+        let sky = ground_sky(&occ, bounds, model, 33, 256);
+        assert!((sky.z - 2.0).abs() < 1e-4, "{}", sky.z);
+        let centre = Vec2::new(3.0, -1.0);
+        assert!(((sky.min + sky.max) * 0.5 - centre).length() < 1e-4);
+        // The side: the turned box's footprint, 3 (cos 0.7 + sin 0.7), plus twice its height (3)
+        // on both sides.
+        let side = 3.0 * (0.7f32.cos() + 0.7f32.sin()) + 12.0;
+        assert!(((sky.max - sky.min) - Vec2::splat(side)).length() < 1e-3, "{:?} vs {side}", sky.max - sky.min);
+        // Darkest at the texel under the contact point (the middle of a 33-texel map).
+        let darkest = sky.visibility.iter().copied().enumerate().fold((0, 2.0), |b, (i, v)| if v < b.1 { (i, v) } else { b });
+        assert_eq!(darkest.0, 16 * 33 + 16);
+        // Under a sphere of radius R whose centre is h above the ground: 1 − (R/h)²; this one
+        // touches the ground (R = h), and the middle texel lies right under the contact point.
+        assert!(darkest.1 < 0.02, "{}", darkest.1);
+        // The map's corner, 8.1·√2 = 11.5 from the centre: the sphere hides less than
+        // (1.5/11.5)² = 1.7 % of the cosine-weighted sky there.
+        assert!(sky.visibility[0] > 0.98, "{}", sky.visibility[0]);
+        assert!(sky.at(centre + Vec2::splat(100.0)) == 1.0);
+    }
+
+    #[test]
+    fn the_ground_map_under_a_floating_sphere_matches_the_cap() {
+        // A sphere of radius 1 floating with its centre 2 above z = 0, under a square whose
+        // z is forced to the ground: 1 − (R/h)² = 0.75 right under it.
+        let mut mesh = sphere(1.0, 48, 96);
+        for p in &mut mesh.positions {
+            p[2] += 2.0;
+        }
+        let occ = Occluders::new(mesh_triangles(&mesh).collect());
+        // Bounds that reach down to the ground (a model whose box includes a pedestal).
+        let sky = ground_sky(&occ, (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0)), Mat4::IDENTITY, 25, 1024);
+        let under = sky.at(Vec2::ZERO);
+        assert!((under - 0.75).abs() < 0.01, "{under}");
+    }
+
+    #[test]
+    fn an_empty_occluder_set_blocks_nothing() {
+        let occ = Occluders::new(Vec::new());
+        assert_eq!(occ.visibility(Vec3::ZERO, Vec3::Z, 16, 0), 1.0);
+        assert!(!occ.blocked(Vec3::ZERO, Vec3::X, f32::INFINITY));
+    }
+}

@@ -1,0 +1,278 @@
+//! The app's acceptance story on the virtual phone, headless (`live::app::App`): capture mode
+//! with the simulated user following the assistant → the capture saved as a capture folder and
+//! lighting the model → composite → gestures move the model → the shutter (pressed through
+//! synthetic egui input) exports a frame that `previz composite` reproduces. Goldens of each
+//! capture screen and of the composite panel; the refusal screen.
+
+mod common;
+
+use common::cli::{previz, tempdir};
+use common::{gpu, inputs, scene};
+use previz::capture::load_capture;
+use previz::live::app::{App, AppMode};
+use previz::live::export::FILES;
+use previz::live::{LiveConfig, LiveSession, Sources};
+use previz::render::{FrameParams, Rendered, Timings};
+use previz::scene::Rgba8Image;
+use previz::sensors::permissions::Answer;
+use previz::sensors::sim::NoiseLevel;
+use previz::setup::exposure;
+use previz::ui::headless::HeadlessUi;
+use std::sync::Arc;
+
+const W: u32 = 480;
+const H: u32 = 320;
+const SCENE: &str = "width = 480\nheight = 320\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
+[camera]\nheading = 90.0\npitch = -5.0\n";
+
+fn config() -> LiveConfig {
+    LiveConfig {
+        lat_deg: 51.4545,
+        lon_deg: -2.5879,
+        start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00").unwrap().with_timezone(&chrono::Utc),
+        frame_hz: 15.0,
+        duration_s: 60.0,
+        noise: NoiseLevel::None,
+        seed: 2,
+    }
+}
+
+/// The app's UI drawn over the frame the session draws now (two passes: egui windows size
+/// themselves in the first).
+fn screen(app: &mut App, ui: &mut HeadlessUi) -> Rendered {
+    let frame = app.session_mut().render(gpu()).unwrap();
+    let background = Rgba8Image { width: frame.width, height: frame.height, pixels: frame.rgba };
+    ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
+    let img = ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
+    Rendered { width: img.width, height: img.height, rgba: img.pixels, timings: Timings::default() }
+}
+
+/// A headless UI whose windows appear at once: its clock stands still, so egui's fade-in would
+/// never finish.
+fn still_ui() -> HeadlessUi {
+    let ui = HeadlessUi::new(gpu(), W, H, 1.0).unwrap();
+    ui.context().all_styles_mut(|s| s.animation_time = 0.0);
+    ui
+}
+
+/// Where the ground point `p` (world) appears on a `W`×`H` screen, pixels (y down).
+fn project(params: &FrameParams, p: glam::Vec3) -> glam::Vec2 {
+    let c = &params.camera;
+    let d = c.pose.inverse() * (p - c.position);
+    let t = (0.5 * c.vfov).tan();
+    let ndc = glam::Vec2::new(d.x / (-d.z * t * W as f32 / H as f32), d.y / (-d.z * t));
+    glam::Vec2::new((ndc.x + 1.0) * 0.5 * W as f32, (1.0 - ndc.y) * 0.5 * H as f32)
+}
+
+fn touch(id: u64, phase: winit::event::TouchPhase, at: glam::Vec2) -> winit::event::WindowEvent {
+    winit::event::WindowEvent::Touch(winit::event::Touch {
+        device_id: winit::event::DeviceId::dummy(),
+        phase,
+        location: winit::dpi::PhysicalPosition::new(f64::from(at.x), f64::from(at.y)),
+        force: None,
+        id,
+    })
+}
+
+/// One egui pass of the app at the screen's size with `events`; the font atlas uploads a
+/// renderer would take are drained.
+fn pass(ctx: &egui::Context, app: &mut App, events: Vec<egui::Event>) -> egui::FullOutput {
+    let input = egui::RawInput {
+        screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(W as f32, H as f32))),
+        events,
+        ..Default::default()
+    };
+    let mut out = ctx.run_pass(input, |ctx| app.ui(ctx, None, ""));
+    out.textures_delta.set.drain().for_each(drop);
+    out.textures_delta.free.drain().for_each(drop);
+    out
+}
+
+/// Click the button labelled `label` with synthetic pointer events.
+fn click(ctx: &egui::Context, app: &mut App, label: &str) {
+    pass(ctx, app, vec![]);
+    let out = pass(ctx, app, vec![]);
+    let at = out
+        .shapes
+        .iter()
+        .find_map(|s| match &s.shape {
+            egui::Shape::Text(t) if t.galley.text() == label => Some(t.visual_bounding_rect().center()),
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("no {label:?} button on screen"));
+    let button =
+        |pressed| egui::Event::PointerButton { pos: at, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() };
+    pass(ctx, app, vec![egui::Event::PointerMoved(at), button(true)]);
+    pass(ctx, app, vec![button(false)]);
+}
+
+#[test]
+fn capture_then_composite_with_it_then_export() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let env = Arc::new(inp.env);
+    let cfg = config();
+    let sources = Sources::simulated_capture(env.clone(), &s, exposure(&s, &env), &cfg).unwrap();
+    let session = LiveSession::new(gpu(), &env, &inp.model, &s, cfg, sources).unwrap();
+    let dir = tempdir("app_session", "story");
+    let mut app = App::new(session, dir.clone());
+    let mut ui = still_ui();
+
+    // Capture mode: the camera image alone, the assistant waiting for the tap.
+    app.start_capture().unwrap();
+    assert_eq!(app.mode(), AppMode::Capturing);
+    let (mut waiting, mut progress) = (false, false);
+    let mut frames = 0;
+    while app.mode() == AppMode::Capturing {
+        assert!(app.frame(gpu()).unwrap(), "the session ended before the capture was complete");
+        frames += 1;
+        assert!(frames < 15 * 50, "no complete capture after 50 s of the simulated user following the assistant");
+        let g = app.guidance().unwrap();
+        if !waiting && app.last_frame().is_some_and(|f| f.pose.is_some() && f.t > 1.0) {
+            waiting = true;
+            assert_eq!(g.faces_done, 0);
+            common::assert_golden("app_capture_waiting", &screen(&mut app, &mut ui));
+        }
+        if !progress && g.faces_done == 3 {
+            progress = true;
+            common::assert_golden("app_capture_progress", &screen(&mut app, &mut ui));
+        }
+    }
+    assert!(waiting && progress);
+    assert_eq!(app.mode(), AppMode::CaptureDone);
+    common::assert_golden("app_capture_faces", &screen(&mut app, &mut ui));
+
+    // The capture folder is the format `previz capture` writes, and it is what lights the model.
+    let folder = app.capture_folder().expect("a capture folder").to_path_buf();
+    let capture = load_capture(&folder).unwrap();
+    assert_eq!(app.session().scene().environment.as_deref(), Some(folder.as_path()));
+    assert_eq!(app.session().scene().env.heading, capture.meta.reference_heading_deg);
+    // The simulated user's front is the scene camera's heading (90°, within the aim error).
+    assert!((capture.meta.reference_heading_deg - 90.0).abs() < 3.0, "front at {}°", capture.meta.reference_heading_deg);
+    // Every face holds what the camera saw (stretch mode: one shot covers about half a face).
+    for f in &capture.meta.faces {
+        assert!(f.coverage > 0.4, "{:?} covers {}", f.face, f.coverage);
+    }
+
+    // Composite with it: the model appears over the camera image.
+    click(&egui::Context::default(), &mut app, "composite with it");
+    app.apply(gpu()).unwrap();
+    assert_eq!(app.mode(), AppMode::Composite);
+    // Once the simulated user looks at the model again (the capture ended looking down).
+    let mut n = 0;
+    while n < 10 || app.session().params().camera.pose.mul_vec3(glam::Vec3::NEG_Z).z < -0.3 {
+        assert!(app.frame(gpu()).unwrap(), "the session ended");
+        n += 1;
+    }
+    common::assert_golden("app_composite_panel", &screen(&mut app, &mut ui));
+
+    // A one-finger drag moves the model so that its ground point stays under the finger; two
+    // fingers pinching apart to twice the distance and turning by 30° scale it 2x and turn it.
+    let size = glam::Vec2::new(W as f32, H as f32);
+    let p0 = app.session().params().placement;
+    let from = project(app.session().params(), p0.position);
+    let to = from + glam::Vec2::new(60.0, 25.0);
+    use winit::event::TouchPhase::{Ended, Moved, Started};
+    for e in [touch(1, Started, from), touch(1, Moved, to), touch(1, Ended, to)] {
+        app.window_event(&e, size);
+    }
+    let p1 = app.session().params().placement;
+    assert!((p1.position - p0.position).length() > 0.05, "the model moved: {:?} -> {:?}", p0.position, p1.position);
+    assert!((p1.position.z - p0.position.z).abs() < 1e-6, "it stays on its ground plane");
+    let seen = project(app.session().params(), p1.position);
+    assert!((seen - to).length() < 0.5, "the model's ground point is under the finger: {seen} vs {to}");
+    let (a, b0) = (glam::Vec2::new(200.0, 200.0), glam::Vec2::new(260.0, 200.0));
+    let turn = 30f32.to_radians();
+    let b1 = a + 120.0 * glam::Vec2::new(turn.cos(), -turn.sin());
+    for e in [touch(2, Started, a), touch(3, Started, b0), touch(3, Moved, b1), touch(3, Ended, b1), touch(2, Ended, a)] {
+        app.window_event(&e, size);
+    }
+    let p2 = app.session().params().placement;
+    assert!((p2.scale / p1.scale - 2.0).abs() < 1e-4, "pinch to twice the distance: scale {} -> {}", p1.scale, p2.scale);
+    let dz = (p2.rotation.z - p1.rotation.z).to_degrees();
+    assert!((dz.abs() - 30.0).abs() < 1e-2, "a 30° twist turns the model 30° about the vertical, got {dz}°");
+
+    // The shutter, pressed through the UI: the export names the capture as its environment and
+    // `previz composite` renders the same frame again.
+    click(&egui::Context::default(), &mut app, "shutter");
+    app.apply(gpu()).unwrap();
+    let export = app.last_export().expect("an export").to_path_buf();
+    for name in FILES {
+        assert!(export.join(name).is_file(), "{name} missing from {}", export.display());
+    }
+    let toml = std::fs::read_to_string(export.join("scene.toml")).unwrap();
+    assert!(toml.contains(&*folder.file_name().unwrap().to_string_lossy()), "the capture is the environment:\n{toml}");
+    let out = previz(&export, &["composite", "scene.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rgb = |p: &std::path::Path| image::open(p).unwrap().to_rgb8();
+    let (exported, again) = (rgb(&export.join("composite.png")), rgb(&export.join("recomposite.png")));
+    let flip = previz::capture::replay::mean_flip(exported.as_raw(), again.as_raw(), W, H).unwrap();
+    assert!(flip <= 0.02, "mean FLIP {flip} between the exported frame and its recomposite\n{toml}");
+}
+
+#[test]
+fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_manual_place() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
+    let mut app = App::new(session, tempdir("app_session", "refused"));
+    let mut ui = still_ui();
+
+    // Camera refused for good: nothing advances, the screen names what is missing and where to
+    // grant it, and offers no "Ask again" (Android will not ask).
+    app.set_permissions(Answer::DeniedForever, Answer::Granted);
+    assert!(app.frame(gpu()).unwrap());
+    assert!(app.last_frame().is_none(), "no camera frame while the camera is refused");
+    let ctx = egui::Context::default();
+    pass(&ctx, &mut app, vec![]);
+    let texts: Vec<String> = pass(&ctx, &mut app, vec![])
+        .shapes
+        .iter()
+        .filter_map(|s| match &s.shape {
+            egui::Shape::Text(t) => Some(t.galley.text().to_string()),
+            _ => None,
+        })
+        .collect();
+    let all = texts.join("\n");
+    assert!(all.contains("Camera not allowed") && all.contains("Settings") && !all.contains("Ask again"), "{all}");
+    common::assert_golden("app_camera_refused", &{
+        let black = Rgba8Image { width: W, height: H, pixels: vec![0; (W * H * 4) as usize] };
+        ui.render(gpu(), &black, |ctx| app.ui(ctx, None, "")).unwrap();
+        let img = ui.render(gpu(), &black, |ctx| app.ui(ctx, None, "")).unwrap();
+        Rendered { width: img.width, height: img.height, rgba: img.pixels, timings: Timings::default() }
+    });
+    // Refused once: "Ask again" asks the shell to ask the system again.
+    app.set_permissions(Answer::Denied, Answer::Granted);
+    click(&ctx, &mut app, "Ask again");
+    app.apply(gpu()).unwrap();
+    assert!(app.take_permission_request() && !app.take_permission_request());
+
+    // Location refused: the composite runs, the sun comes from the place and time set by hand.
+    app.set_permissions(Answer::Granted, Answer::Denied);
+    assert!(app.frame(gpu()).unwrap());
+    let ctx = egui::Context::default();
+    pass(&ctx, &mut app, vec![]);
+    let out = pass(&ctx, &mut app, vec![]);
+    let edit = out
+        .shapes
+        .iter()
+        .find_map(|s| match &s.shape {
+            egui::Shape::Text(t) if t.galley.text().starts_with("2026-06-21T14:00:00") => Some(t.visual_bounding_rect().center()),
+            _ => None,
+        })
+        .expect("the time field shows the session's start");
+    // Type a midnight time into the field and press "set place and time".
+    let button =
+        |pressed| egui::Event::PointerButton { pos: edit, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() };
+    pass(&ctx, &mut app, vec![egui::Event::PointerMoved(edit), button(true), button(false)]);
+    let select_all =
+        egui::Event::Key { key: egui::Key::A, physical_key: None, pressed: true, repeat: false, modifiers: egui::Modifiers::COMMAND };
+    pass(&ctx, &mut app, vec![select_all, egui::Event::Text("2026-06-21T00:00:00Z".into())]);
+    click(&ctx, &mut app, "set place and time");
+    app.apply(gpu()).unwrap();
+    assert_eq!(app.session().config().start.to_rfc3339(), "2026-06-21T00:00:00+00:00");
+    // Midnight in Bristol at midsummer: the sun is below the horizon, no sunlight.
+    app.frame(gpu()).unwrap();
+    let f = app.last_frame().unwrap();
+    assert!(f.sun.apparent_elevation_deg() < -10.0 && f.sunlight == 0.0, "sun at {}°", f.sun.apparent_elevation_deg());
+}

@@ -18,12 +18,12 @@ for tool in aapt apksigner llvm-readelf unzip; do
 done
 
 badging="$(aapt dump badging "$apk")" || fail "aapt cannot read it"
-echo "$badging" | grep -q "^package: name='org.previz.app'" || fail "aapt: wrong package: $(echo "$badging" | head -1)"
-echo "$badging" | grep -q "^sdkVersion:'$api'" || fail "aapt: minSdk is not $api"
-echo "$badging" | grep -q "^launchable-activity: name='android.app.NativeActivity'" || fail "aapt: no NativeActivity launcher"
-echo "$badging" | grep -q "^native-code: 'arm64-v8a'" || fail "aapt: no arm64-v8a library"
+grep -q "^package: name='org.previz.app'" <<<"$badging" || fail "aapt: wrong package: $(echo "$badging" | head -1)"
+grep -q "^sdkVersion:'$api'" <<<"$badging" || fail "aapt: minSdk is not $api"
+grep -q "^launchable-activity: name='android.app.NativeActivity'" <<<"$badging" || fail "aapt: no NativeActivity launcher"
+grep -q "^native-code: 'arm64-v8a'" <<<"$badging" || fail "aapt: no arm64-v8a library"
 for perm in CAMERA ACCESS_FINE_LOCATION ACCESS_COARSE_LOCATION; do
-    echo "$badging" | grep -q "uses-permission: name='android.permission.$perm'" || fail "aapt: permission $perm missing"
+    grep -q "uses-permission: name='android.permission.$perm'" <<<"$badging" || fail "aapt: permission $perm missing"
 done
 
 tmp="$(mktemp -d)"
@@ -31,8 +31,12 @@ trap 'rm -rf "$tmp"' EXIT
 unzip -q -o "$apk" lib/arm64-v8a/libpreviz.so -d "$tmp" 2>/dev/null || fail "lib/arm64-v8a/libpreviz.so missing"
 lib="$tmp/lib/arm64-v8a/libpreviz.so"
 # Stored uncompressed (aapt -0 so; zipalign -p page-aligns it).
-unzip -v "$apk" lib/arm64-v8a/libpreviz.so | grep -q " Stored " || fail "libpreviz.so is compressed in the APK"
-llvm-readelf -h "$lib" | grep -q "Machine:.*AArch64" || fail "libpreviz.so is not AArch64"
+# (Outputs are read into variables before grep -q: with pipefail, grep -q closing the pipe early
+# would fail the writer with SIGPIPE.)
+listing="$(unzip -v "$apk" lib/arm64-v8a/libpreviz.so)"
+grep -q " Stored " <<<"$listing" || fail "libpreviz.so is compressed in the APK"
+header="$(llvm-readelf -h "$lib")"
+grep -q "Machine:.*AArch64" <<<"$header" || fail "libpreviz.so is not AArch64"
 # Defined, non-local dynamic symbols (the table's rows start "N:"). The activity's entry point
 # must be there; besides it only android_main: rustc's own version script for a cdylib exports
 # every #[no_mangle] function, and android-activity's glue calls android_main by that name.

@@ -5,8 +5,7 @@
 # (apk/clang.sh); the unwinder is a no-op (apk/unwind.c, the library is built with panic=abort);
 # aapt links the manifest against Debian's android-framework-res; zipalign and apksigner finish
 # it with a generated debug key. The APK carries no dex (no d8/dx here): the NativeActivity and
-# JNI calls only (docs/mobile.md). It then checks the result: `aapt dump badging`, the library's
-# exports and NEEDED entries (readelf), `apksigner verify`.
+# JNI calls only (docs/mobile.md). It then checks the result with android/verify-apk.sh.
 #
 # Env: PROFILE=dev (default: everything at opt-level 1, no debug info — the quicker build, for
 # CI) or release; PREVIZ_APK_NO_INSTALL=1 to skip apt-get/rustup. Cargo builds into
@@ -86,26 +85,6 @@ apk="$out/previz-debug.apk"
 apksigner sign --ks "$keystore" --ks-pass pass:android --key-pass pass:android --ks-key-alias androiddebugkey \
     --min-sdk-version "$api" --out "$apk" "$work/aligned.apk"
 
-# 4. Check it.
-fail() { echo "build-apk.sh: $*" >&2; exit 1; }
-badging="$(aapt dump badging "$apk")"
-echo "$badging" | grep -q "^package: name='org.previz.app'" || fail "aapt: wrong package: $badging"
-echo "$badging" | grep -q "^sdkVersion:'$api'" || fail "aapt: minSdk is not $api"
-echo "$badging" | grep -q "^launchable-activity: name='android.app.NativeActivity'" || fail "aapt: no NativeActivity launcher"
-echo "$badging" | grep -q "^native-code: 'arm64-v8a'" || fail "aapt: no arm64-v8a library"
-for perm in CAMERA ACCESS_FINE_LOCATION; do
-    echo "$badging" | grep -q "uses-permission: name='android.permission.$perm'" || fail "aapt: permission $perm missing"
-done
-unzip -l "$apk" | grep -q " lib/arm64-v8a/libpreviz.so$" || fail "lib/arm64-v8a/libpreviz.so missing from the APK"
-exports="$(llvm-readelf --dyn-syms -W "$lib" | awk '$7 != "UND" && $5 != "LOCAL" && $8 != "" { print $8 }' | sort -u | tr '\n' ' ')"
-[ "$exports" = "ANativeActivity_onCreate " ] || fail "libpreviz.so exports '$exports', expected only ANativeActivity_onCreate"
-platform=" libc.so libm.so libdl.so liblog.so libandroid.so libcamera2ndk.so libmediandk.so libEGL.so libGLESv3.so libvulkan.so libnativewindow.so "
-needed="$(llvm-readelf -d "$lib" | sed -n 's/.*(NEEDED).*\[\(.*\)\]/\1/p' | tr '\n' ' ')"
-for n in $needed; do
-    case "$platform" in *" $n "*) ;; *) fail "libpreviz.so needs $n, not an Android platform library" ;; esac
-done
-llvm-readelf -h "$lib" | grep -q "Machine:.*AArch64" || fail "libpreviz.so is not AArch64"
-apksigner verify --min-sdk-version "$api" "$apk" || fail "apksigner verify failed"
-echo "$badging" | grep -E "^(package|sdkVersion|targetSdkVersion|launchable-activity|native-code)"
-echo "libpreviz.so: $(du -h "$lib" | cut -f1), exports: $exports, NEEDED: $needed"
-echo "built $apk ($(du -h "$apk" | cut -f1)); install with: adb install -r $apk"
+# 4. Check it (android/verify-apk.sh: badging, the library's exports and NEEDED entries,
+# page alignment, the signature).
+"$here/verify-apk.sh" "$apk"

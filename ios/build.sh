@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Build Previz.app for an iPhone (arm64). Needs macOS with Xcode (the iOS SDK, its linker and
-# codesign); the project's build machines have neither, see docs/mobile.md.
+# codesign); the project's build machines have neither, see docs/mobile.md. On iOS the `previz`
+# binary is the app (live::ios: the live window, the AVFoundation camera, CoreMotion).
 #   ios/build.sh                 # release build, unsigned bundle in target/ios/Previz.app
 #   IDENTITY="Apple Development: ..." ios/build.sh   # also sign it
 set -euo pipefail

@@ -17,6 +17,12 @@ struct YuvUniforms {
     cr_channel: u32,
     width: u32,
     height: u32,
+    // Clockwise quarter turns of the image (a camera mounted at an angle to the screen); the
+    // target is the turned size. Padding to 16 bytes.
+    quarter_turns: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> u: YuvUniforms;
@@ -31,8 +37,19 @@ fn vs_main(@builtin(vertex_index) i: u32) -> FullScreen {
 
 @fragment
 fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    // The source pixel of this target pixel (camera::yuv::turn_image is the CPU reference).
+    let w = u.width;
+    let h = u.height;
+    let o = vec2<u32>(pos.xy);
+    var s = o;
+    switch u.quarter_turns {
+        case 1u: { s = vec2<u32>(o.y, h - 1u - min(o.x, h - 1u)); }
+        case 2u: { s = vec2<u32>(w - 1u - min(o.x, w - 1u), h - 1u - min(o.y, h - 1u)); }
+        case 3u: { s = vec2<u32>(w - 1u - min(o.y, w - 1u), o.x); }
+        default: {}
+    }
     // Nearest chroma sample: pixel (x, y) uses chroma (x / 2, y / 2), as the CPU reference does.
-    let xy = min(vec2<u32>(pos.xy), vec2<u32>(u.width - 1u, u.height - 1u));
+    let xy = min(s, vec2<u32>(w - 1u, h - 1u));
     let c = xy / 2u;
     let y = textureLoad(luma, xy, 0).r;
     let cb = textureLoad(chroma_cb, c, 0)[u.cb_channel];

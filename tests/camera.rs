@@ -155,3 +155,96 @@ fn bench_virtual_phone() {
         println!("| {name} | {:.1} | {:.1} | {:.1} | {:.2} |", wall * 1e3, 1.0 / wall, cpu * 1e3, cpu / base);
     }
 }
+
+/// A phone camera double: YUV frames (the planes of a photo, padded rows) lent through
+/// `lend_next_frame` with a turn, as `camera::android::Camera2` lends its images.
+struct YuvCamera {
+    yuv: previz::camera::yuv::OwnedYuv,
+    quarter_turns: u32,
+    k: u32,
+}
+
+impl FrameSource for YuvCamera {
+    fn next_frame(&mut self) -> anyhow::Result<Option<previz::camera::Frame>> {
+        anyhow::bail!("the live session must take the YUV planes, not a CPU image")
+    }
+
+    fn lend_next_frame(&mut self, sink: &mut previz::camera::FrameSink<'_>) -> anyhow::Result<bool> {
+        self.k += 1;
+        sink(f64::from(self.k) / 30.0, previz::camera::FrameImage::Yuv { frame: self.yuv.frame(), quarter_turns: self.quarter_turns })?;
+        Ok(true)
+    }
+}
+
+struct NoSensors;
+
+impl previz::sensors::SensorSource for NoSensors {
+    fn poll(&mut self, _until: f64, _out: &mut Vec<previz::sensors::Reading>) -> anyhow::Result<()> {
+        Ok(())
+    }
+
+    fn describe(&self) -> String {
+        "none".into()
+    }
+}
+
+fn live_session_on(camera: YuvCamera, (width, height): (u32, u32)) -> anyhow::Result<previz::live::LiveSession> {
+    use previz::live::{LiveConfig, LiveSession, Sources};
+    let s = common::scene(&format!("width = {width}\nheight = {height}\n"));
+    let env = previz::scene::CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
+    let sources = Sources { camera: Box::new(camera), sensors: Box::new(NoSensors), rotation: Default::default(), truth: None };
+    let cfg = LiveConfig {
+        lat_deg: 51.4545,
+        lon_deg: -2.5879,
+        start: chrono::DateTime::parse_from_rfc3339("2026-06-21T12:00:00Z").unwrap().with_timezone(&chrono::Utc),
+        frame_hz: 30.0,
+        duration_s: 60.0,
+        noise: previz::sensors::sim::NoiseLevel::Phone,
+        seed: 1,
+    };
+    LiveSession::new(common::gpu(), &env, &common::triangle(), &s, cfg, sources)
+}
+
+#[test]
+fn a_yuv_camera_feeds_the_live_session_through_the_gpu_turned_upright() {
+    use previz::camera::yuv::{Layout, YuvMatrix, YuvRange, from_rgba, to_rgba_cpu, turn_image};
+    use previz::render::Layer;
+    let gpu = common::gpu();
+    let photo = image::open(data("photos/colour_transfer/coffee.png")).unwrap().to_rgba8();
+    let (w, h) = (161, 97); // odd sizes: the chroma planes round up
+    let crop = image::imageops::crop_imm(&photo, 40, 30, w, h).to_image();
+    let img = previz::scene::Rgba8Image { width: w, height: h, pixels: crop.into_raw() };
+    // Android's usual layout (NV21, pixel stride 2), rows padded by 7 bytes, the camera's
+    // BT.601 full range; every turn a camera mounted at an angle to the screen needs.
+    let yuv = from_rgba(&img, Layout::Nv21, YuvMatrix::Bt601, YuvRange::Full, 7).unwrap();
+    for quarter_turns in 0..4 {
+        let want = turn_image(&to_rgba_cpu(&yuv.frame()).unwrap(), quarter_turns);
+        let camera = YuvCamera { yuv: yuv.clone(), quarter_turns, k: 0 };
+        let mut session = live_session_on(camera, (want.width, want.height)).unwrap();
+        let frame = session.advance(gpu).unwrap().expect("a frame");
+        assert!(frame.pose.is_none(), "no sensor readings: the frame is the camera image alone");
+        assert!(session.camera_image().is_none(), "the YUV frame stays on the GPU");
+        // The converted frame read back equals the CPU reference (f32 vs f64: one code).
+        let camera_rgb = session.camera_frame(gpu).unwrap();
+        assert_eq!((camera_rgb.width, camera_rgb.height), (want.width, want.height));
+        let d = camera_rgb.pixels.iter().zip(&want.pixels).map(|(a, b)| (i32::from(*a) - i32::from(*b)).abs()).max().unwrap();
+        assert!(d <= 1, "{quarter_turns} turns: the GPU conversion differs from the CPU reference by {d}");
+        // The composite's background is that image: decoded to linear light and encoded again
+        // through the sRGB target (one more code of rounding).
+        let background = session.render_layer(gpu, Layer::Background).unwrap();
+        assert_eq!((background.width, background.height), (want.width, want.height));
+        let d = background.rgba.iter().zip(&want.pixels).map(|(a, b)| (i32::from(*a) - i32::from(*b)).abs()).max().unwrap();
+        assert!(d <= 2, "{quarter_turns} turns: the background differs from the CPU reference by {d}");
+    }
+}
+
+#[test]
+fn a_yuv_frame_of_the_wrong_size_is_a_clear_error() {
+    use previz::camera::yuv::{Layout, YuvMatrix, YuvRange, from_rgba};
+    let img = previz::scene::Rgba8Image { width: 64, height: 48, pixels: vec![128; 64 * 48 * 4] };
+    let yuv = from_rgba(&img, Layout::Nv12, YuvMatrix::Bt709, YuvRange::Limited, 0).unwrap();
+    // A quarter turn makes the 64x48 image 48x64; the session's output is 64x48.
+    let mut session = live_session_on(YuvCamera { yuv, quarter_turns: 1, k: 0 }, (64, 48)).unwrap();
+    let err = format!("{:#}", session.advance(common::gpu()).unwrap_err());
+    assert!(err.contains("48x64") && err.contains("64x48"), "{err}");
+}

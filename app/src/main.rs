@@ -1,4 +1,8 @@
 fn main() -> std::process::ExitCode {
+    // On an iPhone the binary is the app: the live window, no command line (live::ios).
+    #[cfg(target_os = "ios")]
+    return previz::live::ios::main_exit_code();
+    #[allow(unreachable_code)]
     quiet_on_broken_pipe();
     let cli = previz::cli::parse();
     match previz::cli::run(cli) {

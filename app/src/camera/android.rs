@@ -1,20 +1,30 @@
 //! Android: the back camera through the NDK Camera2 API (`ACameraManager`, `ACameraDevice`, a
 //! capture session repeating a preview request into an `AImageReader` of `YUV_420_888`
 //! images). Compiled for Android only (checked by .ci/mobile-check.sh); the pure parts — chroma
-//! layout and field of view — are in [`super::platform`] and tested on the host.
+//! layout, the stream's field of view, the image's turn — are in [`super::platform`] and tested
+//! on the host.
 //!
-//! [`Camera2::latest`] lends the newest image's planes as a [`YuvFrame`] (no copy), for the GPU
-//! converter ([`super::yuv::YuvConverter`]). The [`FrameSource`] implementation, which must
-//! return an RGBA image, converts on the CPU with the reference conversion for now — the live
-//! session does not yet take YUV frames straight to the GPU (docs/mobile.md).
+//! The live session reads frames through [`FrameSource::lend_next_frame`]: the newest image's
+//! planes, as they lie in the camera's buffer (row and pixel strides), go to the GPU converter
+//! ([`super::yuv::YuvConverter`]); no colour conversion happens on the CPU.
+//! [`FrameSource::next_frame`] (an RGBA image on the CPU, for callers that need one) uses the
+//! CPU reference conversion.
 //!
-//! The camera's intrinsics give the vertical field of view ([`Camera2::vfov_deg`]):
-//! `LENS_INTRINSIC_CALIBRATION`'s fy over the active array's height, or else the first focal
-//! length over the sensor's physical height.
+//! Colour: Android's camera delivers `YUV_420_888` in the JFIF convention — BT.601 matrix, full
+//! range (`ImageFormat.YUV_420_888` with the camera's default colour space; the NDK reports no
+//! other for these images).
+//!
+//! The camera's intrinsics give the stream's field of view ([`CameraInfo::fov_deg`]):
+//! `LENS_INTRINSIC_CALIBRATION` fx, fy over the active array, or else the first focal length
+//! over the sensor's physical size, cropped to the stream's aspect ratio
+//! ([`super::platform::stream_fov_deg`]). `SENSOR_ORIENTATION` and the display's rotation give
+//! the quarter turns that make the image upright on the screen
+//! ([`super::platform::back_camera_quarter_turns`]); the GPU pass turns it.
 
-use super::platform::{ChromaLayout, chroma_layout, vfov_from_focal_mm, vfov_from_focal_px};
-use super::yuv::{Chroma, Plane, YuvFrame, YuvMatrix, YuvRange, to_rgba_cpu};
-use super::{Frame, FrameSource};
+use super::platform::{CameraInfo, ChromaLayout, chroma_layout};
+use super::yuv::{Chroma, Plane, YuvFrame, YuvMatrix, YuvRange, to_rgba_cpu, turn_image};
+use super::{Frame, FrameImage, FrameSink, FrameSource};
+use crate::pose::DisplayRotation;
 use anyhow::{Context, Result, bail};
 use ndk_sys as ffi;
 use std::ffi::{CStr, CString, c_void};
@@ -107,20 +117,28 @@ pub struct Camera2 {
     state: Box<AtomicI32>,
     device_callbacks: Box<ffi::ACameraDevice_StateCallbacks>,
     session_callbacks: Box<ffi::ACameraCaptureSession_stateCallbacks>,
-    vfov_deg: Option<f64>,
+    info: CameraInfo,
     t0_ns: Option<i64>,
 }
 
 impl Camera2 {
     /// Open the first back-facing camera and stream `width`×`height` images (the size must be
-    /// one the camera offers for YUV_420_888; 1280×720 and 640×480 exist on every camera).
-    /// Needs the CAMERA permission ([`crate::sensors::permissions`]).
-    pub fn open(width: u32, height: u32) -> Result<Camera2> {
+    /// one the camera offers for YUV_420_888; 1280×720 and 640×480 exist on every camera), for
+    /// a screen rotated by `display` (the app is landscape-only, so it does not change while
+    /// the camera is open). Needs the CAMERA permission ([`crate::sensors::permissions`]).
+    pub fn open(width: u32, height: u32, display: DisplayRotation) -> Result<Camera2> {
         // SAFETY: plain NDK calls; every returned pointer is checked before use and released in
         // Drop (or here on the error paths, through the partially built Camera2's Drop).
         unsafe {
             let manager = NonNull::new(ffi::ACameraManager_create()).context("ACameraManager_create returned null")?;
-            let (id, vfov_deg) = match back_camera(manager) {
+            let (id, optics) = match back_camera(manager) {
+                Ok(v) => v,
+                Err(e) => {
+                    ffi::ACameraManager_delete(manager.as_ptr());
+                    return Err(e);
+                }
+            };
+            let info = match CameraInfo::new(optics.focal, optics.sensor_orientation_deg, (width, height), display) {
                 Ok(v) => v,
                 Err(e) => {
                     ffi::ACameraManager_delete(manager.as_ptr());
@@ -162,16 +180,15 @@ impl Camera2 {
                 onActive: Some(session_state),
             });
             let mut camera =
-                Camera2 { manager, id, reader, window, streaming: None, state, device_callbacks, session_callbacks, vfov_deg, t0_ns: None };
+                Camera2 { manager, id, reader, window, streaming: None, state, device_callbacks, session_callbacks, info, t0_ns: None };
             camera.start()?;
             Ok(camera)
         }
     }
 
-    /// The vertical field of view from the camera's intrinsics, degrees (None when the camera
-    /// reports neither calibration nor focal length and sensor size).
-    pub fn vfov_deg(&self) -> Option<f64> {
-        self.vfov_deg
+    /// The camera's field of view, image size and turn.
+    pub fn info(&self) -> CameraInfo {
+        self.info
     }
 
     /// Open the device and start the repeating preview request into the reader.
@@ -307,11 +324,35 @@ unsafe fn read_image<T>(image: NonNull<ffi::AImage>, t0_ns: &mut Option<i64>, f:
     }
 }
 
-/// The first back-facing camera's id and its vertical field of view.
+/// The first back camera's stream as the screen shows it ([`CameraInfo`]), read from its
+/// characteristics (no CAMERA permission needed, but Android 10+ may hide
+/// `LENS_INTRINSIC_CALIBRATION` until it is granted: the focal length and sensor size are used
+/// then) for a stream of `size` on a screen rotated by `display`.
+pub fn query_back_camera(size: (u32, u32), display: DisplayRotation) -> Result<CameraInfo> {
+    // SAFETY: the manager is checked for null and deleted before returning.
+    unsafe {
+        let manager = NonNull::new(ffi::ACameraManager_create()).context("ACameraManager_create returned null")?;
+        let optics = back_camera(manager);
+        ffi::ACameraManager_delete(manager.as_ptr());
+        let optics = optics?.1;
+        CameraInfo::new(optics.focal, optics.sensor_orientation_deg, size, display)
+    }
+}
+
+/// What the camera's characteristics say about its optics.
+struct Optics {
+    /// Focal lengths fx, fy and the sensor array (width, height) in the same unit (pixels of the
+    /// active array, or mm of the physical sensor).
+    focal: Option<(f64, f64, (f64, f64))>,
+    /// `SENSOR_ORIENTATION`, degrees clockwise.
+    sensor_orientation_deg: i32,
+}
+
+/// The first back-facing camera's id and optics.
 ///
 /// # Safety
 /// `manager` is a valid `ACameraManager`.
-unsafe fn back_camera(manager: NonNull<ffi::ACameraManager>) -> Result<(CString, Option<f64>)> {
+unsafe fn back_camera(manager: NonNull<ffi::ACameraManager>) -> Result<(CString, Optics)> {
     // SAFETY: the caller's contract; the id list and metadata are freed before returning.
     unsafe {
         let mut list = null_mut();
@@ -343,45 +384,65 @@ unsafe fn back_camera(manager: NonNull<ffi::ACameraManager>) -> Result<(CString,
             ) {
                 // [fx, fy, cx, cy, s] over the active array [left, top, right, bottom].
                 (Some(cal), Some(active)) if cal.count >= 5 && active.count >= 4 => {
-                    let fy = f64::from(*cal.data.f.add(1));
+                    let (fx, fy) = (f64::from(*cal.data.f), f64::from(*cal.data.f.add(1)));
+                    let width = f64::from(*active.data.i32_.add(2) - *active.data.i32_);
                     let height = f64::from(*active.data.i32_.add(3) - *active.data.i32_.add(1));
-                    vfov_from_focal_px(fy, height).ok()
+                    (fx > 0.0 && fy > 0.0).then_some((fx, fy, (width, height)))
                 }
                 _ => None,
             };
-            let vfov = calibrated.or_else(|| {
+            let focal = calibrated.or_else(|| {
                 match (
                     entry(ffi::acamera_metadata_tag::ACAMERA_LENS_INFO_AVAILABLE_FOCAL_LENGTHS),
                     entry(ffi::acamera_metadata_tag::ACAMERA_SENSOR_INFO_PHYSICAL_SIZE),
                 ) {
                     (Some(f), Some(size)) if size.count >= 2 => {
-                        vfov_from_focal_mm(f64::from(*f.data.f), f64::from(*size.data.f.add(1))).ok()
+                        let f = f64::from(*f.data.f);
+                        Some((f, f, (f64::from(*size.data.f), f64::from(*size.data.f.add(1)))))
                     }
                     _ => None,
                 }
             });
+            // Back cameras are mostly mounted at 90°; 0 when the camera does not say.
+            let sensor_orientation_deg = entry(ffi::acamera_metadata_tag::ACAMERA_SENSOR_ORIENTATION).map_or(0, |e| *e.data.i32_);
             ffi::ACameraMetadata_free(meta);
-            return Ok((id, vfov));
+            return Ok((id, Optics { focal, sensor_orientation_deg }));
         }
         bail!("this device has no back-facing camera")
     }
 }
 
-impl FrameSource for Camera2 {
-    /// The newest image as RGBA (CPU conversion for now, see the module text). Polls the reader
-    /// every millisecond until an image newer than the last one arrives; an error after 2 s
-    /// without one.
-    fn next_frame(&mut self) -> Result<Option<Frame>> {
+impl Camera2 {
+    /// Wait for an image newer than the last one (polling the reader every millisecond; an
+    /// error after 2 s without one) and lend it to `f`.
+    fn wait_for_image<T>(&mut self, mut f: impl FnMut(f64, &YuvFrame) -> Result<T>) -> Result<T> {
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(2);
         loop {
-            if let Some(frame) = self.latest(|t, yuv| Ok(Frame { image: to_rgba_cpu(yuv)?, t }))? {
-                return Ok(Some(frame));
+            if let Some(v) = self.latest(&mut f)? {
+                return Ok(v);
             }
             if std::time::Instant::now() > deadline {
                 bail!("no camera image for 2 s");
             }
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
+    }
+}
+
+impl FrameSource for Camera2 {
+    /// The newest image as RGBA on the CPU (the reference conversion, turned upright); the live
+    /// session uses [`FrameSource::lend_next_frame`] instead.
+    fn next_frame(&mut self) -> Result<Option<Frame>> {
+        let turns = self.info.quarter_turns;
+        self.wait_for_image(|t, yuv| Ok(Frame { image: turn_image(&to_rgba_cpu(yuv)?, turns), t })).map(Some)
+    }
+
+    /// The newest image's planes, lent as they lie in the camera's buffer, with the turn that
+    /// makes them upright.
+    fn lend_next_frame(&mut self, sink: &mut FrameSink<'_>) -> Result<bool> {
+        let quarter_turns = self.info.quarter_turns;
+        self.wait_for_image(|t, frame| sink(t, FrameImage::Yuv { frame: *frame, quarter_turns }))?;
+        Ok(true)
     }
 
     fn pause(&mut self) -> Result<()> {

@@ -5,6 +5,7 @@
 //! - [`yuv`]: camera YUV 4:2:0 planes converted to R'G'B' on the GPU (the phone cameras' format).
 //!
 //! - `android`: the back camera through the NDK Camera2 API (Android only).
+//! - `ios`: the back camera through AVFoundation (iOS only).
 //! - [`platform`]: the phone cameras' chroma layout and field of view (pure, host-tested).
 //!
 //! Phone backends implement the same trait.
@@ -13,12 +14,15 @@
 pub mod android;
 pub mod exposure;
 pub mod file;
+#[cfg(target_os = "ios")]
+pub mod ios;
 pub mod platform;
 pub mod sim;
 pub mod yuv;
 
 use crate::scene::Rgba8Image;
 use anyhow::Result;
+use yuv::YuvFrame;
 
 /// One camera frame: an sRGB-encoded 8-bit image and the time it was taken.
 #[derive(Clone, Debug)]
@@ -28,11 +32,36 @@ pub struct Frame {
     pub t: f64,
 }
 
+/// A frame's pixels as the camera delivers them, lent to [`FrameSource::lend_next_frame`]'s
+/// callback.
+pub enum FrameImage<'a> {
+    /// An sRGB-encoded 8-bit image (the virtual phone, image files).
+    Rgba(Rgba8Image),
+    /// YUV 4:2:0 planes still in the camera's buffer (the phones), converted on the GPU
+    /// ([`yuv::YuvConverter::convert_turned`]) after `quarter_turns` clockwise quarter turns
+    /// that make them upright on the screen.
+    Yuv { frame: YuvFrame<'a>, quarter_turns: u32 },
+}
+
+/// The callback [`FrameSource::lend_next_frame`] lends a frame to: the frame's time (seconds
+/// since the start of the stream) and its pixels.
+pub type FrameSink<'s> = dyn FnMut(f64, FrameImage<'_>) -> Result<()> + 's;
+
 /// Anything that produces camera frames.
 pub trait FrameSource {
-    /// The next frame; `Ok(None)` at the end of the stream. Errors name what failed (the file,
-    /// the invalid pose, ...).
+    /// The next frame as an image on the CPU; `Ok(None)` at the end of the stream. Errors name
+    /// what failed (the file, the invalid pose, ...).
     fn next_frame(&mut self) -> Result<Option<Frame>>;
+
+    /// The next frame lent to `sink` as the camera delivers it (a phone camera's YUV planes are
+    /// only valid during the call); false at the end of the stream. The live session reads its
+    /// frames through this, so YUV goes to the GPU without a CPU conversion. By default the
+    /// image of [`FrameSource::next_frame`].
+    fn lend_next_frame(&mut self, sink: &mut FrameSink<'_>) -> Result<bool> {
+        let Some(frame) = self.next_frame()? else { return Ok(false) };
+        sink(frame.t, FrameImage::Rgba(frame.image))?;
+        Ok(true)
+    }
 
     /// Stop the camera (the app went to the background): no frame is captured or queued until
     /// [`FrameSource::resume`]. Files and the simulator have nothing to stop.

@@ -313,10 +313,15 @@ pub struct YuvUniforms {
     pub cr_channel: u32,
     pub width: u32,
     pub height: u32,
+    /// Clockwise quarter turns applied to the image (0..=3).
+    pub quarter_turns: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 impl YuvUniforms {
-    pub fn new(frame: &YuvFrame) -> YuvUniforms {
+    pub fn new(frame: &YuvFrame, quarter_turns: u32) -> YuvUniforms {
         let c = ycbcr_to_rgb(frame.matrix, frame.range);
         let v4 = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 0.0];
         let (cb_channel, cr_channel) = match frame.chroma {
@@ -334,13 +339,40 @@ impl YuvUniforms {
             cr_channel,
             width: frame.width,
             height: frame.height,
+            quarter_turns: quarter_turns % 4,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         }
     }
 }
 
+/// `img` turned clockwise by `quarter_turns` quarter turns (the CPU reference of the
+/// conversion pass's turn): output pixel (x', y') of a turned image comes from source pixel
+/// (y', h−1−x') for one turn, (w−1−x', h−1−y') for two, (w−1−y', x') for three.
+pub fn turn_image(img: &Rgba8Image, quarter_turns: u32) -> Rgba8Image {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let q = quarter_turns % 4;
+    let (ow, oh) = if q % 2 == 1 { (h, w) } else { (w, h) };
+    let mut pixels = Vec::with_capacity(img.pixels.len());
+    for y in 0..oh {
+        for x in 0..ow {
+            let (sx, sy) = match q {
+                0 => (x, y),
+                1 => (y, h - 1 - x),
+                2 => (w - 1 - x, h - 1 - y),
+                _ => (w - 1 - y, x),
+            };
+            pixels.extend_from_slice(&img.pixels[4 * (sy * w + sx)..4 * (sy * w + sx) + 4]);
+        }
+    }
+    Rgba8Image { width: ow as u32, height: oh as u32, pixels }
+}
+
 /// The plane textures of one frame shape (size and chroma layout).
 struct Planes {
-    key: (u32, u32, bool),
+    /// Width, height, interleaved chroma, target turned a quarter (width and height swapped).
+    key: (u32, u32, bool, bool),
     luma: wgpu::Texture,
     chroma: Vec<wgpu::Texture>,
     target: wgpu::Texture,
@@ -389,13 +421,20 @@ impl YuvConverter {
     /// Upload `frame`'s planes and convert them on the GPU. Textures are made again only when
     /// the frame's size or chroma layout changes.
     pub fn convert(&mut self, gpu: &Gpu, frame: &YuvFrame) -> Result<()> {
+        self.convert_turned(gpu, frame, 0)
+    }
+
+    /// The same, turning the image clockwise by `quarter_turns` quarter turns on the way (a
+    /// camera mounted at an angle to the screen: `camera::platform::back_camera_quarter_turns`);
+    /// the target is the turned size.
+    pub fn convert_turned(&mut self, gpu: &Gpu, frame: &YuvFrame, quarter_turns: u32) -> Result<()> {
         frame.validate()?;
         let max = gpu.device.limits().max_texture_dimension_2d;
         if frame.width > max || frame.height > max {
             bail!("YUV frame {}x{} is larger than the GPU's {max}-texel textures", frame.width, frame.height);
         }
         let interleaved = matches!(frame.chroma, Chroma::Interleaved { .. });
-        let key = (frame.width, frame.height, interleaved);
+        let key = (frame.width, frame.height, interleaved, quarter_turns % 2 == 1);
         if self.planes.as_ref().is_none_or(|p| p.key != key) {
             self.planes = Some(self.make_planes(gpu, key));
         }
@@ -417,7 +456,7 @@ impl YuvConverter {
                 upload(&planes.chroma[1], cr, cw, ch);
             }
         }
-        gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&YuvUniforms::new(frame)));
+        gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&YuvUniforms::new(frame, quarter_turns)));
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("yuv") });
         {
             let mut pass = build::clear_pass(&mut encoder, "yuv", &planes.target_view, None);
@@ -429,8 +468,8 @@ impl YuvConverter {
         Ok(())
     }
 
-    fn make_planes(&self, gpu: &Gpu, key: (u32, u32, bool)) -> Planes {
-        let (w, h, interleaved) = key;
+    fn make_planes(&self, gpu: &Gpu, key: (u32, u32, bool, bool)) -> Planes {
+        let (w, h, interleaved, swapped) = key;
         let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
         let texture = |label, w, h, format, usage| {
             gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -455,7 +494,8 @@ impl YuvConverter {
             ]
         };
         let target_usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC;
-        let target = texture("yuv rgb", w, h, TARGET_FORMAT, target_usage);
+        let (tw, th) = if swapped { (h, w) } else { (w, h) };
+        let target = texture("yuv rgb", tw, th, TARGET_FORMAT, target_usage);
         let target_view = target.create_view(&Default::default());
         let luma_view = luma.create_view(&Default::default());
         let cb_view = chroma[0].create_view(&Default::default());
@@ -559,6 +599,10 @@ mod tests {
             ("cr_channel", offset_of!(YuvUniforms, cr_channel)),
             ("width", offset_of!(YuvUniforms, width)),
             ("height", offset_of!(YuvUniforms, height)),
+            ("quarter_turns", offset_of!(YuvUniforms, quarter_turns)),
+            ("_pad0", offset_of!(YuvUniforms, _pad0)),
+            ("_pad1", offset_of!(YuvUniforms, _pad1)),
+            ("_pad2", offset_of!(YuvUniforms, _pad2)),
         ]
         .iter()
         .map(|(n, o)| (n.to_string(), *o as u32))
@@ -602,5 +646,21 @@ mod tests {
         for (a, b) in back.pixels.iter().zip([255u8, 0, 0, 255]) {
             assert!((i32::from(*a) - i32::from(b)).abs() <= 2, "{:?}", back.pixels);
         }
+    }
+
+    #[test]
+    fn turning_a_three_by_two_image() {
+        // Pixels numbered row by row:   a b c      one turn clockwise:  d a
+        //                               d e f                           e b
+        //                                                               f c
+        let px = |v: u8| [v, v, v, 255];
+        let img = Rgba8Image { width: 3, height: 2, pixels: (1..=6).flat_map(px).collect() };
+        let values = |i: &Rgba8Image| i.pixels.chunks(4).map(|p| p[0]).collect::<Vec<_>>();
+        let one = turn_image(&img, 1);
+        assert_eq!((one.width, one.height), (2, 3));
+        assert_eq!(values(&one), [4, 1, 5, 2, 6, 3]);
+        assert_eq!(values(&turn_image(&img, 2)), [6, 5, 4, 3, 2, 1]);
+        assert_eq!(values(&turn_image(&img, 3)), [3, 6, 2, 5, 1, 4]);
+        assert_eq!(values(&turn_image(&img, 4)), values(&img));
     }
 }

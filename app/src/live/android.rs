@@ -4,23 +4,42 @@
 //! activity's native window.
 //!
 //! At start it asks for the camera and location permissions (one system dialog,
-//! [`crate::sensors::permissions`]). The session is still the built-in demo scene on the virtual
-//! phone with simulated sensors, as `previz live` runs on the desktop: the Camera2 camera
-//! backend and the Android sensors are not plugged in yet (docs/mobile.md says what is missing).
+//! [`crate::sensors::permissions`]). The session runs on the phone's own sources: the back
+//! camera through Camera2 ([`crate::camera::android::Camera2`], YUV planes converted on the GPU)
+//! and the NDK sensors + GPS ([`crate::sensors::android::AndroidSensors`]). The camera's field of
+//! view (its intrinsics, cropped to the stream) is the projection's, and the frame is the
+//! camera's image turned upright for the screen. Until the camera permission is granted the
+//! background is grey ([`PhoneCamera`] tries to open the camera again twice a second).
 
+use super::app::App;
 use super::window;
-use super::{LiveConfig, LiveSession};
+use super::{LiveConfig, LiveSession, Sources};
+use crate::camera::android::{Camera2, query_back_camera};
+use crate::camera::platform::CameraInfo;
+use crate::camera::{Frame, FrameImage, FrameSink, FrameSource};
+use crate::pose::DisplayRotation;
+use crate::scene::Rgba8Image;
 use crate::scene::demo;
-use crate::sensors::permissions::PermissionFlow;
+use crate::sensors::android::AndroidSensors;
+use crate::sensors::jni_location;
+use crate::sensors::permissions::{Permission, PermissionFlow};
 use crate::sensors::sim::NoiseLevel;
 use crate::setup::scene_file::SceneBuilder;
 use anyhow::{Context, Result};
+use jni::Env;
 use jni::objects::JObject;
 use jni::vm::JavaVM;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 use winit::event_loop::EventLoop;
 use winit::platform::android::EventLoopBuilderExtAndroid;
 use winit::platform::android::activity::AndroidApp;
+
+/// The camera stream's size (YUV_420_888 at 1280×720 exists on every Camera2 device).
+const CAMERA_SIZE: (u32, u32) = (1280, 720);
+/// The vertical field of view when the camera reports no intrinsics, degrees (a typical phone
+/// main camera's 16:9 stream).
+const FALLBACK_VFOV_DEG: f64 = 45.0;
 
 /// Called by android-activity on the app's main Rust thread once the activity is created.
 #[unsafe(no_mangle)]
@@ -31,15 +50,23 @@ fn android_main(app: AndroidApp) {
 }
 
 fn run(app: AndroidApp) -> Result<()> {
-    // The first-start system dialog for the camera and location permissions. The answers are
-    // not used yet: the session below still runs on the virtual phone (docs/mobile.md).
-    if let Err(e) = ask_permissions() {
+    // The first-start system dialog for the camera and location permissions; the camera opens
+    // once granted (PhoneCamera), the location bridge asks again on its first poll.
+    let mut flow = PermissionFlow::default();
+    if let Err(e) = with_activity(|env, activity| flow.start(env, activity)) {
         log(&format!("previz: cannot ask for permissions: {e:#}"));
     }
+    // The app is landscape-only (AndroidManifest.xml): the rotation read now holds.
+    let display = with_activity(jni_location::display_rotation).unwrap_or(DisplayRotation::R90);
     // The shutter saves into the app's private files folder.
     let export_dir = app.internal_data_path().unwrap_or_default();
     let event_loop = EventLoop::builder().with_android_app(app).build().context("cannot start the Android event loop")?;
-    let scene = SceneBuilder::from_toml(demo::SCENE_TOML, std::path::Path::new("."))?.build()?;
+    let info = query_back_camera(CAMERA_SIZE, display)?;
+    let (width, height) = info.image_size();
+    let mut scene = SceneBuilder::from_toml(demo::SCENE_TOML, std::path::Path::new("."))?.build()?;
+    scene.width = width;
+    scene.height = height;
+    scene.camera.vfov = info.fov_deg().map_or(FALLBACK_VFOV_DEG, |(_, v)| v);
     let env = Arc::new(demo::environment()?);
     let model = demo::model()?;
     let cfg = LiveConfig {
@@ -51,24 +78,105 @@ fn run(app: AndroidApp) -> Result<()> {
         noise: NoiseLevel::Phone,
         seed: 1,
     };
-    let size = (scene.width, scene.height);
-    window::run_on(event_loop, "Previz", size, export_dir, Box::new(move |gpu| LiveSession::simulated(gpu, env, &model, &scene, cfg)))
+    let make = move |gpu: &crate::gpu::Gpu| -> Result<App> {
+        let sources = Sources {
+            camera: Box::new(PhoneCamera::new(CAMERA_SIZE, display, info)),
+            sensors: Box::new(AndroidSensors::start()?),
+            rotation: display,
+            truth: None,
+        };
+        let mut app = App::new(LiveSession::new(gpu, &env, &model, &scene, cfg, sources)?, export_dir);
+        // The answers as they are when the window first shows (a refusal from an earlier start
+        // shows the refusal screen; a dialog still open counts as pending). Not refreshed while
+        // the app runs yet: the window shell has no per-frame platform hook (docs/mobile.md).
+        match with_activity(|env, activity| flow.refresh(env, activity)) {
+            Ok(()) => app.set_permissions(flow.answer(Permission::Camera), flow.answer(Permission::Location)),
+            Err(e) => log(&format!("previz: cannot read the permissions: {e:#}")),
+        }
+        Ok(app)
+    };
+    window::run_app_on(event_loop, "Previz", (width, height), Box::new(make))
 }
 
-/// Ask for the camera and location permissions through JNI on the activity (ndk-context holds
-/// it, filled by android-activity before `android_main`).
-fn ask_permissions() -> Result<PermissionFlow> {
+/// The back camera, opened once the CAMERA permission is granted; until then grey frames of the
+/// camera image's size at 30 Hz.
+struct PhoneCamera {
+    size: (u32, u32),
+    display: DisplayRotation,
+    info: CameraInfo,
+    camera: Option<Camera2>,
+    start: Instant,
+    next_try: Instant,
+}
+
+impl PhoneCamera {
+    fn new(size: (u32, u32), display: DisplayRotation, info: CameraInfo) -> PhoneCamera {
+        let now = Instant::now();
+        PhoneCamera { size, display, info, camera: None, start: now, next_try: now }
+    }
+
+    /// Open the camera when it is time to try again (twice a second until it opens).
+    fn try_open(&mut self) {
+        if self.camera.is_some() || Instant::now() < self.next_try {
+            return;
+        }
+        self.next_try = Instant::now() + Duration::from_millis(500);
+        match Camera2::open(self.size.0, self.size.1, self.display) {
+            Ok(c) => self.camera = Some(c),
+            Err(e) => log(&format!("previz: camera not open yet: {e:#}")),
+        }
+    }
+
+    /// A grey frame while there is no camera, paced at 30 Hz.
+    fn grey(&self) -> Frame {
+        std::thread::sleep(Duration::from_millis(33));
+        let (w, h) = self.info.image_size();
+        Frame { image: Rgba8Image { width: w, height: h, pixels: vec![96; (4 * w * h) as usize] }, t: self.start.elapsed().as_secs_f64() }
+    }
+}
+
+impl FrameSource for PhoneCamera {
+    fn next_frame(&mut self) -> Result<Option<Frame>> {
+        self.try_open();
+        match &mut self.camera {
+            Some(c) => c.next_frame(),
+            None => Ok(Some(self.grey())),
+        }
+    }
+
+    fn lend_next_frame(&mut self, sink: &mut FrameSink<'_>) -> Result<bool> {
+        self.try_open();
+        match &mut self.camera {
+            Some(c) => c.lend_next_frame(sink),
+            None => {
+                let frame = self.grey();
+                sink(frame.t, FrameImage::Rgba(frame.image))?;
+                Ok(true)
+            }
+        }
+    }
+
+    fn pause(&mut self) -> Result<()> {
+        self.camera.as_mut().map_or(Ok(()), |c| c.pause())
+    }
+
+    fn resume(&mut self) -> Result<()> {
+        self.camera.as_mut().map_or(Ok(()), |c| c.resume())
+    }
+}
+
+/// Run `f` with the JNI environment of this thread and the activity (ndk-context holds both,
+/// filled by android-activity before `android_main`).
+fn with_activity<T>(f: impl FnOnce(&mut Env<'_>, &JObject<'_>) -> Result<T>) -> Result<T> {
     let ctx = ndk_context::android_context();
     // SAFETY: android-activity stores the process's JavaVM pointer in ndk-context before
     // android_main runs; it stays valid for the life of the process.
     let vm = unsafe { JavaVM::from_raw(ctx.vm().cast()) };
-    vm.attach_current_thread(|env| -> Result<PermissionFlow> {
+    vm.attach_current_thread(|env| -> Result<T> {
         // SAFETY: ndk-context holds a global reference to the activity for the life of the
         // process; it is only borrowed here.
         let activity = unsafe { JObject::from_raw(env, ctx.context().cast()) };
-        let mut flow = PermissionFlow::default();
-        flow.start(env, &activity)?;
-        Ok(flow)
+        f(env, &activity)
     })
 }
 

@@ -364,7 +364,8 @@ impl App {
         }
         run.tap |= f.user_tapped;
         let Some(pose) = f.pose else { return Ok(()) };
-        let image = || self.session.camera_image().cloned().map(Arc::new).context("no camera image");
+        // A phone camera's YUV frame stays on the GPU: read back only when a shot is taken.
+        let image = || self.session.camera_frame(gpu).map(Arc::new);
         if run.tap && run.assistant.phase() == Phase::WaitingForTap {
             run.tap = false;
             run.assistant.tap(f.t, &pose, image()?)?;

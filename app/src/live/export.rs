@@ -106,7 +106,7 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option
     if !dir.is_dir() {
         bail!("export folder {}: not an existing directory", dir.display());
     }
-    let camera = session.camera_image().context("no camera frame yet: nothing to export")?.clone();
+    let camera = session.camera_frame(gpu).context("nothing to export")?;
     let composite = session.render_layer(gpu, Layer::Composite)?;
     let model = session.render_layer(gpu, Layer::Model)?;
     let background = session.render_layer(gpu, Layer::Background)?;

@@ -21,7 +21,8 @@
 pub mod android;
 pub mod app;
 pub mod export;
-#[cfg(not(target_os = "ios"))]
+#[cfg(target_os = "ios")]
+pub mod ios;
 pub mod window;
 
 #[cfg(test)]
@@ -37,9 +38,10 @@ mod tests {
     }
 }
 
-use crate::camera::FrameSource;
 use crate::camera::exposure::ExposureMode;
 use crate::camera::sim::{SimSequence, SimSettings, VirtualPhone};
+use crate::camera::yuv::YuvConverter;
+use crate::camera::{FrameImage, FrameSource};
 use crate::gpu::Gpu;
 use crate::pose::frames::{angle_between, from_heading_pitch_roll};
 use crate::pose::hand_motion::{HandShake, UserPathParams};
@@ -257,8 +259,11 @@ pub struct LiveSession {
     /// The sun direction measured in the map (or set by the scene) the frames use when not
     /// `sun_from_clock`.
     map_sun_dir: Vec3,
-    /// The current camera image (the background of the frame).
+    /// The current camera image (the background of the frame) when it came as an image; a YUV
+    /// frame stays on the GPU, in `yuv`'s target.
     camera_image: Option<crate::scene::Rgba8Image>,
+    /// The GPU YUV → R'G'B' conversion of phone camera frames (made at the first YUV frame).
+    yuv: Option<YuvConverter>,
     /// The light measured in the environment with the scene's multipliers at 1 (unfaded): the
     /// export writes the frame's light as multipliers of it.
     unit_light: LightTerms,
@@ -300,6 +305,7 @@ impl LiveSession {
             sun_from_clock: scene.env.captured_here,
             map_sun_dir,
             camera_image: None,
+            yuv: None,
             unit_light,
             scene: scene.clone(),
             suspended: false,
@@ -324,11 +330,33 @@ impl LiveSession {
             bail!("the live session is suspended (camera and sensors stopped); resume it first");
         }
         let t0 = std::time::Instant::now();
-        let Some(frame) = self.sources.camera.next_frame()? else { return Ok(None) };
-        let t = frame.t;
+        // 1. The camera image: an image is one write_texture; YUV planes go to the GPU as they
+        // are and are converted there (no CPU colour conversion), then copied into the background.
+        let mut t = 0.0;
+        let (compositor, camera_image, yuv) = (&mut self.compositor, &mut self.camera_image, &mut self.yuv);
+        let delivered = self.sources.camera.lend_next_frame(&mut |frame_t, image| {
+            t = frame_t;
+            match image {
+                FrameImage::Rgba(image) => {
+                    compositor.set_background(gpu, Some(&image))?;
+                    *camera_image = Some(image);
+                }
+                FrameImage::Yuv { frame, quarter_turns } => {
+                    let converter = yuv.get_or_insert_with(|| YuvConverter::new(gpu));
+                    converter.convert_turned(gpu, &frame, quarter_turns)?;
+                    compositor.set_background_texture(gpu, converter.target().context("the YUV conversion made no image")?)?;
+                    *camera_image = None;
+                }
+            }
+            Ok(())
+        })?;
+        if !delivered {
+            return Ok(None);
+        }
         let previous = self.last_t.replace(t);
-        self.compositor.set_background(gpu, Some(&frame.image))?;
-        self.camera_image = Some(frame.image);
+        if let Some(rotation) = self.sources.sensors.display_rotation() {
+            self.sources.rotation = rotation;
+        }
         let t1 = std::time::Instant::now();
         self.readings.clear();
         self.sources.sensors.poll(t, &mut self.readings)?;
@@ -460,9 +488,20 @@ impl LiveSession {
         &self.scene
     }
 
-    /// The camera image of the current frame (None before the first).
+    /// The camera image of the current frame when the camera delivered an image (None before
+    /// the first frame, and for YUV frames, which stay on the GPU: [`LiveSession::camera_frame`]).
     pub fn camera_image(&self) -> Option<&crate::scene::Rgba8Image> {
         self.camera_image.as_ref()
+    }
+
+    /// The camera image of the current frame as R'G'B' bytes, read back from the GPU when the
+    /// camera delivered YUV. An error before the first frame.
+    pub fn camera_frame(&self, gpu: &Gpu) -> Result<crate::scene::Rgba8Image> {
+        match (&self.camera_image, &self.yuv) {
+            (Some(image), _) => Ok(image.clone()),
+            (None, Some(yuv)) => yuv.read_back(gpu),
+            (None, None) => bail!("no camera frame yet"),
+        }
     }
 
     pub fn controls(&self) -> Option<&Controls> {

@@ -207,6 +207,12 @@ impl Compositor {
         self.background.set_image(gpu, image)
     }
 
+    /// Use an image already on the GPU (the camera's YUV converted by `camera::yuv`; the output
+    /// size, sRGB-encoded `Rgba8Unorm` bytes) as the background: one GPU copy.
+    pub fn set_background_texture(&mut self, gpu: &Gpu, texture: &wgpu::Texture) -> Result<()> {
+        self.background.copy_image(gpu, texture)
+    }
+
     /// The uniform values for a frame (pure: no GPU access). A colour correction needs the
     /// model's colour priors; a model without any (every texel masked out) is an error then.
     pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {

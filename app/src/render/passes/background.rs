@@ -143,6 +143,27 @@ impl BackgroundPass {
         Ok(())
     }
 
+    /// Use the image in `source` (already the background's size, `Rgba8Unorm` or
+    /// `Rgba8UnormSrgb` holding sRGB-encoded bytes, e.g. the camera's YUV converted on the GPU)
+    /// as the background: one texture-to-texture copy on the GPU.
+    pub fn copy_image(&mut self, gpu: &Gpu, source: &wgpu::Texture) -> Result<()> {
+        let (width, height) = (self.texture.width(), self.texture.height());
+        if (source.width(), source.height()) != (width, height) {
+            bail!("background is {}x{}, the output is {width}x{height}", source.width(), source.height());
+        }
+        if source.format().remove_srgb_suffix() != self.texture.format().remove_srgb_suffix() {
+            bail!("background texture is {:?}, expected {:?} bytes", source.format(), self.texture.format());
+        }
+        gpu.checked("the background copy", || {
+            let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("background copy") });
+            encoder.copy_texture_to_texture(source.as_image_copy(), self.texture.as_image_copy(), source.size());
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })?;
+        self.from_env = false;
+        Ok(())
+    }
+
     /// Whether the background is the environment seen by the camera (drawn by the
     /// environment-view pass each frame) rather than an uploaded image.
     pub fn from_env(&self) -> bool {

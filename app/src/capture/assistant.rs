@@ -566,9 +566,8 @@ impl Assistant {
                 .states
                 .iter()
                 .enumerate()
-                .filter(|(_, s)| !s.done())
+                .find(|(_, s)| !s.done())
                 .map(|(i, s)| (i, s, s.target.aim_error(href, pose.q.as_dquat())))
-                .min_by(|a, b| a.2.angle_deg.total_cmp(&b.2.angle_deg))
                 .map(|(i, s, e)| {
                     let dir = pose.q.inverse() * s.target.direction(href).as_vec3();
                     let within = e.within(tolerance);
@@ -887,38 +886,43 @@ mod tests {
     }
 
     #[test]
-    fn guidance_points_at_the_nearest_target_and_flags_gyro_only() {
+    fn guidance_points_at_the_next_target_of_the_tour_and_flags_gyro_only() {
         let (mut a, f) = assistant(Mode::Stretch);
+        // The stretch plan's tour from the front: up, then round the horizon, then down.
+        let names: Vec<&str> = a.targets().iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, ["front", "up", "left", "back", "right", "down"]);
         a.tap(0.0, &aim(0.0, 0.0), f.clone()).unwrap();
         // A quick turn to heading 60: "Hold still" while the rate is high.
         a.observe(0.1, &aim(60.0, 0.0)).unwrap();
         assert!(a.guidance().hold_still);
         assert_eq!(a.guidance().message, "Hold still");
-        // Held there: the nearest target is right (30° away), arrow to the right.
+        // Held there: the next target is up (90° away), arrow straight up, not in view.
         a.observe(0.25, &aim(60.0, 0.0)).unwrap();
         let g = a.guidance();
         assert!(!g.hold_still);
         let n = g.next.unwrap();
-        assert_eq!(n.name, "right");
-        assert!((n.angle_deg - 30.0).abs() < 1e-3);
-        assert!(n.arrow.x > 0.99 && n.arrow.y.abs() < 1e-3, "{:?}", n.arrow);
-        // Hfov of a 4:3 60° lens is 75.2°: 30° off is in view, right of centre.
-        assert!(n.on_screen.unwrap().x > 0.5);
-        assert_eq!(g.message, "Turn to right");
+        assert_eq!(n.name, "up");
+        assert!((n.angle_deg - 90.0).abs() < 1e-3);
+        assert!(n.arrow.y > 0.99 && n.arrow.x.abs() < 1e-3, "{:?}", n.arrow);
+        assert!(n.on_screen.is_none());
+        assert_eq!(g.message, "Turn to up");
         assert_eq!(g.faces_done, 1);
-        // Looking slightly down from level: nearest is... the arrow for "down" points down.
-        a.observe(0.4, &aim(0.0, -60.0)).unwrap();
+        // Up taken: next is left (heading 270), 30° to the left of a view at heading 300.
+        hold(&mut a, &f, aim(0.0, 90.0), 0.4, 0.5);
+        a.observe(1.0, &aim(300.0, 0.0)).unwrap();
         let n = a.guidance().next.unwrap();
-        assert_eq!(n.name, "down");
-        assert!(n.arrow.y < -0.99);
-        let mut p = aim(0.0, -60.0);
+        assert_eq!(n.name, "left");
+        assert!(n.arrow.x < -0.99, "{:?}", n.arrow);
+        // Hfov of a 4:3 60° lens is 75.2°: 30° off is in view, left of centre.
+        assert!(n.on_screen.unwrap().x < -0.5);
+        let mut p = aim(300.0, 0.0);
         p.heading_source = HeadingSource::GyroOnly;
-        a.observe(0.5, &p).unwrap();
+        a.observe(1.1, &p).unwrap();
         let g = a.guidance();
         assert!(g.gyro_only);
         assert_eq!(g.heading_source, Some(HeadingSource::GyroOnly));
-        // Stretch mode: only the front's shot is in, so only its face shows progress.
-        assert_eq!(g.face_progress, [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        // Stretch mode: front and up are in (Face::ALL: front, up, down, right, back, left).
+        assert_eq!(g.face_progress, [1.0, 1.0, 0.0, 0.0, 0.0, 0.0]);
     }
 
     #[test]

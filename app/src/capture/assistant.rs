@@ -145,11 +145,22 @@ pub struct Guidance {
     pub shots_total: usize,
     /// Captured state per face, in [`Face::ALL`] order.
     pub face_done: [bool; 6],
+    /// Progress per face, in [`Face::ALL`] order (0..1): stitch mode, the share of the face's
+    /// coverage samples some shot has seen; stretch mode, 1 once its shot is taken. For the
+    /// overlay's faces filling in.
+    pub face_progress: [f64; 6],
     /// Fraction of the sphere some shot has seen (stitch mode; stretch mode counts faces).
     pub coverage: f64,
     /// The camera turns faster than the steadiness limit.
     pub hold_still: bool,
     pub rate_deg_s: f64,
+    /// Steadiness on the view about to be taken (0..1): the share of the dwell time already
+    /// held steady on it; 0 when not steady on anything that would be taken.
+    pub steady_progress: f64,
+    /// Where the pose's heading comes from, and its 1σ (degrees), for the overlay's compass
+    /// status (`None` before the first pose).
+    pub heading_source: Option<HeadingSource>,
+    pub heading_accuracy_deg: Option<f32>,
     /// The pose's heading comes from the gyroscope alone (magnetometer disturbed).
     pub gyro_only: bool,
     /// One line for the user.
@@ -521,12 +532,23 @@ impl Assistant {
         }
     }
 
-    fn face_done(&self, face: Face) -> bool {
+    /// Stitch mode: how many of `face`'s coverage samples no shot has seen, of how many.
+    fn face_unseen(&self, face: Face) -> (usize, usize) {
         let n = (COVER_SAMPLES * COVER_SAMPLES) as usize;
+        (self.covered[face.layer() * n..(face.layer() + 1) * n].iter().filter(|c| !**c).count(), n)
+    }
+
+    /// Stitch mode: the share of `face`'s coverage samples some shot has seen.
+    fn face_coverage(&self, face: Face) -> f64 {
+        let (unseen, n) = self.face_unseen(face);
+        (n - unseen) as f64 / n as f64
+    }
+
+    fn face_done(&self, face: Face) -> bool {
         match self.cfg.mode {
             Mode::Stretch => self.states.iter().filter(|s| s.target.face == face).all(TargetState::done),
             Mode::Stitch => {
-                let unseen = self.covered[face.layer() * n..(face.layer() + 1) * n].iter().filter(|c| !**c).count();
+                let (unseen, n) = self.face_unseen(face);
                 unseen as f64 <= MAX_UNSEEN * n as f64
             }
         }
@@ -544,9 +566,8 @@ impl Assistant {
                 .states
                 .iter()
                 .enumerate()
-                .filter(|(_, s)| !s.done())
+                .find(|(_, s)| !s.done())
                 .map(|(i, s)| (i, s, s.target.aim_error(href, pose.q.as_dquat())))
-                .min_by(|a, b| a.2.angle_deg.total_cmp(&b.2.angle_deg))
                 .map(|(i, s, e)| {
                     let dir = pose.q.inverse() * s.target.direction(href).as_vec3();
                     let within = e.within(tolerance);
@@ -564,6 +585,21 @@ impl Assistant {
             _ => None,
         };
         let shots_done = self.states.iter().filter(|s| s.shot.is_some()).count();
+        let face_progress = Face::ALL.map(|f| match (phase, self.cfg.mode) {
+            (Phase::WaitingForTap, _) => 0.0,
+            (_, Mode::Stitch) => self.face_coverage(f),
+            (_, Mode::Stretch) => f64::from(u8::from(self.face_done(f))),
+        });
+        let steady_progress = match (self.on_target, self.last_t) {
+            (Some((_, since)), Some(t)) if phase == Phase::Capturing && !hold_still => {
+                if self.cfg.dwell_s > 0.0 {
+                    ((t - since) / self.cfg.dwell_s).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                }
+            }
+            _ => 0.0,
+        };
         let message = match (phase, &next) {
             (Phase::WaitingForTap, _) => "Aim at the front and tap".to_string(),
             (Phase::Complete, _) => "Capture complete".to_string(),
@@ -579,12 +615,16 @@ impl Assistant {
             shots_done,
             shots_total: self.states.iter().filter(|s| !s.covered_by_others).count(),
             face_done,
+            face_progress,
             coverage: match self.cfg.mode {
                 Mode::Stitch => self.coverage(),
                 Mode::Stretch => face_done.iter().filter(|d| **d).count() as f64 / 6.0,
             },
             hold_still,
             rate_deg_s: self.rate_deg_s,
+            steady_progress,
+            heading_source: self.last_pose.map(|p| p.heading_source),
+            heading_accuracy_deg: self.last_pose.map(|p| p.heading_accuracy_deg),
             gyro_only,
             message,
         }
@@ -846,34 +886,76 @@ mod tests {
     }
 
     #[test]
-    fn guidance_points_at_the_nearest_target_and_flags_gyro_only() {
+    fn guidance_points_at_the_next_target_of_the_tour_and_flags_gyro_only() {
         let (mut a, f) = assistant(Mode::Stretch);
+        // The stretch plan's tour from the front: up, then round the horizon, then down.
+        let names: Vec<&str> = a.targets().iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, ["front", "up", "left", "back", "right", "down"]);
         a.tap(0.0, &aim(0.0, 0.0), f.clone()).unwrap();
         // A quick turn to heading 60: "Hold still" while the rate is high.
         a.observe(0.1, &aim(60.0, 0.0)).unwrap();
         assert!(a.guidance().hold_still);
         assert_eq!(a.guidance().message, "Hold still");
-        // Held there: the nearest target is right (30° away), arrow to the right.
+        // Held there: the next target is up (90° away), arrow straight up, not in view.
         a.observe(0.25, &aim(60.0, 0.0)).unwrap();
         let g = a.guidance();
         assert!(!g.hold_still);
         let n = g.next.unwrap();
-        assert_eq!(n.name, "right");
-        assert!((n.angle_deg - 30.0).abs() < 1e-3);
-        assert!(n.arrow.x > 0.99 && n.arrow.y.abs() < 1e-3, "{:?}", n.arrow);
-        // Hfov of a 4:3 60° lens is 75.2°: 30° off is in view, right of centre.
-        assert!(n.on_screen.unwrap().x > 0.5);
-        assert_eq!(g.message, "Turn to right");
+        assert_eq!(n.name, "up");
+        assert!((n.angle_deg - 90.0).abs() < 1e-3);
+        assert!(n.arrow.y > 0.99 && n.arrow.x.abs() < 1e-3, "{:?}", n.arrow);
+        assert!(n.on_screen.is_none());
+        assert_eq!(g.message, "Turn to up");
         assert_eq!(g.faces_done, 1);
-        // Looking slightly down from level: nearest is... the arrow for "down" points down.
-        a.observe(0.4, &aim(0.0, -60.0)).unwrap();
+        // Up taken: next is left (heading 270), 30° to the left of a view at heading 300.
+        hold(&mut a, &f, aim(0.0, 90.0), 0.4, 0.5);
+        a.observe(1.0, &aim(300.0, 0.0)).unwrap();
         let n = a.guidance().next.unwrap();
-        assert_eq!(n.name, "down");
-        assert!(n.arrow.y < -0.99);
-        let mut p = aim(0.0, -60.0);
+        assert_eq!(n.name, "left");
+        assert!(n.arrow.x < -0.99, "{:?}", n.arrow);
+        // Hfov of a 4:3 60° lens is 75.2°: 30° off is in view, left of centre.
+        assert!(n.on_screen.unwrap().x < -0.5);
+        let mut p = aim(300.0, 0.0);
         p.heading_source = HeadingSource::GyroOnly;
-        a.observe(0.5, &p).unwrap();
-        assert!(a.guidance().gyro_only);
+        a.observe(1.1, &p).unwrap();
+        let g = a.guidance();
+        assert!(g.gyro_only);
+        assert_eq!(g.heading_source, Some(HeadingSource::GyroOnly));
+        // Stretch mode: front and up are in (Face::ALL: front, up, down, right, back, left).
+        assert_eq!(g.face_progress, [1.0, 1.0, 0.0, 0.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn guidance_shows_steadiness_and_faces_filling_in() {
+        let (mut a, f) = assistant(Mode::Stitch);
+        assert_eq!(a.guidance().face_progress, [0.0; 6]);
+        a.tap(0.0, &aim(0.0, 0.0), f.clone()).unwrap();
+        // The front shot (a 60° lens) sees part of the front face only (Face::ALL: front, up,
+        // down, right, back, left).
+        let g = a.guidance();
+        let front = g.face_progress[0];
+        assert!(front > 0.3 && front < 1.0, "{:?}", g.face_progress);
+        assert_eq!(g.face_progress[4], 0.0);
+        assert_eq!(g.steady_progress, 0.0);
+        // Steady on a target of the right face (dwell 0.2 s): 0.05 s in, a quarter held.
+        let right = a.targets().iter().position(|t| t.face == Face::Right).unwrap();
+        let r = aim(a.targets()[right].heading_offset_deg, a.targets()[right].pitch_deg);
+        // Arriving at 1.0 s after a 90° turn is not steady; from 1.05 s the rate over the last
+        // 0.1 s of poses is 0.
+        assert_eq!(a.observe(1.0, &r).unwrap(), None);
+        assert!(a.guidance().hold_still && a.guidance().steady_progress == 0.0);
+        assert_eq!(a.observe(1.05, &r).unwrap(), None);
+        assert_eq!(a.guidance().steady_progress, 0.0);
+        assert_eq!(a.observe(1.1, &r).unwrap(), None);
+        assert!((a.guidance().steady_progress - 0.25).abs() < 1e-9, "{}", a.guidance().steady_progress);
+        assert_eq!(a.observe(1.15, &r).unwrap(), None);
+        assert!((a.guidance().steady_progress - 0.5).abs() < 1e-9);
+        // Turning away fast: not steady, no progress.
+        a.observe(1.2, &aim(60.0, 30.0)).unwrap();
+        assert_eq!(a.guidance().steady_progress, 0.0);
+        // Taking the right view fills the right face in.
+        hold(&mut a, &f, r, 2.0, 0.5);
+        assert!(a.guidance().face_progress[3] > 0.3, "{:?}", a.guidance().face_progress);
     }
 
     /// A user who turns to whatever the guidance points at, while the estimate of each held

@@ -1,6 +1,7 @@
 //! A simulated user following the assistant through any list of targets (the six faces, or
-//! the stitch mode's extra aims): aim at the front and tap, then turn to the nearest target
-//! not yet visited — what the on-screen guidance points at — hold it, and so on.
+//! the stitch mode's extra aims): aim at the front and tap, then turn to the next target of
+//! the list (the plan's tour, [`super::targets::short_tour`]) — what the on-screen guidance
+//! points at — hold it, and so on.
 //!
 //! The motion model is the one of [`crate::pose::hand_motion`] (minimum-jerk turns with an
 //! over/undershoot and a corrective movement, held aims off the target by up to
@@ -111,13 +112,8 @@ pub fn simulate_guided_path(seed: u64, targets: &[Target], params: &UserPathPara
         let (start, end) = timeline.hold(goal, hold);
         visits.push(Visit { target: index, start, end });
         at = goal;
-        // The nearest target not yet visited (as the guidance shows it); near-ties at random.
-        let here = at.quat() * glam::DVec3::NEG_Z;
-        let dist = |i: &usize| targets[*i].direction(href).angle_between(here);
-        let best = todo.iter().map(dist).fold(f64::INFINITY, f64::min);
-        let near: Vec<usize> = todo.iter().copied().filter(|i| dist(i) <= best + 1f64.to_radians()).collect();
-        next = if near.is_empty() { None } else { Some(near[rng.random_range(0..near.len())]) };
-        todo.retain(|i| Some(*i) != next);
+        // The next target of the plan's tour (as the guidance shows it).
+        next = (!todo.is_empty()).then(|| todo.remove(0));
     }
     let shake = HandShake::seeded(rng.random(), params);
     let samples = timeline.sample(params, &shake, tap_t);

@@ -88,12 +88,15 @@ impl Scene {
 fn capture_guidance_golden_images() {
     let mut s = Scene::new();
     let mut ui = HeadlessUi::new(common::gpu(), W, H, 1.0).unwrap();
-    // Tap facing 200° (towards the quarry's sun side), then take up and right (290°).
+    // The tour (targets::short_tour) from the front: up, left, back, right, down.
+    let tour: Vec<&str> = s.assistant.targets().iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(tour, ["front", "up", "left", "back", "right", "down"]);
+    // Tap facing 200° (towards the quarry's sun side), then take up and left (110°).
     let front = pose(200.0, 0.0, HeadingSource::Magnetometer);
     let frame = Arc::new(s.frame(&front));
     s.assistant.tap(0.0, &front, frame).unwrap();
     s.take(pose(200.0, 89.5, HeadingSource::Magnetometer));
-    s.take(pose(290.5, 0.5, HeadingSource::Magnetometer));
+    s.take(pose(109.5, 0.5, HeadingSource::Magnetometer));
     assert_eq!(s.assistant.guidance().faces_done, 3);
 
     // 1: turning quickly towards back (20°), which is in view 18° to the right; the compass is
@@ -111,9 +114,10 @@ fn capture_guidance_golden_images() {
     let in_view = s.draw(&mut ui, &p);
     common::assert_golden("capture_overlay_in_view", &in_view);
 
-    // 2: after back, held still looking 40° down at 300°: the nearest target (down, 50° away) is
-    // out of view; an arrow points down. Compass fine: no badge, no "Hold still".
+    // 2: after back and right, held still looking 40° down at 300°: the last target (down, 50°
+    // away) is out of view; an arrow points down. Compass fine: no badge, no "Hold still".
     s.take(pose(20.0, -0.5, HeadingSource::Magnetometer));
+    s.take(pose(290.5, 0.5, HeadingSource::Magnetometer));
     let p = pose(300.0, -40.0, HeadingSource::Magnetometer);
     for _ in 0..6 {
         s.t += 1.0 / 30.0;

@@ -186,14 +186,14 @@ fn auto_picks_the_method_each_scene_needs() {
         let i = Inputs { model, env: env.clone(), background: None };
         prepare(gpu(), &s, &i).unwrap().1.method
     };
-    assert_eq!(method(with(|_| {}), &park), LightingMethod::Hemisphere);
+    assert_eq!(method(with(|_| {}), &park), LightingMethod::Sh9Ggx);
     assert_eq!(method(with(|m| m.opacity = 0.5), &park), LightingMethod::CubeRefraction);
     let chrome = |m: &mut previz::scene::Material| {
         m.specular = [0.9; 3];
         m.shininess = 500.0;
     };
     assert_eq!(method(with(chrome), &park), LightingMethod::CubeReflection);
-    assert_eq!(method(with(chrome), &grey), LightingMethod::Hemisphere);
+    assert_eq!(method(with(chrome), &grey), LightingMethod::Sh9Ggx);
     // A method by name is kept.
     let mut named = s.clone();
     named.method = previz::setup::method_choice::MethodRequest::Fixed(LightingMethod::BlinnPhong);

@@ -30,7 +30,7 @@ use crate::render::Placement;
 use crate::sensors::permissions::{Answer, Permission, refusal_message};
 use crate::ui::capture_overlay::{THUMB, draw_capture_overlay, draw_faces_preview, draw_shot_feedback, thumbnail};
 use crate::ui::controls::{Controls, apply_gesture, drag_on_ground, pinch_twist};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -388,15 +388,18 @@ impl App {
         let mut capture = run.assistant.finish()?;
         let (lat, lon) = self.session.location();
         capture.meta.location = Some(crate::capture::folder::Location { lat_deg: lat, lon_deg: lon, alt_m: 0.0 });
-        let dir = self.export_dir.join(format!("previz-capture-{}", chrono::Utc::now().format("%Y%m%d-%H%M%S%.3f")));
-        crate::capture::save_capture(&capture, &dir)?;
+        let dir = new_folder(&self.export_dir, "previz-capture", self.session.now())?;
+        if let Err(e) = crate::capture::save_capture(&capture, &dir) {
+            let _ = std::fs::remove_dir(&dir);
+            return Err(e);
+        }
         let env = capture.to_cube_map();
         self.session.set_environment(gpu, &env, &dir, capture.meta.reference_heading_deg)?;
         let daylight = self.session.params().lighting.daylight;
         self.controls.daylight = daylight;
         self.initial.0.daylight = daylight;
         self.session.set_controls(self.controls);
-        self.status = format!("capture saved in {}", dir.display());
+        self.status = format!("capture saved: {}", folder_name(&dir));
         run.saved = Some(dir.clone());
         self.captured = Some(dir);
         Ok(())
@@ -404,8 +407,7 @@ impl App {
 
     /// Export the current frame into a new folder `previz-export-<time>` of the export folder.
     pub fn shutter(&mut self, gpu: &Gpu) -> Result<PathBuf> {
-        let dir = self.export_dir.join(format!("previz-export-{}", chrono::Utc::now().format("%Y%m%d-%H%M%S%.3f")));
-        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let dir = new_folder(&self.export_dir, "previz-export", self.session.now())?;
         if let Err(e) = super::export::export(&mut self.session, gpu, &dir, None) {
             let _ = std::fs::remove_dir(&dir);
             return Err(e);
@@ -565,7 +567,7 @@ impl App {
             result = result.and(set);
         }
         if r.shutter {
-            result = result.and_then(|_| self.shutter(gpu).map(|dir| self.status = format!("saved {}", dir.display())));
+            result = result.and_then(|_| self.shutter(gpu).map(|dir| self.status = format!("saved {}", folder_name(&dir))));
         }
         if let Err(e) = &result {
             self.status = format!("{e:#}");
@@ -647,6 +649,28 @@ fn refused(a: Answer) -> bool {
 
 fn file_label(p: &Path) -> String {
     p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// A new, empty folder `<prefix>-<time>` in `parent` (made if missing); `-2`, `-3`, ... are
+/// added when a folder of that name exists, so an export never lands in an earlier one.
+fn new_folder(parent: &std::path::Path, prefix: &str, time: chrono::DateTime<chrono::Utc>) -> Result<PathBuf> {
+    std::fs::create_dir_all(parent).with_context(|| format!("cannot create the export folder {}", parent.display()))?;
+    let name = format!("{prefix}-{}", time.format("%Y%m%d-%H%M%S%.3f"));
+    for n in 1..1000 {
+        let dir = parent.join(if n == 1 { name.clone() } else { format!("{name}-{n}") });
+        match std::fs::create_dir(&dir) {
+            Ok(()) => return Ok(dir),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e).with_context(|| format!("cannot create {}", dir.display())),
+        }
+    }
+    bail!("{} holds 999 folders named {name}: choose another export folder", parent.display())
+}
+
+/// The last part of `dir` (the status line names a folder of the export folder without the
+/// export folder's own path).
+fn folder_name(dir: &std::path::Path) -> String {
+    dir.file_name().map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned())
 }
 
 /// The status panel's text (pure, so it is tested without a window).

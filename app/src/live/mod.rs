@@ -574,6 +574,12 @@ impl LiveSession {
         Ok(())
     }
 
+    /// The instant of the latest frame (the session's start before the first): the phone's clock
+    /// live, the simulated clock in a scripted session, so names made from it repeat with it.
+    pub fn now(&self) -> DateTime<Utc> {
+        self.cfg.start + chrono::Duration::microseconds((self.last_t.unwrap_or(0.0) * 1e6).round() as i64)
+    }
+
     /// Latitude and longitude the sun is computed for now.
     pub fn location(&self) -> (f64, f64) {
         self.location

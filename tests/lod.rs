@@ -200,3 +200,35 @@ fn auto_picks_the_method_each_scene_needs() {
     let i = Inputs { model: with(chrome), env: park, background: None };
     assert_eq!(prepare(gpu(), &named, &i).unwrap().1.method, LightingMethod::BlinnPhong);
 }
+
+/// Nothing recomputed that did not change: a second compositor for the same model (another copy
+/// of it, as a second load gives) reuses the prepared model (occlusion and level chain), a
+/// changed model is prepared again, and the model's colour statistics wait for the first frame
+/// that corrects colour. Counted by identity of the shared entry, not by timing.
+#[test]
+fn model_work_is_reused_until_the_model_changes() {
+    use previz::render::ColourSettings;
+    use previz::render::model_cache::ModelCache;
+    let s = scene("width = 96\nheight = 64\nenvironment = \"cubemaps/humus_Park2_512\"\n");
+    // A model no other test uses (the cache is the device's, shared by the tests running in parallel).
+    let mut model = cube();
+    model.meshes[0].positions.iter_mut().for_each(|p| p[0] *= 1.25);
+    let i = Inputs { model: model.clone(), env: inputs(&s).env, background: None };
+    let (mut first, p) = prepare(gpu(), &s, &i).unwrap();
+    first.render(gpu(), &p, Layer::Composite).unwrap();
+    let prepared = first.prepared_model().unwrap().clone();
+    assert!(!prepared.colour_computed(), "no colour correction asked, yet the model's statistics were computed");
+    let computed = ModelCache::of(gpu()).unwrap().counts().computed;
+    let (mut second, _) = prepare(gpu(), &s, &Inputs { model: model.clone(), ..i }).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&prepared, second.prepared_model().unwrap()), "the same model was prepared twice");
+    let mut corrected = p;
+    corrected.colour = ColourSettings { method: previz::colour::transfer::TransferMethod::Reinhard, strength: 1.0 };
+    second.render(gpu(), &corrected, Layer::Composite).unwrap();
+    assert!(prepared.colour_computed(), "a colour correction ran without the model's statistics");
+    let mut changed = model;
+    changed.materials[0].diffuse = [0.2, 0.4, 0.6];
+    second.set_model(gpu(), &changed).unwrap();
+    let counts = ModelCache::of(gpu()).unwrap().counts();
+    assert!(!std::sync::Arc::ptr_eq(&prepared, second.prepared_model().unwrap()), "a changed model reused the old one's work");
+    assert!(counts.computed > computed, "{counts:?}");
+}

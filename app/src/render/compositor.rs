@@ -7,6 +7,7 @@
 use super::environment::{self, Environment};
 use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
+use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::GroundPass;
@@ -19,6 +20,7 @@ use crate::gpu::{Gpu, GpuTimer, build};
 use crate::scene::{CubeMap, Model, Rgba8Image};
 use anyhow::{Result, anyhow};
 use glam::Vec3;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Milliseconds spent in each stage of a render.
@@ -154,10 +156,13 @@ impl Compositor {
         self.env.as_ref().map(|e| e.priors)
     }
 
-    /// Upload a model: one vertex/index buffer and material bind group per mesh. On an error
-    /// (bad mesh, or the GPU rejecting the upload) the current model stays.
+    /// Upload a model: one vertex/index buffer and material bind group per mesh. What the model's
+    /// content gives (ambient occlusion, level-of-detail chain) comes from the device's
+    /// [`ModelCache`], computed on the first upload of that content. On an error (bad mesh, or
+    /// the GPU rejecting the upload) the current model stays.
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
-        let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model))?;
+        let prepared = ModelCache::of(gpu)?.prepare(model)?;
+        let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
         Ok(())
     }
@@ -176,7 +181,7 @@ impl Compositor {
 
     /// The loaded model's level-of-detail chain: per level, triangles (None before a model).
     pub fn lod_triangles(&self) -> Option<&[usize]> {
-        self.model.as_ref().map(|m| m.lod_triangles.as_slice())
+        self.model.as_ref().map(|m| m.lod_triangles())
     }
 
     /// The level of detail the last rendered frame drew (0: the model as loaded).
@@ -192,6 +197,12 @@ impl Compositor {
     /// Which optional passes the last rendered frame ran.
     pub fn passes_run(&self) -> PassesRun {
         self.passes_run
+    }
+
+    /// What was computed from the loaded model's content (shared with every compositor on the
+    /// device that loads the same model).
+    pub fn prepared_model(&self) -> Option<&Arc<PreparedModel>> {
+        self.model.as_ref().map(|m| &m.prepared)
     }
 
     /// The loaded model's bounds in model space.
@@ -214,7 +225,8 @@ impl Compositor {
     }
 
     /// The uniform values for a frame (pure: no GPU access). A colour correction needs the
-    /// model's colour priors; a model without any (every texel masked out) is an error then.
+    /// model's colour priors (computed on the first frame that asks); a model without any
+    /// (every texel masked out) is an error then.
     pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
@@ -229,9 +241,9 @@ impl Compositor {
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
         let light = light_uniforms(&p.lighting);
-        let colour = colour_correction(p.colour, &env.colour, &model.colour)?;
+        let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
         let level =
-            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(&model.lod_errors, model.bounds, p, self.height).0 };
+            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(model.lod_errors(), model.bounds, p, self.height).0 };
         let shadow = fit_shadow(p, &context);
         // The model samples the map whatever the sun (its shading uses the visibility beyond the
         // sun's own term), so the shadow pass runs whenever the model or its shadow is on

@@ -5,6 +5,7 @@ pub mod environment;
 pub mod frame;
 pub mod layers;
 pub mod method;
+pub mod model_cache;
 pub mod params;
 pub mod passes;
 pub mod pipelines;

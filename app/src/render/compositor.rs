@@ -4,6 +4,7 @@
 //! `set_background`); a frame only writes uniforms (and the camera image) and encodes passes,
 //! so per-frame work allocates no GPU resources.
 
+use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment};
 use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
@@ -54,6 +55,9 @@ pub struct Compositor {
     /// The light measured from the environment (`Light`), read by the ground and model passes.
     light_buf: wgpu::Buffer,
     targets: Targets,
+    /// The post-process antialiasing pass (with [`Antialiasing::Fxaa`]).
+    fxaa: Option<FxaaPass>,
+    antialiasing: Antialiasing,
     /// The float layer targets, made by the first `render_layers`.
     layer_targets: Option<LayerTargets>,
     shadow: ShadowPass,
@@ -84,19 +88,26 @@ pub struct PassesRun {
 }
 
 impl Compositor {
-    /// Pipelines and targets for `width`×`height` output.
+    /// Pipelines and targets for `width`×`height` output, antialiased as the adapter wants
+    /// ([`Antialiasing::for_adapter`]).
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
-        gpu.check_size("output", width, height)?;
-        gpu.checked("the compositor's render targets", || Self::create(gpu, width, height))
+        Self::with_antialiasing(gpu, width, height, Antialiasing::for_adapter(&gpu.adapter.get_info()))
     }
 
-    fn create(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
+    /// [`Compositor::new`] with the antialiasing given (the study in `previz bench frame`).
+    pub fn with_antialiasing(gpu: &Gpu, width: u32, height: u32, aa: Antialiasing) -> Result<Compositor> {
+        gpu.check_size("output", width, height)?;
+        gpu.checked("the compositor's render targets", || Self::create(gpu, width, height, aa))
+    }
+
+    fn create(gpu: &Gpu, width: u32, height: u32, aa: Antialiasing) -> Result<Compositor> {
         let device = &gpu.device;
-        let pipelines = Pipelines::shared(gpu)?;
+        let pipelines = Pipelines::shared(gpu, aa.samples())?;
         let frame_buf = build::uniform_buffer::<FrameUniforms>(device, "frame");
         let instance_buf = build::uniform_buffer::<InstanceUniforms>(device, "instance");
         let light_buf = build::uniform_buffer::<LightUniforms>(device, "light");
-        let targets = Targets::new(device, (width, height))?;
+        let targets = Targets::new(device, (width, height), aa)?;
+        let fxaa = targets.aa_input().map(|input| FxaaPass::new(device, &pipelines, input));
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
         let ground = GroundPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.maps());
@@ -108,6 +119,8 @@ impl Compositor {
             instance_buf,
             light_buf,
             targets,
+            fxaa,
+            antialiasing: aa,
             layer_targets: None,
             shadow,
             background,
@@ -127,6 +140,11 @@ impl Compositor {
 
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+
+    /// How this compositor antialiases the composite.
+    pub fn antialiasing(&self) -> Antialiasing {
+        self.antialiasing
     }
 
     /// Upload the environment cube map, scaled by `exposure` (linear light), and its priors.
@@ -354,10 +372,10 @@ impl Compositor {
         // 2-3a. The shadow map and the background texture.
         self.encode_shadow_and_env_view(encoder, model, true)?;
 
-        // 3b-5. Background, ground shadow and model into the multisampled target.
+        // 3b-5. Background, ground shadow and model into the composite target.
         let first = !shadows && !self.background.from_env();
         let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
-        let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, true));
+        let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));
         // 3b. Background pass: the camera image fills the target.
         if layer != Layer::Model {
             in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
@@ -369,6 +387,12 @@ impl Compositor {
         // 5. Model pass: shading, reflection/refraction and colour correction.
         if layer != Layer::Background {
             in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?;
+        }
+        drop(pass);
+        // 5b. Post-process antialiasing into the frame.
+        if let Some(fxaa) = &self.fxaa {
+            let mut pass = self.targets.begin_fxaa(encoder, stamp(false, true));
+            in_group(&mut pass, "fxaa pass", |pass| fxaa.draw(pass));
         }
         Ok(())
     }

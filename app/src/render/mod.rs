@@ -1,5 +1,6 @@
 //! The renderer: pipelines and the passes of one frame (the device is `crate::gpu`).
 
+pub mod antialiasing;
 pub mod compositor;
 pub mod environment;
 pub mod frame;
@@ -15,6 +16,7 @@ pub mod targets;
 pub mod uniforms;
 pub mod view;
 
+pub use antialiasing::Antialiasing;
 pub use compositor::{Compositor, PassesRun, Rendered, Timings};
 pub use frame::FrameData;
 pub use method::LightingMethod;

@@ -10,7 +10,7 @@ use crate::render::LightingMethod;
 use crate::render::environment::EnvironmentViews;
 use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
+use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
 use crate::scene::Model;
@@ -35,8 +35,8 @@ pub struct ModelPipelines {
     pub by_method: Vec<wgpu::RenderPipeline>,
 }
 
-/// The model pipelines (one per method) and their layouts.
-pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
+/// The model pipelines (one per method, `samples` per pixel) and their layouts.
+pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
@@ -62,7 +62,7 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
         "material",
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
-    let by_method = pipelines_for(device, (&layout, &material_layout), COLOR_FORMAT);
+    let by_method = pipelines_for(device, (&layout, &material_layout), COLOR_FORMAT, samples);
     ModelPipelines { layout, material_layout, by_method }
 }
 
@@ -77,11 +77,12 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
 }
 
 /// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
-/// layouts (`layout`, `material_layout`), drawing into `format` targets.
+/// layouts (`layout`, `material_layout`), drawing into `format` targets of `samples` per pixel.
 pub fn pipelines_for(
     device: &wgpu::Device,
     (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     format: wgpu::TextureFormat,
+    samples: u32,
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
     LightingMethod::ALL
@@ -101,7 +102,7 @@ pub fn pipelines_for(
                         write_mask: wgpu::ColorWrites::ALL,
                     }),
                     depth: depth_state(true, wgpu::DepthBiasState::default()),
-                    samples: SAMPLES,
+                    samples,
                     constants: &constants,
                 },
             )

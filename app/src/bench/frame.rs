@@ -25,6 +25,8 @@ pub struct FrameRow {
     pub cpu_encode_ms: f64,
     /// GPU time from the first pass to the last (timestamp queries), ms; NaN if unsupported.
     pub gpu_ms: f64,
+    /// GPU time of the shadow pass alone, ms (NaN when it did not run).
+    pub shadow_gpu_ms: f64,
     /// Wall time of the whole frame including submit, GPU and readback, ms.
     pub wall_ms: f64,
     /// gpu_ms / floor gpu_ms.
@@ -45,6 +47,7 @@ pub struct FrameRow {
 pub const FLOOR: &str = "background-only";
 pub const DEFAULT: &str = "default";
 pub const REFERENCE: &str = "full detail + full shadow";
+pub const NO_GROUND: &str = "default without the ground pass";
 pub const QUARTER: &str = "quarter fill";
 pub const QUARTER_REFERENCE: &str = "quarter fill, full detail + full shadow";
 
@@ -91,6 +94,10 @@ pub fn run(
         path(REFERENCE, 0, Layer::Composite, base, true),
     ];
     paths[1].reference = Some(2);
+    // Profiling: the default frame without its ground pass (what the shadow catcher costs).
+    let mut no_ground = base;
+    no_ground.lighting.shadow_opacity = 0.0;
+    paths.push(path(NO_GROUND, 0, Layer::Composite, no_ground, false));
     // The same model at a quarter of the fill (placed by the same rule, farther away).
     let quarter_scene = Scene {
         placement: crate::setup::scene_file::PlacementSection { fill: scene.placement.fill * 0.25, ..scene.placement.clone() },
@@ -127,7 +134,7 @@ pub fn run(
     progress.set_length(((frames + warmup) * paths.len()) as u64);
     // Paths are interleaved frame by frame, so a slow spell of a shared machine (or a clock
     // change) lands on every path alike instead of on whichever path was running.
-    let mut samples = vec![(Vec::new(), Vec::new(), Vec::new()); paths.len()];
+    let mut samples = vec![(Vec::new(), Vec::new(), Vec::new(), Vec::new()); paths.len()];
     let mut last: Vec<Vec<u8>> = vec![Vec::new(); paths.len()];
     let turn = |i: usize| glam::Quat::from_rotation_y(1e-4 * i as f32);
     for i in 0..frames + warmup {
@@ -145,6 +152,7 @@ pub fn run(
                 samples[k].0.push(r.timings.encode_ms);
                 samples[k].1.push(r.timings.gpu_ms.unwrap_or(f64::NAN));
                 samples[k].2.push(total);
+                samples[k].3.push(r.timings.shadow_gpu_ms.unwrap_or(f64::NAN));
             }
             last[k] = rgb(&r.rgba);
             progress.inc(1);
@@ -167,7 +175,7 @@ pub fn run(
         }))
     };
     let mut rows = Vec::new();
-    for (k, (spec, (cpu, gpu_t, wall))) in paths.iter().zip(samples).enumerate() {
+    for (k, (spec, (cpu, gpu_t, wall, shadow))) in paths.iter().zip(samples).enumerate() {
         let reference_flip = match spec.reference {
             Some(r) => flip(&last[r], &last[k], None)?,
             None => f64::NAN,
@@ -178,6 +186,7 @@ pub fn run(
             frames,
             cpu_encode_ms: median(&cpu),
             gpu_ms: median(&gpu_t),
+            shadow_gpu_ms: if shadow.iter().any(|v| v.is_nan()) { f64::NAN } else { median(&shadow) },
             wall_ms: median(&wall),
             gpu_ratio: 0.0,
             wall_ratio: 0.0,
@@ -251,15 +260,16 @@ pub fn goals(rows: &[FrameRow]) -> Vec<(String, String, bool)> {
 /// The rows as a markdown table, then the goals.
 pub fn markdown(rows: &[FrameRow]) -> String {
     let mut s = String::from(
-        "| path | CPU encode ms | GPU ms | × floor (GPU) | wall ms | × floor (wall) | mean FLIP vs reference | edge FLIP vs 16 spp |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| path | CPU encode ms | GPU ms | of which shadow pass | × floor (GPU) | wall ms | × floor (wall) | mean FLIP vs reference | edge FLIP vs 16 spp |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let num = |v: f64| if v.is_nan() { String::new() } else { format!("{v:.4}") };
     for r in rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {} | {} |\n",
+            "| {} | {:.3} | {:.3} | {} | {:.2} | {:.2} | {:.2} | {} | {} |\n",
             r.path,
             r.cpu_encode_ms,
             r.gpu_ms,
+            num(r.shadow_gpu_ms),
             r.gpu_ratio,
             r.wall_ms,
             r.wall_ratio,
@@ -300,6 +310,7 @@ mod tests {
             frames: 1,
             cpu_encode_ms: 0.0,
             gpu_ms,
+            shadow_gpu_ms: f64::NAN,
             wall_ms: gpu_ms,
             gpu_ratio: gpu_ms / 10.0,
             wall_ratio: gpu_ms / 10.0,

@@ -24,13 +24,21 @@ use glam::Vec3;
 use std::sync::Arc;
 use std::time::Instant;
 
+/// Timer slots: the shadow pass, and the passes after it.
+const SHADOW_SLOT: u32 = 0;
+const REST_SLOT: u32 = 1;
+const TIMER_SLOTS: u32 = 2;
+
 /// Milliseconds spent in each stage of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
     /// CPU: writing uniforms and encoding the passes.
     pub encode_ms: f64,
-    /// GPU: first pass start to last pass end (timestamp queries); None if unsupported.
+    /// GPU: the frame's passes (timestamp queries: the shadow pass, plus the first later pass's
+    /// start to the last pass's end); None if unsupported.
     pub gpu_ms: Option<f64>,
+    /// GPU: the shadow pass alone (None when it did not run or without timestamp queries).
+    pub shadow_gpu_ms: Option<f64>,
     /// CPU wall time from submit until the pixels are in memory.
     pub readback_ms: f64,
 }
@@ -128,7 +136,7 @@ impl Compositor {
             model_pass,
             env: None,
             model: None,
-            timer: GpuTimer::new(gpu, 1),
+            timer: GpuTimer::new(gpu, TIMER_SLOTS),
             pipelines,
             full_detail: false,
             full_shadow: false,
@@ -300,18 +308,23 @@ impl Compositor {
         let mut encoder = self.prepare_frame(gpu, p, layer)?;
         self.targets.copy_for_readback(&mut encoder);
         if let Some(timer) = &self.timer {
-            timer.resolve(&mut encoder, 1);
+            timer.resolve(&mut encoder, TIMER_SLOTS);
         }
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();
         gpu.queue.submit([encoder.finish()]);
         let rgba = self.targets.read(gpu)?;
-        let gpu_ms = match &self.timer {
-            Some(timer) => timer.read_ms(gpu, 1)?.first().copied(),
-            None => None,
+        let (gpu_ms, shadow_gpu_ms) = match &self.timer {
+            Some(timer) => {
+                let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
+                let shadow = self.passes_run.shadow.then_some(ms[SHADOW_SLOT as usize]);
+                (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow)
+            }
+            None => (None, None),
         };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
-        Ok(Rendered { width: self.width, height: self.height, rgba, timings: Timings { encode_ms, gpu_ms, readback_ms } })
+        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms };
+        Ok(Rendered { width: self.width, height: self.height, rgba, timings })
     }
 
     /// Render the frame's layers in float (render/layers.rs: background, shadow matte, model,
@@ -365,15 +378,14 @@ impl Compositor {
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
     fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::LightingMethod) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        let shadows = self.passes_run.shadow;
-        // The first pass recorded writes the start timestamp, the composite pass the end.
-        let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(0, begin, end));
+        // The first pass after the shadow pass writes the start timestamp, the last pass the end.
+        let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(REST_SLOT, begin, end));
 
         // 2-3a. The shadow map and the background texture.
         self.encode_shadow_and_env_view(encoder, model, true)?;
 
         // 3b-5. Background, ground shadow and model into the composite target.
-        let first = !shadows && !self.background.from_env();
+        let first = !self.background.from_env();
         let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
         let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));
         // 3b. Background pass: the camera image fills the target.
@@ -399,16 +411,17 @@ impl Compositor {
 
     /// Step 2, the shadow pass: the model's depth seen from the sun (not needed for the
     /// background alone); step 3a: the environment seen by the camera becomes the background
-    /// when there is no image. `timed`: the first pass writes the frame's start timestamp.
+    /// when there is no image. `timed`: the shadow pass is timed alone, and the environment view
+    /// pass starts the rest of the frame.
     fn encode_shadow_and_env_view(&self, encoder: &mut wgpu::CommandEncoder, model: &ModelGpu, timed: bool) -> Result<()> {
         let shadows = self.passes_run.shadow;
-        let stamp = |begin: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(0, begin, false)) } else { None };
+        let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
         if shadows {
-            let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(true));
+            let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(SHADOW_SLOT, true));
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
         if self.background.from_env() {
-            let mut pass = self.background.begin_env_view(encoder, stamp(!shadows));
+            let mut pass = self.background.begin_env_view(encoder, stamp(REST_SLOT, false));
             in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
         }
         Ok(())

@@ -11,7 +11,7 @@ use crate::colour::transfer::TransferMethod;
 use crate::gpu::Gpu;
 use crate::render::{Antialiasing, ColourSettings, Compositor, FrameParams, Layer, LightingMethod};
 use crate::setup::scene_file::Scene;
-use crate::setup::{Inputs, camera_and_placement, prepare, prepare_antialiased};
+use crate::setup::{Inputs, camera_and_placement, prepare_antialiased};
 use anyhow::{Result, anyhow};
 use serde::Serialize;
 
@@ -76,7 +76,8 @@ pub fn run(
     warmup: usize,
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<FrameRow>> {
-    let (default, base) = prepare(gpu, scene, inputs)?;
+    // Frames drawn one after another: the adapter's antialiasing (a still would use 4x).
+    let (default, base) = prepare_antialiased(gpu, scene, inputs, Antialiasing::for_adapter(&gpu.adapter.get_info()))?;
     let default_aa = default.antialiasing();
     let mut compositors = vec![default];
     let path = |name: &str, compositor, layer, params, full| PathSpec {

@@ -20,6 +20,10 @@ impl Antialiasing {
     /// Every choice, for the study in `previz bench frame`.
     pub const ALL: [Antialiasing; 4] = [Antialiasing::Msaa(1), Antialiasing::Msaa(2), Antialiasing::Msaa(4), Antialiasing::Fxaa];
 
+    /// A still image (`previz composite`, its layers): 4× MSAA on every adapter — one frame has
+    /// no frame budget, and exported layers need the coverage in their alpha.
+    pub const STILL: Antialiasing = Antialiasing::Msaa(4);
+
     /// Samples per pixel of the composite's colour and depth targets.
     pub fn samples(self) -> u32 {
         match self {
@@ -44,15 +48,15 @@ impl Antialiasing {
         }
     }
 
-    /// The antialiasing an adapter gets. Tile-based GPUs (the phones': ARM Mali, Qualcomm
-    /// Adreno, Imagination PowerVR, Apple) keep the samples in tile memory and resolve them on
-    /// the way out, so 4× MSAA costs little there, and desktop GPUs have the bandwidth for it.
-    /// Software rasterisers (lavapipe/llvmpipe, SwiftShader, WARP: device type CPU) shade and
-    /// store every sample and run every full-screen pass on the CPU: measured on lavapipe
-    /// (docs/PERFORMANCE.md, "Antialiasing"), the dragon's frame cost 2.2× the background-only
-    /// floor single-sampled, 3.3× with FXAA (its pass costs about one floor) and 5.0× with 4×
-    /// MSAA, for a silhouette FLIP against a 16-sample render of 0.141, 0.128 and 0.112; they
-    /// draw one sample.
+    /// The antialiasing of frames drawn one after another (the live view, the benchmarks) on an
+    /// adapter. Tile-based GPUs (the phones': ARM Mali, Qualcomm Adreno, Imagination PowerVR,
+    /// Apple) keep the samples in tile memory and resolve them on the way out, so 4× MSAA costs
+    /// little there, and desktop GPUs have the bandwidth for it. Software rasterisers
+    /// (lavapipe/llvmpipe, SwiftShader, WARP: device type CPU) shade and store every sample:
+    /// measured on lavapipe (docs/PERFORMANCE.md, "Antialiasing"), the dragon's frame cost
+    /// 10.8× the background-only floor single-sampled, 16.2× with FXAA and 24.3× with 4× MSAA,
+    /// for a silhouette FLIP against a 16-sample render of 0.135, 0.126 and 0.113; they draw
+    /// one sample. A still image has no frame budget: [`Antialiasing::STILL`].
     pub fn for_adapter(info: &wgpu::AdapterInfo) -> Antialiasing {
         match info.device_type {
             wgpu::DeviceType::Cpu => Antialiasing::Msaa(1),

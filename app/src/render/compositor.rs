@@ -233,7 +233,7 @@ impl Compositor {
 
     /// The loaded model's bounds in model space.
     pub fn model_bounds(&self) -> Option<(Vec3, Vec3)> {
-        self.model.as_ref().map(|m| m.bounds)
+        self.model.as_ref().map(|m| m.bounds())
     }
 
     /// Use a photograph (or a camera frame) as the background, or `None` for the environment
@@ -258,7 +258,7 @@ impl Compositor {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let sizes = self.shadow.sizes();
         let context = FrameContext {
-            bounds: model.bounds,
+            bounds: model.bounds(),
             priors: env.priors,
             exposure: env.exposure,
             env_heading: env.heading,
@@ -269,7 +269,7 @@ impl Compositor {
         let light = light_uniforms(&p.lighting);
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
         let level =
-            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(model.lod_errors(), model.bounds, p, self.height).0 };
+            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(model.lod_errors(), model.bounds(), p, self.height).0 };
         let shadow = fit_shadow(p, &context);
         // The model samples the map whatever the sun (its shading uses the visibility beyond the
         // sun's own term), so the shadow pass runs whenever the model or its shadow is on

@@ -172,10 +172,39 @@ pub struct CacheCounts {
     pub reused: usize,
 }
 
-/// The prepared models of one device, most recently used last.
+/// The prepared models of one device: the [`CAPACITY`] used last (most recent last), and every
+/// one still held by someone (a compositor drawing it is never made to prepare it again).
 #[derive(Default)]
 pub struct ModelCache {
-    state: Mutex<(Vec<Arc<PreparedModel>>, CacheCounts)>,
+    state: Mutex<CacheState>,
+}
+
+#[derive(Default)]
+struct CacheState {
+    recent: Vec<Arc<PreparedModel>>,
+    held: Vec<std::sync::Weak<PreparedModel>>,
+    counts: CacheCounts,
+}
+
+impl CacheState {
+    fn find(&mut self, key: ModelKey) -> Option<Arc<PreparedModel>> {
+        if let Some(i) = self.recent.iter().position(|p| p.key == key) {
+            let hit = self.recent.remove(i);
+            self.recent.push(hit.clone());
+            return Some(hit);
+        }
+        let hit = self.held.iter().filter_map(std::sync::Weak::upgrade).find(|p| p.key == key)?;
+        self.keep(hit.clone());
+        Some(hit)
+    }
+
+    /// Make `p` the most recently used (the oldest goes past [`CAPACITY`]).
+    fn keep(&mut self, p: Arc<PreparedModel>) {
+        if self.recent.len() >= CAPACITY {
+            self.recent.remove(0);
+        }
+        self.recent.push(p);
+    }
 }
 
 impl ModelCache {
@@ -191,29 +220,26 @@ impl ModelCache {
         let key = ModelKey::of(model);
         {
             let mut state = self.lock();
-            if let Some(i) = state.0.iter().position(|p| p.key == key) {
-                let hit = state.0.remove(i);
-                state.0.push(hit.clone());
-                state.1.reused += 1;
+            if let Some(hit) = state.find(key) {
+                state.counts.reused += 1;
                 return Ok(hit);
             }
         }
         let prepared = Arc::new(PreparedModel::new(model)?);
         let mut state = self.lock();
-        state.0.retain(|p| p.key != key);
-        if state.0.len() >= CAPACITY {
-            state.0.remove(0);
-        }
-        state.0.push(prepared.clone());
-        state.1.computed += 1;
+        state.recent.retain(|p| p.key != key);
+        state.held.retain(|w| w.strong_count() > 0);
+        state.held.push(Arc::downgrade(&prepared));
+        state.keep(prepared.clone());
+        state.counts.computed += 1;
         Ok(prepared)
     }
 
     pub fn counts(&self) -> CacheCounts {
-        self.lock().1
+        self.lock().counts
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, (Vec<Arc<PreparedModel>>, CacheCounts)> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, CacheState> {
         self.state.lock().unwrap_or_else(|p| p.into_inner())
     }
 }
@@ -299,13 +325,25 @@ mod tests {
         for m in &models[1..CAPACITY] {
             cache.prepare(m).unwrap();
         }
-        // Using the first again makes the second the oldest; one more model evicts the second.
+        // Using the first again makes the second the oldest; one more model evicts the second
+        // (nobody holds it any more).
         cache.prepare(&models[0]).unwrap();
         cache.prepare(&models[CAPACITY]).unwrap();
         assert_eq!(cache.counts(), CacheCounts { computed: CAPACITY + 1, reused: 1 });
         assert!(Arc::ptr_eq(&first, &cache.prepare(&models[0]).unwrap()));
         cache.prepare(&models[1]).unwrap();
         assert_eq!(cache.counts(), CacheCounts { computed: CAPACITY + 2, reused: 2 });
+        // A model still held (a compositor drawing it) is found even after leaving the recent
+        // ones: `first` is pushed out by CAPACITY others, then asked for again.
+        for m in &models[2..] {
+            cache.prepare(m).unwrap();
+        }
+        let mut other = tetrahedron();
+        other.meshes[0].positions[3][2] = -1.0;
+        cache.prepare(&other).unwrap();
+        let before = cache.counts();
+        assert!(Arc::ptr_eq(&first, &cache.prepare(&models[0]).unwrap()));
+        assert_eq!(cache.counts(), CacheCounts { computed: before.computed, reused: before.reused + 1 });
     }
 
     #[test]

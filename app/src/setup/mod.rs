@@ -133,8 +133,9 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
     }
 }
 
-/// GPU resources for a scene and the parameters of its frame: what `run`, the tests and the
-/// benchmark share.
+/// GPU resources for a still image of a scene ([`Antialiasing::STILL`]) and the parameters of
+/// its frame: what `previz composite`, the golden tests and the accuracy benchmark share. The
+/// live view's frames follow the adapter ([`compositor_for`]).
 pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
     prepare_with_light(gpu, scene, inputs).map(|(c, p, _)| (c, p))
 }
@@ -142,7 +143,8 @@ pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor,
 /// [`prepare`], and the light measured in the environment (for reporting it without measuring
 /// the map again).
 pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams, SceneLight)> {
-    let (mut compositor, params, light) = compositor_and_light(gpu, scene, &inputs.env, &inputs.model)?;
+    let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, Antialiasing::STILL)?;
+    let (mut compositor, params, light) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
     compositor.set_background(gpu, inputs.background.as_ref())?;
     Ok((compositor, params, light))
 }

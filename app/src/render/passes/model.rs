@@ -159,8 +159,6 @@ struct MeshGpu {
 /// A model on the GPU.
 pub struct ModelGpu {
     meshes: Vec<MeshGpu>,
-    /// Bounds in model space.
-    pub bounds: (Vec3, Vec3),
     /// Each mesh's material buffer and its values as loaded, rewritten each frame with the
     /// frame's material terms.
     materials: Vec<(wgpu::Buffer, MaterialUniforms)>,
@@ -171,6 +169,11 @@ pub struct ModelGpu {
 }
 
 impl ModelGpu {
+    /// Bounds in model space.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.prepared.bounds
+    }
+
     /// Per level of detail, the simplification error (model units, non-decreasing from 0).
     pub fn lod_errors(&self) -> &[f32] {
         &self.prepared.chain.errors
@@ -336,7 +339,7 @@ impl ModelPass {
             });
             materials.push((material_buf, uniforms));
         }
-        Ok(ModelGpu { meshes, bounds: prepared.bounds, materials, prepared })
+        Ok(ModelGpu { meshes, materials, prepared })
     }
 
     /// This frame's colour correction and material terms.

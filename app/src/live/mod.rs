@@ -542,6 +542,7 @@ impl LiveSession {
         self.sun_from_clock = true;
         self.params.lighting.daylight = light.daylight;
         self.params.lighting.shadow_opacity = light.shadow_opacity;
+        self.params.lighting.sky_occlusion = light.sky_occlusion;
         self.params.lighting.sky_sh = light.sky_sh;
         self.params.lighting.sun_colour = light.sun_colour;
         self.params.lighting.sun_angular_radius = light.sun_angular_radius;

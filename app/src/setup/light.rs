@@ -137,6 +137,14 @@ pub fn shadow_opacity(ground_sun: f32, ground_sky: f32) -> f32 {
     crate::light::measure::shadow_strength(share, 1.0)
 }
 
+/// How dark the ground gets where the model hides all of its sky (the sun kept): the sky's share
+/// of the ground's irradiance. The ground pass scales it by the share of the cosine-weighted sky
+/// the model hides there (scene::occlusion::ground_sky), so the sun's and the sky's shadows add
+/// up to what the ground loses.
+pub fn sky_occlusion(ground_sun: f32, ground_sky: f32) -> f32 {
+    if ground_sun + ground_sky > 0.0 { (ground_sky / (ground_sun + ground_sky)).clamp(0.0, 1.0) } else { 0.0 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +169,16 @@ mod tests {
         assert!((shadow_opacity(3.0, 1.0) - 0.75).abs() < 1e-6);
         assert_eq!(shadow_opacity(0.0, 1.0), 0.0);
         assert_eq!(shadow_opacity(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn the_sun_and_sky_shares_make_up_the_grounds_light() {
+        // Sun 3, sky 1: the sky is a quarter of the ground's light; overcast (no sun): all of it.
+        assert!((sky_occlusion(3.0, 1.0) - 0.25).abs() < 1e-6);
+        assert_eq!(sky_occlusion(0.0, 2.0), 1.0);
+        assert_eq!(sky_occlusion(0.0, 0.0), 0.0);
+        for (sun, sky) in [(3.0, 1.0), (0.2, 5.0), (1.0, 0.0)] {
+            assert!((shadow_opacity(sun, sky) + sky_occlusion(sun, sky) - 1.0).abs() < 1e-6);
+        }
     }
 }

@@ -192,6 +192,9 @@ pub struct ModelGpu {
     /// Colour statistics of the model's texture (or diffuse colours), the correction's target;
     /// the reason when there are none (every texel masked out).
     pub colour: std::result::Result<ColourStats, String>,
+    /// The model's triangles in a BVH (model space): the ground's sky visibility is computed
+    /// against them once per placement.
+    pub occluders: occlusion::Occluders,
 }
 
 impl ModelGpu {
@@ -316,7 +319,8 @@ impl ModelPass {
             model.meshes.iter().map(|m| if m.indices.is_empty() { Ok(Vec::new()) } else { interleave(m) }).collect::<Result<Vec<_>>>()?;
         // Ambient occlusion, once per model: each vertex's share of the sky past the model itself.
         // Occluders reflect light too: the multi-bounce fit for the mesh material's albedo.
-        for ((vertices, ao), mesh) in vertex_lists.iter_mut().zip(occlusion::model_ao(model)).zip(&model.meshes) {
+        let occluders = occlusion::Occluders::of_model(model);
+        for ((vertices, ao), mesh) in vertex_lists.iter_mut().zip(occlusion::model_ao_with(model, &occluders)).zip(&model.meshes) {
             let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
             for (v, a) in vertices.iter_mut().zip(ao) {
                 v.ao = occlusion::multi_bounce(a, albedo);
@@ -370,7 +374,7 @@ impl ModelPass {
             bail!("the model has no triangles");
         }
         let colour = priors::model_priors(model).map(|p| p.stats).map_err(|e| format!("{e:#}"));
-        Ok(ModelGpu { meshes, bounds, lod_errors: chain.errors, lod_triangles: chain.triangles, materials, colour })
+        Ok(ModelGpu { meshes, bounds, lod_errors: chain.errors, lod_triangles: chain.triangles, materials, colour, occluders })
     }
 
     /// This frame's colour correction and material terms.

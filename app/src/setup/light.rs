@@ -137,6 +137,17 @@ pub fn shadow_opacity(ground_sun: f32, ground_sky: f32) -> f32 {
     crate::light::measure::shadow_strength(share, 1.0)
 }
 
+/// The ground pass's two strengths, `(shadow_opacity, sky_occlusion)`, for a frame whose sun
+/// (unit direction `sun_dir`) gives `sunlight` = E_sun/π (faded, multipliers applied) and whose
+/// sky gives the ground `ground_sky` (multipliers applied), each times the scene's
+/// `effects.shadow_opacity` `multiplier` and clamped to 0..1: what setup::lighting computes for a
+/// scene, and the live view for its moving sun.
+pub fn ground_strengths(sunlight: f32, sun_dir: Vec3, ground_sky: f32, multiplier: f32) -> (f32, f32) {
+    let ground_sun = sunlight * std::f32::consts::PI * sun_dir.normalize_or_zero().z.max(0.0);
+    let scaled = |v: f32| (multiplier * v).clamp(0.0, 1.0);
+    (scaled(shadow_opacity(ground_sun, ground_sky)), scaled(sky_occlusion(ground_sun, ground_sky)))
+}
+
 /// How dark the ground gets where the model hides all of its sky (the sun kept): the sky's share
 /// of the ground's irradiance. The ground pass scales it by the share of the cosine-weighted sky
 /// the model hides there (scene::occlusion::ground_sky), so the sun's and the sky's shadows add

@@ -188,6 +188,17 @@ mod tests {
         assert!((sky_occlusion(3.0, 1.0) - 0.25).abs() < 1e-6);
         assert_eq!(sky_occlusion(0.0, 2.0), 1.0);
         assert_eq!(sky_occlusion(0.0, 0.0), 0.0);
+        // E_sun/π = 1/π from straight up gives the ground 1, as much as the sky's 1: half each;
+        // the scene's multiplier scales both; a sun below the horizon leaves the sky's alone.
+        let pi = std::f32::consts::PI;
+        let (a, b) = ground_strengths(1.0 / pi, Vec3::Z, 1.0, 1.0);
+        assert!((a - 0.5).abs() < 1e-6 && (b - 0.5).abs() < 1e-6, "{a} {b}");
+        let (a, b) = ground_strengths(1.0 / pi, Vec3::Z * 3.0, 1.0, 0.5);
+        assert!((a - 0.25).abs() < 1e-6 && (b - 0.25).abs() < 1e-6, "{a} {b}");
+        // 30° up: the ground gets sin 30° = 1/2 of the sun's normal irradiance.
+        let (a, _) = ground_strengths(2.0 / pi, Vec3::new(0.0, 3f32.sqrt(), 1.0), 1.0, 1.0);
+        assert!((a - 0.5).abs() < 1e-6, "{a}");
+        assert_eq!(ground_strengths(1.0, Vec3::new(0.0, 1.0, -0.1), 1.0, 1.0), (0.0, 1.0));
         for (sun, sky) in [(3.0, 1.0), (0.2, 5.0), (1.0, 0.0)] {
             assert!((shadow_opacity(sun, sky) + sky_occlusion(sun, sky) - 1.0).abs() < 1e-6);
         }

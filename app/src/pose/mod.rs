@@ -18,6 +18,7 @@ pub mod hand_motion;
 pub mod hard_iron;
 pub mod magnetic;
 pub mod stability;
+pub mod sun_heading;
 pub mod tilt_compass;
 pub mod trace;
 

@@ -26,6 +26,7 @@ fn heading_source_name(s: Option<HeadingSource>) -> String {
     match s {
         Some(HeadingSource::Magnetometer) => "compass",
         Some(HeadingSource::GyroOnly) => "gyro-only",
+        Some(HeadingSource::Sun) => "sun",
         Some(HeadingSource::Platform) => "platform",
         Some(HeadingSource::Unknown) | None => "unknown",
     }

@@ -264,7 +264,7 @@ impl OrientationFilter {
     /// P·(1 − K). Returns the correction (radians), or None when the filter has no heading yet
     /// or the measurement is not finite and positive.
     pub fn sun_heading(&mut self, t: f64, error: f64, sigma: f64) -> Option<f64> {
-        if !self.initialised || !self.heading_known || !error.is_finite() || !(sigma.is_finite() && sigma > 0.0) {
+        if !(self.initialised && self.heading_known && error.is_finite() && sigma.is_finite() && sigma > 0.0) {
             return None;
         }
         self.t = self.t.max(t);

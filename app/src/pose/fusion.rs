@@ -31,11 +31,14 @@
 //! [`super::sun_heading`]): the sun seen in a frame gives the heading error of the estimate to
 //! a fraction of a degree. It is fused as a measurement of the heading (a Kalman update on yaw
 //! with the filter's heading 1σ as the prior and the measurement's own 1σ): the correction is
-//! blended into the output over [`SUN_BLEND_S`] (no visible snap) and the same amount is
-//! learnt as the compass's offset, so the magnetometer keeps correcting towards the
-//! sun-calibrated heading instead of pulling it back to its own steady error. The offset is
-//! exact only near the orientation it was measured at (a residual hard-iron error changes with
-//! orientation): the heading 1σ grows back towards the compass floor as the phone turns.
+//! blended into the output over [`SUN_BLEND_S`] (no visible snap). The compass's own error
+//! (its low-passed disagreement with the estimate less the measured error) is learnt as an
+//! offset, so the magnetometer then corrects towards the sun-calibrated heading instead of
+//! pulling it back to its steady error; and while the calibration is fresh the compass counts
+//! only by its share of the two variances (an undetected disturbance cannot drag the heading).
+//! The calibration's 1σ grows with time (k_mag × the compass floor per second: as fast as the
+//! compass can move the heading) and with turning (a residual hard-iron error changes with
+//! orientation), so the compass takes over again when the sun is no longer seen.
 
 use super::frames::{DisplayRotation, angle_difference, camera_pose_from_device};
 use super::hard_iron::HardIronCalibrator;
@@ -139,12 +142,16 @@ impl Default for FusionConfig {
 
 /// Time constant (s) over which a sun heading correction is blended into the estimate.
 pub const SUN_BLEND_S: f64 = 0.25;
+/// Time constant (s) of the compass disagreement the sun calibration learns the offset from.
+const COMPASS_LP_S: f64 = 0.5;
 /// Turning (radians, any axis) after which a sun calibration is worth no more than the compass.
 const SUN_VALID_TURN: f64 = std::f64::consts::FRAC_PI_2;
 
 /// A sun heading measurement taken into the filter.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct SunFix {
+    /// Time of the update (s).
+    t: f64,
     /// Heading 1σ right after the update (radians).
     sigma: f64,
     /// Rotation (radians) since the update.
@@ -214,6 +221,8 @@ pub struct OrientationFilter {
     /// Heading correction from the sun not yet blended in (radians, to subtract).
     pending_turn: f64,
     sun: Option<SunFix>,
+    /// Low-passed disagreement of the compass with the estimate (radians, before the offset).
+    compass_lp: Option<f64>,
 }
 
 impl OrientationFilter {
@@ -253,6 +262,7 @@ impl OrientationFilter {
             compass_offset: 0.0,
             pending_turn: 0.0,
             sun: None,
+            compass_lp: None,
         }
     }
 
@@ -275,9 +285,14 @@ impl OrientationFilter {
         let innovation = angle_difference(error, self.pending_turn);
         let correction = k * innovation;
         self.pending_turn += correction;
-        self.compass_offset = angle_difference(self.compass_offset, correction);
+        // The compass's own error now: its recent disagreement with the estimate less the
+        // estimate's measured error; the offset follows it (halfway per measurement).
+        if let Some(lp) = self.compass_lp {
+            let c = angle_difference(lp, error);
+            self.compass_offset = if self.sun.is_none() { c } else { self.compass_offset + 0.5 * angle_difference(c, self.compass_offset) };
+        }
         let after = (p * (1.0 - k)).sqrt();
-        self.sun = Some(SunFix { sigma: after, turned: 0.0 });
+        self.sun = Some(SunFix { t, sigma: after, turned: 0.0 });
         // A held or gyro-only heading restarts its drift from the calibrated value.
         if self.hold.is_some() {
             self.hold = Some((t, after));
@@ -527,10 +542,20 @@ impl OrientationFilter {
             if h > 0.1 * m.length() {
                 // Aimed at the sun-calibrated heading, less the part of a sun correction still
                 // being blended in (or the compass would correct it a second time).
-                let delta = angle_difference(mw.x.atan2(mw.y), self.applied_declination + self.compass_offset + self.pending_turn);
+                let raw = angle_difference(mw.x.atan2(mw.y), self.applied_declination);
+                let a = 1.0 - (-dt / COMPASS_LP_S).exp();
+                self.compass_lp = Some(self.compass_lp.map_or(raw, |lp| lp + a * angle_difference(raw, lp)));
+                let delta = angle_difference(raw, self.compass_offset + self.pending_turn);
+                // Against a fresh sun calibration the compass counts by its share of the two
+                // variances (a Kalman weighting): it barely moves a heading the sun has just
+                // measured, and takes over again as that measurement ages.
+                let weight = self.sun_sigma().map_or(1.0, |s| {
+                    let m = self.heading_sigma_mag();
+                    s * s / (s * s + m * m)
+                });
                 let z = self.up_in_device();
-                correction += self.cfg.k_mag * scale * delta * z;
-                bias_error += delta * z;
+                correction += self.cfg.k_mag * scale * weight * delta * z;
+                bias_error += weight * delta * z;
                 self.carried_heading_sigma *= (-self.cfg.k_mag * scale * dt).exp();
                 if !self.starting_up() {
                     self.mag_time += dt;
@@ -607,11 +632,16 @@ impl OrientationFilter {
     }
 
     /// Heading 1σ of the sun calibration now (radians): its value after the update, growing
-    /// towards the compass floor as the phone turns away from where it was measured.
+    /// towards the compass floor as the phone turns away from where it was measured, and with
+    /// time as fast as the compass can pull the heading when its error changes by the floor
+    /// (an undetected disturbance): k_mag × floor per second. This process noise keeps later
+    /// sun measurements weighty (a Kalman filter without it would trust its first fixes for
+    /// ever and let the compass drift the heading away).
     fn sun_sigma(&self) -> Option<f64> {
         let fix = self.sun?;
-        let grown = self.cfg.heading_floor * (fix.turned / SUN_VALID_TURN).min(1.0);
-        Some(fix.sigma.hypot(grown))
+        let turned = self.cfg.heading_floor * (fix.turned / SUN_VALID_TURN).min(1.0);
+        let aged = self.cfg.k_mag * self.cfg.heading_floor * (self.t - fix.t).max(0.0);
+        Some(fix.sigma.hypot(turned).hypot(aged))
     }
 
     fn heading_source(&self) -> HeadingSource {
@@ -894,6 +924,10 @@ mod tests {
         let k = f.sun_heading(20.0, before, sigma).unwrap() / before;
         let p = (f64::from(p0.heading_accuracy_deg).to_radians()).powi(2);
         assert!((k - p / (p + sigma * sigma)).abs() < 1e-9 && k > 0.997, "gain {k}");
+        // 1σ right after: sqrt(P(1 − K)), just under the measurement's 0.1°.
+        let right_after = f.pose(DisplayRotation::R0).unwrap();
+        assert!((f64::from(right_after.heading_accuracy_deg) - (p * (1.0 - k)).sqrt().to_degrees()).abs() < 1e-3);
+        assert_eq!(right_after.heading_source, HeadingSource::Sun);
         // Not a jump: blended in over 0.25 s; a frame later (10 ms) only ~4 % has moved.
         feed_rotation(&mut f, dev, DVec3::ZERO, 20.0, 0.01, turned);
         let moved = before - heading_error(&f, dev);
@@ -901,13 +935,17 @@ mod tests {
         feed_rotation(&mut f, dev, DVec3::ZERO, 20.01, 2.0, turned);
         let after = heading_error(&f, dev);
         assert!(after.to_degrees().abs() < 0.02, "after the sun {}°", after.to_degrees());
+        // 2 s on, the calibration's 1σ has grown by k_mag × 2° floor per second (0.8°), still
+        // below the compass's.
         let p1 = f.pose(DisplayRotation::R0).unwrap();
         assert_eq!(p1.heading_source, HeadingSource::Sun);
-        assert!(p1.heading_accuracy_deg < 0.2, "{}", p1.heading_accuracy_deg);
-        // The compass keeps correcting, now towards the calibrated heading: 30 s later still
-        // right, and the learnt offset is the compass's 3° error.
+        assert!((p1.heading_accuracy_deg - 0.81).abs() < 0.02, "{}", p1.heading_accuracy_deg);
+        // The compass keeps correcting, now towards the calibrated heading: 30 s later (the
+        // calibration aged: the source is the compass again) still right, and the learnt
+        // offset is the compass's 3° error.
         feed_rotation(&mut f, dev, DVec3::ZERO, 22.01, 30.0, turned);
         assert!(heading_error(&f, dev).to_degrees().abs() < 0.02, "{}°", heading_error(&f, dev).to_degrees());
+        assert_eq!(f.pose(DisplayRotation::R0).unwrap().heading_source, HeadingSource::Magnetometer);
         // The learnt offset: the field is seen 3° clockwise of where the model puts it.
         assert!((f.compass_offset().to_degrees() - 3.0).abs() < 0.05, "offset {}°", f.compass_offset().to_degrees());
         // No heading yet, a NaN error or a non-positive σ: not taken.

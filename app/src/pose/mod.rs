@@ -19,6 +19,7 @@ pub mod hard_iron;
 pub mod magnetic;
 pub mod stability;
 pub mod sun_heading;
+pub mod sun_study;
 pub mod tilt_compass;
 pub mod trace;
 

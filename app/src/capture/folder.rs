@@ -237,13 +237,19 @@ impl CubeCapture {
         &self.faces[face.layer()]
     }
 
-    /// True north from the sun: find the sun in the faces ([`crate::pose::sun_heading`]), compare
-    /// its azimuth (through the reference heading) with `sun_enu` (SPA's direction for the
-    /// capture's place and time; None when either is unknown), and when it agrees in elevation,
-    /// turn the reference heading and every recorded pose by the measured error. The metadata's
+    /// True north from the sun: take the heading error measured on the shots' short-exposure
+    /// frames (`from_frames`, [`crate::pose::sun_heading`]; the shots' poses place the faces), or
+    /// else find the sun in the faces (works when they are not clipped around the sun) and
+    /// compare its azimuth (through the reference heading) with `sun_enu` (SPA's direction for
+    /// the capture's place and time; None when either is unknown); then turn the reference
+    /// heading and every recorded pose by the measured error. The metadata's
     /// `heading` says what happened: source "sun" with the measurement's 1σ, or the magnetic
     /// heading kept and why. Returns the correction applied (degrees, clockwise).
-    pub fn calibrate_north_with_sun(&mut self, sun_enu: Option<glam::Vec3>) -> Option<f64> {
+    pub fn calibrate_north_with_sun(
+        &mut self,
+        sun_enu: Option<glam::Vec3>,
+        from_frames: Option<crate::pose::sun_heading::HeadingMeasurement>,
+    ) -> Option<f64> {
         use crate::pose::sun_heading::{heading_measurement, sight_sun_in_capture};
         let kept = self.meta.heading.clone().unwrap_or(HeadingMeta {
             source: "magnetometer".into(),
@@ -259,12 +265,18 @@ impl CubeCapture {
         if sun.z <= 0.0 {
             return keep(&mut self.meta, "the sun is below the horizon");
         }
-        let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians()) else {
-            return keep(&mut self.meta, "no sun in the capture (clouds, or not in view)");
-        };
-        // The faces are levelled by the accelerometer: its 0.5° floor is the tilt 1σ.
-        let Some(m) = heading_measurement(&seen, sun, 0.5f64.to_radians()) else {
-            return keep(&mut self.meta, "the brightest spot is not where the sun is");
+        let (m, seen_in) = match from_frames {
+            Some(m) => (m, "the shots' short-exposure frames"),
+            None => {
+                let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians()) else {
+                    return keep(&mut self.meta, "no sun in the capture (clouds, or not in view)");
+                };
+                // The faces are levelled by the accelerometer: its 0.5° floor is the tilt 1σ.
+                let Some(m) = heading_measurement(&seen, sun, 0.5f64.to_radians()) else {
+                    return keep(&mut self.meta, "the brightest spot is not where the sun is");
+                };
+                (m, "the faces")
+            }
         };
         let turn = -m.error.to_degrees();
         self.meta.reference_heading_deg = (self.meta.reference_heading_deg + turn).rem_euclid(360.0);
@@ -285,7 +297,7 @@ impl CubeCapture {
             accuracy_deg: Some(m.sigma.to_degrees()),
             sun_correction_deg: Some(turn),
             note: format!(
-                "sun seen {:.2}° from SPA's azimuth (elevation {:+.2}°)",
+                "sun seen in {seen_in} {:.2}° from SPA's azimuth (elevation {:+.2}°)",
                 m.error.to_degrees(),
                 m.elevation_difference.to_degrees()
             ),

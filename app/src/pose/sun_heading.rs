@@ -180,6 +180,40 @@ pub fn sight_sun_in_capture(cube: &CubeMap, reference_heading: f64) -> Option<Su
     })
 }
 
+/// Exposure of the frame taken to measure the sun, relative to the scene's exposure (−4 EV,
+/// a phone's usual bracket step): at a scene exposure the whole sky around a low sun clips
+/// into a blob degrees wide and lopsided towards the haze (quarry_01 at the capture's locked
+/// exposure: 0.02 sr, ring contrast 1.1), at −4 EV only the disc and the inner aureole do.
+pub const SUN_FRAME_EXPOSURE: f32 = 1.0 / 16.0;
+
+/// Whether the direction `sun` (ENU) falls inside a `width`×`height` frame with vertical field
+/// of view `vfov_deg` at `pose`, at least `margin_deg` from its edges.
+pub fn sun_in_view(pose: Quat, sun: Vec3, vfov_deg: f32, width: u32, height: u32, margin_deg: f32) -> bool {
+    let c = pose.inverse() * sun;
+    if c.z >= 0.0 {
+        return false;
+    }
+    let tan_v = (0.5 * vfov_deg.to_radians()).tan();
+    let tan_h = tan_v * width as f32 / height as f32;
+    let (x, y) = ((c.x / -c.z).atan(), (c.y / -c.z).atan());
+    let m = margin_deg.to_radians();
+    x.abs() <= tan_h.atan() - m && y.abs() <= tan_v.atan() - m
+}
+
+/// Several measurements of one heading error, combined by inverse variance (the errors are
+/// wrapped about the first, so a set straddling ±180° averages correctly).
+pub fn combine(ms: &[HeadingMeasurement]) -> Option<HeadingMeasurement> {
+    let first = ms.first()?;
+    let (mut w, mut e, mut el) = (0.0, 0.0, 0.0);
+    for m in ms {
+        let wi = 1.0 / (m.sigma * m.sigma);
+        w += wi;
+        e += wi * wrap_pi(m.error - first.error);
+        el += wi * m.elevation_difference;
+    }
+    Some(HeadingMeasurement { error: wrap_pi(first.error + e / w), sigma: w.sqrt().recip(), elevation_difference: el / w })
+}
+
 /// Wrap an angle to (−π, π].
 fn wrap_pi(a: f64) -> f64 {
     let w = a.rem_euclid(std::f64::consts::TAU);
@@ -338,6 +372,25 @@ mod tests {
         let n = SunSighting { dir_world: dir(359.0, 10.0), ..s };
         let m = heading_measurement(&n, dir(1.0, 10.0), 0.0).unwrap();
         assert!((m.error.to_degrees() + 2.0).abs() < 1e-3, "{}", m.error.to_degrees());
+    }
+
+    #[test]
+    fn view_test_and_inverse_variance_combination() {
+        // Heading 200°, the frame 50° high and 66.7° wide (4:3): a sun 30° right is in view,
+        // 35° right is not, and 30° right with a 3° margin is not either (half width 33.4°).
+        let pose = from_heading_pitch_roll(200f64.to_radians(), 0.0, 0.0).as_quat();
+        assert!(sun_in_view(pose, dir(230.0, 0.0), 50.0, 320, 240, 0.0));
+        assert!(!sun_in_view(pose, dir(235.0, 0.0), 50.0, 320, 240, 0.0));
+        assert!(!sun_in_view(pose, dir(230.0, 0.0), 50.0, 320, 240, 3.5));
+        assert!(!sun_in_view(pose, dir(20.0, 0.0), 50.0, 320, 240, 0.0));
+        // 1° ± 0.1° and 2° ± 0.2°: weights 100 and 25 → 1.2° ± 0.0894°.
+        let m = |e: f64, s: f64| HeadingMeasurement { error: e.to_radians(), sigma: s.to_radians(), elevation_difference: 0.0 };
+        let c = combine(&[m(1.0, 0.1), m(2.0, 0.2)]).unwrap();
+        assert!((c.error.to_degrees() - 1.2).abs() < 1e-9 && (c.sigma.to_degrees() - 0.1 / 1.25f64.sqrt()).abs() < 1e-9, "{c:?}");
+        // Across ±180°: 179° and −179° average to 180°.
+        let c = combine(&[m(179.0, 1.0), m(-179.0, 1.0)]).unwrap();
+        assert!((c.error.to_degrees().abs() - 180.0).abs() < 1e-9, "{}", c.error.to_degrees());
+        assert!(combine(&[]).is_none());
     }
 
     #[test]

@@ -61,7 +61,7 @@ pub struct FaceMeta {
     pub heading_deg: f64,
     pub pitch_deg: f64,
     pub roll_deg: f64,
-    /// "compass", "gyro-only", "platform" or "unknown".
+    /// "compass", "sun", "gyro-only", "platform" or "unknown".
     pub heading_source: String,
     /// The pose filter's own 1σ accuracy estimate (degrees); null when not known.
     pub accuracy_deg: Option<f32>,

@@ -200,20 +200,6 @@ pub fn sun_in_view(pose: Quat, sun: Vec3, vfov_deg: f32, width: u32, height: u32
     x.abs() <= tan_h.atan() - m && y.abs() <= tan_v.atan() - m
 }
 
-/// Several measurements of one heading error, combined by inverse variance (the errors are
-/// wrapped about the first, so a set straddling ±180° averages correctly).
-pub fn combine(ms: &[HeadingMeasurement]) -> Option<HeadingMeasurement> {
-    let first = ms.first()?;
-    let (mut w, mut e, mut el) = (0.0, 0.0, 0.0);
-    for m in ms {
-        let wi = 1.0 / (m.sigma * m.sigma);
-        w += wi;
-        e += wi * wrap_pi(m.error - first.error);
-        el += wi * m.elevation_difference;
-    }
-    Some(HeadingMeasurement { error: wrap_pi(first.error + e / w), sigma: w.sqrt().recip(), elevation_difference: el / w })
-}
-
 /// Wrap an angle to (−π, π].
 fn wrap_pi(a: f64) -> f64 {
     let w = a.rem_euclid(std::f64::consts::TAU);
@@ -375,7 +361,7 @@ mod tests {
     }
 
     #[test]
-    fn view_test_and_inverse_variance_combination() {
+    fn the_sun_is_in_view_inside_the_frame_and_its_margin() {
         // Heading 200°, the frame 50° high and 66.7° wide (4:3): a sun 30° right is in view,
         // 35° right is not, and 30° right with a 3° margin is not either (half width 33.4°).
         let pose = from_heading_pitch_roll(200f64.to_radians(), 0.0, 0.0).as_quat();
@@ -383,14 +369,6 @@ mod tests {
         assert!(!sun_in_view(pose, dir(235.0, 0.0), 50.0, 320, 240, 0.0));
         assert!(!sun_in_view(pose, dir(230.0, 0.0), 50.0, 320, 240, 3.5));
         assert!(!sun_in_view(pose, dir(20.0, 0.0), 50.0, 320, 240, 0.0));
-        // 1° ± 0.1° and 2° ± 0.2°: weights 100 and 25 → 1.2° ± 0.0894°.
-        let m = |e: f64, s: f64| HeadingMeasurement { error: e.to_radians(), sigma: s.to_radians(), elevation_difference: 0.0 };
-        let c = combine(&[m(1.0, 0.1), m(2.0, 0.2)]).unwrap();
-        assert!((c.error.to_degrees() - 1.2).abs() < 1e-9 && (c.sigma.to_degrees() - 0.1 / 1.25f64.sqrt()).abs() < 1e-9, "{c:?}");
-        // Across ±180°: 179° and −179° average to 180°.
-        let c = combine(&[m(179.0, 1.0), m(-179.0, 1.0)]).unwrap();
-        assert!((c.error.to_degrees().abs() - 180.0).abs() < 1e-9, "{}", c.error.to_degrees());
-        assert!(combine(&[]).is_none());
     }
 
     #[test]

@@ -81,7 +81,7 @@ impl Default for ReplayConfig {
             disturbances: Vec::new(),
             score: true,
             render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            align: false,
+            align: true,
             clock: None,
         }
     }
@@ -117,6 +117,12 @@ pub struct FaceReport {
     pub psnr_db: Option<f64>,
     /// Mean FLIP error against the ideal face (0 = identical).
     pub mean_flip: Option<f32>,
+    /// PSNR and mean FLIP against the ideal face at the front shot's *true* heading: what the
+    /// stitch itself got right (seams, misplaced shots), without the reference heading's own
+    /// error (the compass's, [`ReplayResult::reference_heading_error_deg`]), which turns every
+    /// face alike and which true north from the sun corrects.
+    pub stitch_psnr_db: Option<f64>,
+    pub stitch_flip: Option<f32>,
     pub heading_source: String,
 }
 
@@ -147,6 +153,9 @@ pub struct ReplayResult {
     pub shot_t: Vec<Option<f64>>,
     /// The assistant's reference heading (degrees), once the front was taken.
     pub reference_heading_deg: Option<f64>,
+    /// The reference heading minus the front shot's true heading (degrees, −180..180), once
+    /// the front was taken.
+    pub reference_heading_error_deg: Option<f64>,
 }
 
 impl ReplayResult {
@@ -314,6 +323,9 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         taken,
         shot_t,
         reference_heading_deg: assistant.reference_heading_deg(),
+        reference_heading_error_deg: tapped
+            .zip(assistant.reference_heading_deg())
+            .map(|(t, href)| crate::pose::frames::heading_difference_deg(href, front_true_heading_deg(trace, t))),
     };
     match finished {
         Err(e) => result.incomplete = Some(format!("{e:#}")),
@@ -472,6 +484,11 @@ pub fn replay_guided(
     }
 }
 
+/// True heading (degrees) of the camera at time `t` of `trace`.
+fn front_true_heading_deg(trace: &TruthTrace, t: f64) -> f64 {
+    crate::pose::frames::heading_pitch_roll(trace.orientation_at(t)).heading.to_degrees()
+}
+
 fn quat_of(wxyz: [f64; 4]) -> DQuat {
     DQuat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0]).normalize()
 }
@@ -481,17 +498,20 @@ fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool)
     let meta = &capture.meta;
     let exposure = meta.exposure.context("the capture has no locked exposure to score against")?;
     let error = |t: f64, wxyz: [f64; 4]| angle_between(quat_of(wxyz), trace.orientation_at(t)).to_degrees();
+    // The tap is the first shot.
+    let tap_t = meta.shots.iter().map(|s| s.t).fold(f64::INFINITY, f64::min);
+    let true_front = front_true_heading_deg(trace, if tap_t.is_finite() { tap_t } else { trace.start() });
     let mut out = Vec::with_capacity(6);
     for face in Face::ALL {
         let fm = meta.face(face).with_context(|| format!("capture metadata has no {} face", face.name()))?;
         let img = capture.face(face);
         let max_shot = meta.shots.iter().filter(|s| s.face == face).map(|s| error(s.t, s.pose_wxyz)).fold(0.0, f64::max);
-        let (psnr_db, flip) = if images {
-            let ideal = ideal_face(env, meta.reference_heading_deg, face, img.size, exposure);
+        let scores = |heading: f64| {
+            let ideal = ideal_face(env, heading, face, img.size, exposure);
             (psnr(&ideal, &img.rgb), mean_flip(&ideal, &img.rgb, img.size, img.size))
-        } else {
-            (None, None)
         };
+        let ((psnr_db, flip), (stitch_psnr_db, stitch_flip)) =
+            if images { (scores(meta.reference_heading_deg), scores(true_front)) } else { ((None, None), (None, None)) };
         out.push(FaceReport {
             face,
             capture_t: fm.t,
@@ -500,6 +520,8 @@ fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool)
             coverage: img.coverage,
             psnr_db,
             mean_flip: flip,
+            stitch_psnr_db,
+            stitch_flip,
             heading_source: fm.heading_source.clone(),
         });
     }

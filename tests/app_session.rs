@@ -9,7 +9,7 @@ mod common;
 use common::cli::{previz, tempdir};
 use common::{gpu, inputs, scene};
 use previz::capture::load_capture;
-use previz::live::app::{App, AppMode};
+use previz::live::app::{App, AppMode, PERMISSION_POLL_FRAMES, PermissionSource};
 use previz::live::export::FILES;
 use previz::live::{LiveConfig, LiveSession, Sources};
 use previz::render::{FrameParams, Rendered, Timings};
@@ -18,7 +18,7 @@ use previz::sensors::permissions::Answer;
 use previz::sensors::sim::NoiseLevel;
 use previz::setup::exposure;
 use previz::ui::headless::HeadlessUi;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 const W: u32 = 480;
 const H: u32 = 320;
@@ -211,6 +211,79 @@ fn capture_then_composite_with_it_then_export() {
     assert!(flip <= 0.02, "mean FLIP {flip} between the exported frame and its recomposite\n{toml}");
 }
 
+/// A platform's permission answers (test double of the phone shells' `PermissionSource`): the
+/// camera's answer as the test sets it, location granted; "Ask again" counted, and answered with
+/// `on_ask` when set.
+#[derive(Clone)]
+struct Platform {
+    state: Arc<Mutex<PlatformState>>,
+}
+
+struct PlatformState {
+    camera: Answer,
+    reads: u32,
+    asked: u32,
+    on_ask: Option<Answer>,
+}
+
+impl Platform {
+    fn new(camera: Answer) -> Platform {
+        Platform { state: Arc::new(Mutex::new(PlatformState { camera, reads: 0, asked: 0, on_ask: None })) }
+    }
+}
+
+impl PermissionSource for Platform {
+    fn answers(&mut self) -> anyhow::Result<(Answer, Answer)> {
+        let mut s = self.state.lock().unwrap();
+        s.reads += 1;
+        Ok((s.camera, Answer::Granted))
+    }
+
+    fn ask_again(&mut self) -> anyhow::Result<()> {
+        let mut s = self.state.lock().unwrap();
+        s.asked += 1;
+        if let Some(a) = s.on_ask {
+            s.camera = a;
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn permissions_answered_while_the_app_runs_start_and_stop_the_picture() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
+    let mut app = App::new(session, tempdir("app_session", "platform"));
+    // The system dialog is up: the app runs (a phone camera would give grey frames).
+    let platform = Platform::new(Answer::Pending);
+    app.set_permission_source(Box::new(platform.clone()));
+    assert!(app.frame(gpu()).unwrap());
+    let t0 = app.last_frame().expect("frames advance while the answer is pending").t;
+    // The user refuses: within one poll interval the frames stop and the refusal screen shows.
+    platform.state.lock().unwrap().camera = Answer::DeniedForever;
+    for _ in 0..PERMISSION_POLL_FRAMES {
+        app.frame(gpu()).unwrap();
+    }
+    assert_eq!(app.permissions().0, Answer::DeniedForever);
+    let stopped = app.last_frame().unwrap().t;
+    assert!(stopped > t0);
+    for _ in 0..3 {
+        app.frame(gpu()).unwrap();
+    }
+    assert_eq!(app.last_frame().unwrap().t, stopped, "no frame advances while the camera is refused");
+    // Allowed in the settings: read at the next poll, the frames go on.
+    platform.state.lock().unwrap().camera = Answer::Granted;
+    for _ in 0..PERMISSION_POLL_FRAMES {
+        app.frame(gpu()).unwrap();
+    }
+    assert_eq!(app.permissions().0, Answer::Granted);
+    assert!(app.last_frame().unwrap().t > stopped);
+    // Read once at set-up and once per PERMISSION_POLL_FRAMES frames (3 + 2 polls' worth).
+    let frames = 1 + 2 * PERMISSION_POLL_FRAMES + 3;
+    assert_eq!(platform.state.lock().unwrap().reads, 1 + frames / PERMISSION_POLL_FRAMES);
+}
+
 #[test]
 fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_manual_place() {
     // The environment is declared a capture of this place and moment: the sun follows the
@@ -244,11 +317,15 @@ fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_m
         let img = ui.render(gpu(), &black, |ctx| app.ui(ctx, None, "")).unwrap();
         Rendered { width: img.width, height: img.height, rgba: img.pixels, timings: Timings::default() }
     });
-    // Refused once: "Ask again" asks the shell to ask the system again.
-    app.set_permissions(Answer::Denied, Answer::Granted);
+    // Refused once: "Ask again" reaches the platform once, and its new answer is read at once.
+    let platform = Platform::new(Answer::Denied);
+    app.set_permission_source(Box::new(platform.clone()));
+    assert_eq!(app.permissions(), (Answer::Denied, Answer::Granted));
     click(&ctx, &mut app, "Ask again");
+    platform.state.lock().unwrap().on_ask = Some(Answer::Granted);
     app.apply(gpu()).unwrap();
-    assert!(app.take_permission_request() && !app.take_permission_request());
+    assert_eq!(platform.state.lock().unwrap().asked, 1);
+    assert_eq!(app.permissions(), (Answer::Granted, Answer::Granted));
 
     // Location refused: the composite runs, the sun comes from the place and time set by hand.
     app.set_permissions(Answer::Granted, Answer::Denied);

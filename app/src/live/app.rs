@@ -118,6 +118,20 @@ struct Requests {
     ask_permissions: bool,
 }
 
+/// The platform's permission answers, read by the app while it runs (the phone shells: Android
+/// through JNI, iOS through AVFoundation and Core Location; the desktop has none and everything
+/// is allowed).
+pub trait PermissionSource {
+    /// The camera's and location's answers now.
+    fn answers(&mut self) -> Result<(Answer, Answer)>;
+    /// The user pressed "Ask again" on the refusal screen: ask the system again.
+    fn ask_again(&mut self) -> Result<()>;
+}
+
+/// The app reads the platform's answers every this many frames (about twice a second on a
+/// phone): the user may allow or refuse in the system dialog or the settings at any time.
+pub const PERMISSION_POLL_FRAMES: u32 = 15;
+
 /// The interactive app (module docs).
 pub struct App {
     session: LiveSession,
@@ -139,7 +153,9 @@ pub struct App {
     script: VecDeque<Step>,
     last_export: Option<PathBuf>,
     captured: Option<PathBuf>,
-    ask_permissions: bool,
+    permissions: Option<Box<dyn PermissionSource>>,
+    /// Frames since the answers were last read.
+    since_poll: u32,
     quit: bool,
 }
 
@@ -180,7 +196,8 @@ impl App {
             script: VecDeque::new(),
             last_export: None,
             captured: None,
-            ask_permissions: false,
+            permissions: None,
+            since_poll: 0,
             quit: false,
         }
     }
@@ -191,10 +208,25 @@ impl App {
         self.location_permission = location;
     }
 
-    /// True once after the user pressed "Ask again" on the refusal screen (the shell asks the
-    /// system again).
-    pub fn take_permission_request(&mut self) -> bool {
-        std::mem::take(&mut self.ask_permissions)
+    /// The platform's answers, read now and every [`PERMISSION_POLL_FRAMES`] frames; "Ask
+    /// again" reaches it.
+    pub fn set_permission_source(&mut self, source: Box<dyn PermissionSource>) {
+        self.permissions = Some(source);
+        self.poll_permissions();
+    }
+
+    /// Read the platform's answers (an error goes to the status line; the answers stay).
+    fn poll_permissions(&mut self) {
+        self.since_poll = 0;
+        let Some(source) = &mut self.permissions else { return };
+        match source.answers() {
+            Ok((camera, location)) => self.set_permissions(camera, location),
+            Err(e) => self.status = format!("cannot read the permissions: {e:#}"),
+        }
+    }
+
+    pub fn permissions(&self) -> (Answer, Answer) {
+        (self.camera_permission, self.location_permission)
     }
 
     /// Run these steps, in order, each as soon as the app can.
@@ -316,6 +348,10 @@ impl App {
     pub fn frame(&mut self, gpu: &Gpu) -> Result<bool> {
         if self.quit || self.script.front() == Some(&Step::Quit) {
             return Ok(false);
+        }
+        self.since_poll += 1;
+        if self.since_poll >= PERMISSION_POLL_FRAMES {
+            self.poll_permissions();
         }
         if refused(self.camera_permission) {
             return Ok(true);
@@ -544,8 +580,13 @@ impl App {
     /// returned.
     pub fn apply(&mut self, gpu: &Gpu) -> Result<()> {
         let r = std::mem::take(&mut self.requests);
-        self.ask_permissions |= r.ask_permissions;
         let mut result = Ok(());
+        if r.ask_permissions {
+            if let Some(source) = &mut self.permissions {
+                result = source.ask_again();
+            }
+            self.poll_permissions();
+        }
         if r.reset {
             self.controls = Controls { open: self.controls.open, ..self.initial.0 };
             self.session.params_mut().placement = self.initial.1;

@@ -77,11 +77,12 @@ fn touch(id: u64, phase: winit::event::TouchPhase, at: glam::Vec2) -> winit::eve
 /// One egui pass of the app at the screen's size with `events`; the font atlas uploads a
 /// renderer would take are drained.
 fn pass(ctx: &egui::Context, app: &mut App, events: Vec<egui::Event>) -> egui::FullOutput {
-    let input = egui::RawInput {
-        screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(W as f32, H as f32))),
-        events,
-        ..Default::default()
-    };
+    pass_at(ctx, app, events, egui::vec2(W as f32, H as f32))
+}
+
+/// [`pass`] on a screen of `size` points.
+fn pass_at(ctx: &egui::Context, app: &mut App, events: Vec<egui::Event>, size: egui::Vec2) -> egui::FullOutput {
+    let input = egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, size)), events, ..Default::default() };
     let mut out = ctx.run_pass(input, |ctx| app.ui(ctx, None, ""));
     out.textures_delta.set.drain().for_each(drop);
     out.textures_delta.free.drain().for_each(drop);
@@ -90,6 +91,12 @@ fn pass(ctx: &egui::Context, app: &mut App, events: Vec<egui::Event>) -> egui::F
 
 /// Click the button labelled `label` with synthetic pointer events.
 fn click(ctx: &egui::Context, app: &mut App, label: &str) {
+    click_at(ctx, app, label, egui::vec2(W as f32, H as f32));
+}
+
+/// [`click`] on a screen of `size` points.
+fn click_at(ctx: &egui::Context, app: &mut App, label: &str, size: egui::Vec2) {
+    let pass = |ctx: &egui::Context, app: &mut App, events| pass_at(ctx, app, events, size);
     pass(ctx, app, vec![]);
     let out = pass(ctx, app, vec![]);
     let at = out
@@ -330,6 +337,10 @@ fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_m
     // Location refused: the composite runs, the sun comes from the place and time set by hand.
     app.set_permissions(Answer::Granted, Answer::Denied);
     assert!(app.frame(gpu()).unwrap());
+    // On the desktop's window (at phone sizes the model panel holds the same fields, scrolled:
+    // composite_panels_never_overlap_at_phone_sizes_portrait_and_landscape).
+    let desktop = egui::vec2(1280.0, 800.0);
+    let pass = |ctx: &egui::Context, app: &mut App, events| pass_at(ctx, app, events, desktop);
     let ctx = egui::Context::default();
     pass(&ctx, &mut app, vec![]);
     let out = pass(&ctx, &mut app, vec![]);
@@ -348,7 +359,7 @@ fn camera_refused_shows_what_is_missing_and_location_refused_composites_with_a_m
     let select_all =
         egui::Event::Key { key: egui::Key::A, physical_key: None, pressed: true, repeat: false, modifiers: egui::Modifiers::COMMAND };
     pass(&ctx, &mut app, vec![select_all, egui::Event::Text("2026-06-21T00:00:00Z".into())]);
-    click(&ctx, &mut app, "set place and time");
+    click_at(&ctx, &mut app, "set place and time", desktop);
     app.apply(gpu()).unwrap();
     assert_eq!(app.session().config().start.to_rfc3339(), "2026-06-21T00:00:00+00:00");
     // Midnight in Bristol at midsummer: the sun is below the horizon, no sunlight.
@@ -407,6 +418,71 @@ fn x_y_z_sliders_turn_the_model_by_the_dragged_angle() {
         let turned = [r.x, r.y, r.z][axis].to_degrees();
         assert!((turned - 180.0).abs() < 1e-3, "{label} dragged to the right end: the model turned {turned}° about {label}");
         assert_eq!(app.controls().rotation_deg[axis], 180.0);
+    }
+}
+
+/// The rectangles egui drew the composite mode's panels in, after a few passes of the app's UI
+/// on a `w`×`h` screen.
+fn panel_rects(app: &mut App, w: f32, h: f32) -> Vec<(&'static str, egui::Rect)> {
+    use previz::ui::layout::{BAR_ID, CONTROLS_ID, MODEL_ID, STATUS_ID};
+    let ctx = egui::Context::default();
+    ctx.all_styles_mut(|s| s.animation_time = 0.0);
+    for _ in 0..3 {
+        let input =
+            egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(w, h))), ..Default::default() };
+        let mut out = ctx.run_pass(input, |ctx| app.ui(ctx, None, "15.0 fps"));
+        out.textures_delta.set.drain().for_each(drop);
+        out.textures_delta.free.drain().for_each(drop);
+    }
+    [("status", STATUS_ID), ("model", MODEL_ID), ("controls", CONTROLS_ID), ("bar", BAR_ID)]
+        .into_iter()
+        .map(|(name, id)| (name, ctx.memory(|m| m.area_rect(egui::Id::unique(id))).unwrap_or_else(|| panic!("{w}x{h}: no {name} panel"))))
+        .collect()
+}
+
+#[test]
+fn composite_panels_never_overlap_at_phone_sizes_portrait_and_landscape() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
+    let mut app = App::new(session, tempdir("app_session", "layout"));
+    for _ in 0..40 {
+        app.frame(gpu()).unwrap();
+    }
+    // Phone screens in points (Android 360x640, iPhone 390x844) both ways, the golden's size;
+    // with location allowed and refused (the model panel then holds the manual place and time).
+    for location in [Answer::Granted, Answer::Denied] {
+        app.set_permissions(Answer::Granted, location);
+        for (w, h) in [(360.0, 640.0), (640.0, 360.0), (390.0, 844.0), (844.0, 390.0), (480.0, 320.0)] {
+            let rects = panel_rects(&mut app, w, h);
+            let screen = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(w, h));
+            for (name, r) in &rects {
+                assert!(screen.contains_rect(*r), "{w}x{h} {location:?}: {name} {r:?} leaves the screen");
+            }
+            for (i, (a, ra)) in rects.iter().enumerate() {
+                for (b, rb) in &rects[i + 1..] {
+                    assert!(!ra.intersects(*rb), "{w}x{h} {location:?}: {a} {ra:?} overlaps {b} {rb:?}");
+                }
+            }
+        }
+    }
+    // Goldens of a phone in portrait and in landscape (looked at).
+    for (name, w, h) in [("app_composite_portrait", 360, 640), ("app_composite_landscape", 640, 360)] {
+        let s = scene(&SCENE.replace("width = 480\nheight = 320", &format!("width = {w}\nheight = {h}")));
+        assert_eq!((s.width, s.height), (w, h));
+        let inp = inputs(&s);
+        let session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, config()).unwrap();
+        let mut app = App::new(session, tempdir("app_session", name));
+        for _ in 0..40 {
+            app.frame(gpu()).unwrap();
+        }
+        let mut ui = HeadlessUi::new(gpu(), w, h, 1.0).unwrap();
+        ui.context().all_styles_mut(|s| s.animation_time = 0.0);
+        let frame = app.session_mut().render(gpu()).unwrap();
+        let background = Rgba8Image { width: frame.width, height: frame.height, pixels: frame.rgba };
+        ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
+        let img = ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
+        common::assert_golden(name, &Rendered { width: img.width, height: img.height, rgba: img.pixels, timings: Timings::default() });
     }
 }
 

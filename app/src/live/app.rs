@@ -491,49 +491,63 @@ impl App {
     }
 
     fn composite_ui(&mut self, ctx: &egui::Context, perf: &str) {
+        use crate::ui::layout::{BAR_ID, MODEL_ID, STATUS_ID, composite_regions};
+        // Each panel in its own part of the screen, none over another (ui::layout).
+        let regions = composite_regions(ctx.content_rect());
         let sensors = self.session.sensors();
-        egui::Window::new("previz live").anchor(egui::Align2::LEFT_TOP, egui::vec2(8.0, 8.0)).resizable(false).show(ctx, |ui| {
-            ui.label(perf);
-            for line in status_lines(self.last.as_ref(), &sensors) {
-                ui.label(line);
-            }
-            let env = self.session.scene().environment.as_deref().map_or_else(|| "demo".to_string(), file_label);
-            ui.label(format!("environment: {env}"));
-        });
+        egui::Window::new("previz live").id(egui::Id::unique(STATUS_ID)).fixed_rect(regions.status).vscroll(true).collapsible(true).show(
+            ctx,
+            |ui| {
+                ui.label(perf);
+                for line in status_lines(self.last.as_ref(), &sensors) {
+                    ui.label(line);
+                }
+                let env = self.session.scene().environment.as_deref().map_or_else(|| "demo".to_string(), file_label);
+                ui.label(format!("environment: {env}"));
+            },
+        );
         let mut controls = self.controls;
-        self.requests.reset |= controls.show(ctx);
+        self.requests.reset |= controls.show(ctx, regions.controls);
         if controls != self.controls {
             self.controls = controls;
             self.session.set_controls(controls);
         }
-        egui::Window::new("model").anchor(egui::Align2::LEFT_BOTTOM, egui::vec2(8.0, -8.0)).resizable(false).show(ctx, |ui| {
-            let mut chosen = self.model;
-            egui::ComboBox::from_label("model").selected_text(self.models[self.model].name.clone()).show_ui(ui, |ui| {
-                for (i, m) in self.models.iter().enumerate() {
-                    ui.selectable_value(&mut chosen, i, m.name.clone());
+        egui::Window::new("model").id(egui::Id::unique(MODEL_ID)).fixed_rect(regions.model).vscroll(true).collapsible(true).show(
+            ctx,
+            |ui| {
+                let mut chosen = self.model;
+                egui::ComboBox::from_id_salt("model-picker")
+                    .selected_text(self.models[self.model].name.clone())
+                    .width(ui.available_width() - 8.0)
+                    .show_ui(ui, |ui| {
+                        for (i, m) in self.models.iter().enumerate() {
+                            ui.selectable_value(&mut chosen, i, m.name.clone());
+                        }
+                    });
+                if chosen != self.model {
+                    self.requests.model = Some(chosen);
                 }
-            });
-            if chosen != self.model {
-                self.requests.model = Some(chosen);
-            }
-            ui.label("(drop a model file on the window to add it)");
-            if self.location_permission != Answer::Granted {
-                ui.separator();
-                ui.label(refusal_message(Permission::Location, self.location_permission).unwrap_or_default().replace('→', ">"));
-                ui.horizontal(|ui| {
-                    ui.add(egui::DragValue::new(&mut self.place.lat).range(-90.0..=90.0).speed(0.01).prefix("lat "));
-                    ui.add(egui::DragValue::new(&mut self.place.lon).range(-180.0..=180.0).speed(0.01).prefix("lon "));
-                });
-                ui.add(egui::TextEdit::singleline(&mut self.place.time).desired_width(200.0));
-                self.requests.place |= ui.button("set place and time").clicked();
-            }
-        });
-        egui::Area::new(egui::Id::unique("shutter")).anchor(egui::Align2::CENTER_BOTTOM, egui::vec2(0.0, -12.0)).show(ctx, |ui| {
+                ui.label("(drop a model file on the window to add it)");
+                if self.location_permission != Answer::Granted {
+                    ui.separator();
+                    ui.label(refusal_message(Permission::Location, self.location_permission).unwrap_or_default().replace('→', ">"));
+                    ui.horizontal_wrapped(|ui| {
+                        ui.add(egui::DragValue::new(&mut self.place.lat).range(-90.0..=90.0).speed(0.01).prefix("lat "));
+                        ui.add(egui::DragValue::new(&mut self.place.lon).range(-180.0..=180.0).speed(0.01).prefix("lon "));
+                    });
+                    ui.add(egui::TextEdit::singleline(&mut self.place.time).desired_width(ui.available_width().min(200.0)));
+                    self.requests.place |= ui.button("set place and time").clicked();
+                }
+            },
+        );
+        // The buttons and the status message in the bar along the bottom.
+        egui::Area::new(egui::Id::unique(BAR_ID)).fixed_pos(regions.bar.min).show(ctx, |ui| {
+            ui.set_max_size(regions.bar.size());
             ui.horizontal(|ui| {
                 self.requests.capture |= ui.button("capture").clicked();
                 self.requests.shutter |= ui.button("shutter").clicked();
                 if !self.status.is_empty() {
-                    ui.label(&self.status);
+                    ui.add(egui::Label::new(&self.status).truncate());
                 }
             });
         });

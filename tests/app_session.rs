@@ -499,7 +499,7 @@ fn a_model_file_opened_joins_the_picker_and_a_bad_one_is_named_and_changes_nothi
     }
     assert!(app.last_frame().is_some_and(|f| f.pose.is_some()));
     common::assert_golden("app_composite_panel", &screen(&mut app, &mut still_ui()));
-    // The scene's model and the bundled demo teapot.
+    // The scene's model and the bundled demo truck.
     assert_eq!(app.models().len(), 2);
     let bad = dir.join("not_a_model.obj");
     std::fs::write(&bad, b"v 1 2\nf 1 2 3 4 5\n").unwrap();

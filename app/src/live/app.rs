@@ -170,11 +170,11 @@ impl App {
         let time = session.config().start.to_rfc3339_opts(chrono::SecondsFormat::Secs, true);
         let scene_model = match &session.scene().model {
             Some(p) => ModelChoice { name: file_label(p), path: Some(p.clone()) },
-            None => ModelChoice { name: "demo teapot".into(), path: None },
+            None => ModelChoice { name: "demo truck".into(), path: None },
         };
         let mut models = vec![scene_model];
         if models[0].path.is_some() {
-            models.push(ModelChoice { name: "demo teapot".into(), path: None });
+            models.push(ModelChoice { name: "demo truck".into(), path: None });
         }
         App {
             session,

@@ -5,7 +5,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-for target in aarch64-linux-android aarch64-apple-ios; do
+# Targets: the arguments, or both phones.
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(aarch64-linux-android aarch64-apple-ios)
+for target in "${targets[@]}"; do
     if ! rustup target list --installed | grep -qx "$target"; then
         echo "installing rustup target $target"
         rustup target add "$target"

@@ -16,6 +16,7 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
         Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
     let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
+    let start = params;
     let before = settled_counters();
     for i in 0..5 {
         params.camera.pose *= glam::Quat::from_rotation_y(0.1 * i as f32);
@@ -25,6 +26,11 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     }
     let after = settled_counters();
     assert_unchanged(&before, &after, &FRAME_RESOURCES, "frames");
+    // The uniform grey map has no sun: the ground's contact shadow is the model's occlusion of
+    // the sky, computed once for the placement, not per frame.
+    assert!(params.lighting.sky_occlusion > 0.99, "{}", params.lighting.sky_occlusion);
+    assert_eq!(compositor.ground_sky_updates(), 1);
+    placements_write_the_ground_sky_once_each(&mut compositor, &start);
     lod_switches_allocate_nothing();
     antialiased_frames_allocate_nothing();
     a_second_composite_reuses_the_pipelines();
@@ -47,6 +53,24 @@ fn antialiased_frames_allocate_nothing() {
         }
         assert_unchanged(&before, &settled_counters(), &FRAME_RESOURCES, &format!("frames with {}", aa.name()));
     }
+}
+
+/// Called from the one test: moving the model computes the ground's sky visibility again and
+/// writes it into the texture made up front (no allocation), once per placement.
+fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Compositor, params: &previz::render::FrameParams) {
+    let before = settled_counters();
+    let updates = compositor.ground_sky_updates();
+    for i in 1..=3 {
+        let mut p = *params;
+        p.placement.position.x += 0.2 * i as f32;
+        p.placement.rotation.z = 0.3 * i as f32;
+        for _ in 0..2 {
+            compositor.render(gpu(), &p, Layer::Composite).unwrap();
+        }
+        assert_eq!(compositor.ground_sky_updates(), updates + i, "placement {i}");
+    }
+    let after = settled_counters();
+    assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
 }
 
 /// Called from the one test: a model moving away switches level of detail and shadow-map size

@@ -46,10 +46,11 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     assert_eq!(c.lod_level(), chosen);
     assert_eq!(c.lod_triangles().unwrap(), &chain.triangles[..]);
     let drawn_flip = previz::capture::replay::mean_flip(&reference, &drawn, 320, 240).unwrap();
-    // Not bit-identical since per-vertex ambient occlusion: the drawn level's is computed against
-    // the full mesh, the level-alone model's against its own coarser triangles (measured
-    // difference 1.7e-6 on this bunny).
-    assert!((drawn_flip - chosen_flip).abs() < 1e-5, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
+    // Not bit-identical since per-vertex ambient occlusion and the ground's sky occlusion: the
+    // drawn level's are computed against the full mesh, the level-alone model's against its own
+    // coarser triangles (measured difference 1.7e-6 on this bunny with AO alone, 4.1e-5 with the
+    // ground's contact shadow too, 2026-12-01; both FLIPs ~0.002).
+    assert!((drawn_flip - chosen_flip).abs() < 1e-4, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
     // Moved twice as far away, it draws a coarser level.
     let mut far = p;
     let toward = far.placement.position - far.camera.position;
@@ -75,7 +76,8 @@ fn the_dragon_chain_reaches_a_few_thousand_triangles() {
 
 /// The shadow and ground passes run only when they have something to do: with the sun up and
 /// the model in view both run; with no measured sun or the sun below the horizon the ground
-/// pass is skipped (the model still samples the map); looking away, neither.
+/// pass is skipped (the model still samples the map) unless the sky's occlusion darkens the
+/// ground; looking away, neither.
 #[test]
 fn shadow_and_ground_passes_run_only_when_needed() {
     let s = scene("width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n");
@@ -89,10 +91,15 @@ fn shadow_and_ground_passes_run_only_when_needed() {
     up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
     up.lighting.sunlight = 1.0;
     up.lighting.shadow_opacity = 0.6;
+    // The sky's occlusion off: the ground pass is the sun's shadow alone.
+    up.lighting.sky_occlusion = 0.0;
     assert_eq!(run(&mut c, &up).0, previz::render::PassesRun { shadow: true, ground: true });
     let mut overcast = up;
     overcast.lighting.sunlight = 0.0;
     assert_eq!(run(&mut c, &overcast).0, previz::render::PassesRun { shadow: true, ground: false });
+    // Under an overcast sky the ground still darkens where the model hides the sky.
+    overcast.lighting.sky_occlusion = 1.0;
+    assert_eq!(run(&mut c, &overcast).0, previz::render::PassesRun { shadow: true, ground: true });
     let mut down = up;
     down.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, -0.2);
     assert_eq!(run(&mut c, &down).0, previz::render::PassesRun { shadow: true, ground: false });

@@ -6,7 +6,7 @@
 
 use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment};
-use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level};
+use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level, sky_square};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
 use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
@@ -86,6 +86,10 @@ pub struct Compositor {
     shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
+    /// The placement (model matrix) the ground pass's sky visibility was computed for, and how
+    /// many times it has been computed: once per placement, not per frame.
+    ground_sky_placement: Option<glam::Mat4>,
+    ground_sky_updates: usize,
 }
 
 /// Which of the optional passes a frame ran.
@@ -118,7 +122,7 @@ impl Compositor {
         let fxaa = targets.aa_input().map(|input| FxaaPass::new(device, &pipelines, input));
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
-        let ground = GroundPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.maps());
+        let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
         Ok(Compositor {
             width,
@@ -143,6 +147,8 @@ impl Compositor {
             level: 0,
             shadow_index: 0,
             passes_run: PassesRun::default(),
+            ground_sky_placement: None,
+            ground_sky_updates: 0,
         })
     }
 
@@ -190,6 +196,7 @@ impl Compositor {
         let prepared = ModelCache::of(gpu)?.prepare(model)?;
         let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
+        self.ground_sky_placement = None;
         Ok(())
     }
 
@@ -231,6 +238,12 @@ impl Compositor {
         self.model.as_ref().map(|m| &m.prepared)
     }
 
+    /// How many times the ground's sky visibility under the model has been computed and
+    /// uploaded (once per placement of a model whose sky occlusion is drawn).
+    pub fn ground_sky_updates(&self) -> usize {
+        self.ground_sky_updates
+    }
+
     /// The loaded model's bounds in model space.
     pub fn model_bounds(&self) -> Option<(Vec3, Vec3)> {
         self.model.as_ref().map(|m| m.bounds())
@@ -266,7 +279,8 @@ impl Compositor {
             shadow_map_sizes: if self.full_shadow { &sizes[sizes.len() - 1..] } else { sizes },
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
-        let light = light_uniforms(&p.lighting);
+        let sky = sky_square(model.bounds, &p.placement);
+        let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
         let level =
             if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(model.lod_errors(), model.bounds(), p, self.height).0 };
@@ -276,7 +290,7 @@ impl Compositor {
         // screen; the ground pass only when its shader would darken something (sun up,
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
-        let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
+        let ground_pass = (shadow.needed && p.lighting.shadow_opacity > 0.0) || (shadow_pass && p.lighting.sky_occlusion > 0.0);
         Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass, shadow_map_size: shadow.map_size })
     }
 
@@ -357,6 +371,10 @@ impl Compositor {
     /// Write the frame's uniforms; note its level of detail and the passes it runs.
     fn write_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<FrameData> {
         let data = self.frame_uniforms(p)?;
+        let composite = layer == Layer::Composite;
+        if composite && data.ground_pass && p.lighting.sky_occlusion > 0.0 {
+            self.update_ground_sky(gpu, p)?;
+        }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let queue = &gpu.queue;
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
@@ -366,10 +384,24 @@ impl Compositor {
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
         self.shadow_index = self.shadow.index_of(data.shadow_map_size);
-        let composite = layer == Layer::Composite;
         self.passes_run =
             PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
         Ok(data)
+    }
+
+    /// The ground's sky visibility under the model as `p` places it, computed and uploaded when
+    /// the placement differs from the last one it was computed for.
+    fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let matrix = super::view::model_matrix(model.bounds, &p.placement);
+        if self.ground_sky_placement == Some(matrix) {
+            return Ok(());
+        }
+        let sky = model.prepared.ground_sky(matrix);
+        self.ground.write_sky(&gpu.queue, &sky)?;
+        self.ground_sky_placement = Some(matrix);
+        self.ground_sky_updates += 1;
+        Ok(())
     }
 
     /// The passes of one frame, top-down (DESIGN.md "One frame"). The camera image (1.) was

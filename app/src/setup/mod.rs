@@ -112,7 +112,8 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
     let m = &scene.material;
     let fade = crate::sun::twilight::sunlight_factor_toward(light.sun_dir);
     let (sl, dl) = (scene.sun.sunlight as f32, scene.sun.daylight as f32);
-    let shadow = light::shadow_opacity(sl * light.ground_sun * fade, dl * light.ground_sky);
+    let (shadow_opacity, sky_occlusion) =
+        light::ground_strengths(sl * light.sunlight * fade, light.sun_dir, dl * light.ground_sky, scene.effects.shadow_opacity as f32);
     Lighting {
         sun_dir: light.sun_dir,
         sunlight: sl * light.sunlight * fade,
@@ -125,7 +126,8 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
         },
         reflection: scene.effects.reflection as f32,
         ior: scene.effects.ior as f32,
-        shadow_opacity: (scene.effects.shadow_opacity as f32 * shadow).clamp(0.0, 1.0),
+        shadow_opacity,
+        sky_occlusion,
         live_depth: scene.effects.live_depth as f32,
         sky_sh: light.sky_sh,
         sun_colour: light.sun_colour,

@@ -279,7 +279,7 @@ impl Compositor {
             shadow_map_sizes: if self.full_shadow { &sizes[sizes.len() - 1..] } else { sizes },
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
-        let sky = sky_square(model.bounds, &p.placement);
+        let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
         let level =
@@ -393,7 +393,7 @@ impl Compositor {
     /// the placement differs from the last one it was computed for.
     fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        let matrix = super::view::model_matrix(model.bounds, &p.placement);
+        let matrix = super::view::model_matrix(model.bounds(), &p.placement);
         if self.ground_sky_placement == Some(matrix) {
             return Ok(());
         }

@@ -35,8 +35,9 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     a_second_composite_reuses_the_pipelines();
 }
 
-/// Called from the one test: moving the model computes the ground's sky visibility again and
-/// writes it into the texture made up front (no allocation), once per placement.
+/// Called from the one test: turning the model computes the ground's sky visibility again and
+/// writes it into the texture made up front (no allocation), once per placement; moving it
+/// alone does not.
 fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Compositor, params: &previz::render::FrameParams) {
     let before = settled_counters();
     let updates = compositor.ground_sky_updates();
@@ -49,6 +50,14 @@ fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Co
         }
         assert_eq!(compositor.ground_sky_updates(), updates + i, "placement {i}");
     }
+    // Moving the model without turning or scaling it reuses the map (it moves with the model).
+    let mut moved = *params;
+    moved.placement.rotation.z = 0.3 * 3.0; // the last turn above
+    for dx in [0.1, -0.3, 0.25] {
+        moved.placement.position.x += dx;
+        compositor.render(gpu(), &moved, Layer::Composite).unwrap();
+    }
+    assert_eq!(compositor.ground_sky_updates(), updates + 3, "moving the model computed the map again");
     let after = settled_counters();
     assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
 }

@@ -72,8 +72,9 @@ pub struct Compositor {
     shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
-    /// The placement (model matrix) the ground pass's sky visibility was computed for, and how
-    /// many times it has been computed: once per placement, not per frame.
+    /// The placement (model matrix without its translation) the ground pass's sky visibility was
+    /// computed for, and how many times it has been computed: once per turn or scale of the
+    /// model, not per frame.
     ground_sky_placement: Option<glam::Mat4>,
     ground_sky_updates: usize,
 }
@@ -202,7 +203,8 @@ impl Compositor {
     }
 
     /// How many times the ground's sky visibility under the model has been computed and
-    /// uploaded (once per placement of a model whose sky occlusion is drawn).
+    /// uploaded (once per turn or scale of a model whose sky occlusion is drawn; moving it
+    /// reuses the map).
     pub fn ground_sky_updates(&self) -> usize {
         self.ground_sky_updates
     }
@@ -347,16 +349,19 @@ impl Compositor {
     }
 
     /// The ground's sky visibility under the model as `p` places it, computed and uploaded when
-    /// the placement differs from the last one it was computed for.
+    /// the model's turn or scale differs from the last one it was computed for.
     fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let matrix = super::view::model_matrix(model.bounds, &p.placement);
-        if self.ground_sky_placement == Some(matrix) {
+        // The map moves with the model (its square is centred under it, in the plane of its
+        // base), so only a turn or a scale computes it again: dragging the model costs nothing.
+        let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
+        if self.ground_sky_placement == Some(key) {
             return Ok(());
         }
         let sky = occlusion::ground_sky(&model.occluders, model.bounds, matrix, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS);
         self.ground.write_sky(&gpu.queue, &sky)?;
-        self.ground_sky_placement = Some(matrix);
+        self.ground_sky_placement = Some(key);
         self.ground_sky_updates += 1;
         Ok(())
     }

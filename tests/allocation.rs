@@ -5,9 +5,9 @@
 mod common;
 
 use common::{FRAME_RESOURCES, assert_unchanged, gpu, scene, settled_counters, triangle};
-use previz::render::Layer;
+use previz::render::{Antialiasing, Layer};
 use previz::scene::CubeMap;
-use previz::setup::{Inputs, prepare};
+use previz::setup::{Inputs, prepare, prepare_antialiased};
 
 #[test]
 fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
@@ -32,6 +32,7 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     assert_eq!(compositor.ground_sky_updates(), 1);
     placements_write_the_ground_sky_once_each(&mut compositor, &start);
     lod_switches_allocate_nothing();
+    antialiased_frames_allocate_nothing();
     a_second_composite_reuses_the_pipelines();
 }
 
@@ -60,6 +61,25 @@ fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Co
     assert_eq!(compositor.ground_sky_updates(), updates + 3, "moving the model computed the map again");
     let after = settled_counters();
     assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
+}
+
+/// Called from the one test: with FXAA (its pass and input texture) and with 4× MSAA, frames
+/// allocate nothing either.
+fn antialiased_frames_allocate_nothing() {
+    let s = scene("width = 160\nheight = 120\n");
+    let inputs =
+        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    for aa in [Antialiasing::Fxaa, Antialiasing::Msaa(4)] {
+        let (mut compositor, mut params) = prepare_antialiased(gpu(), &s, &inputs, aa).unwrap();
+        assert_eq!(compositor.antialiasing(), aa);
+        compositor.render(gpu(), &params, Layer::Composite).unwrap();
+        let before = settled_counters();
+        for i in 0..3 {
+            params.camera.pose *= glam::Quat::from_rotation_y(0.1 * i as f32);
+            compositor.render(gpu(), &params, Layer::Composite).unwrap();
+        }
+        assert_unchanged(&before, &settled_counters(), &FRAME_RESOURCES, &format!("frames with {}", aa.name()));
+    }
 }
 
 /// Called from the one test: a model moving away switches level of detail and shadow-map size

@@ -207,3 +207,70 @@ fn auto_picks_the_method_each_scene_needs() {
     let i = Inputs { model: with(chrome), env: park, background: None };
     assert_eq!(prepare(gpu(), &named, &i).unwrap().1.method, LightingMethod::BlinnPhong);
 }
+
+/// Nothing recomputed that did not change: a second compositor for the same model (another copy
+/// of it, as a second load gives) reuses the prepared model (occlusion and level chain), a
+/// changed model is prepared again, and the model's colour statistics wait for the first frame
+/// that corrects colour. Counted by identity of the shared entry, not by timing.
+#[test]
+fn model_work_is_reused_until_the_model_changes() {
+    use previz::render::ColourSettings;
+    use previz::render::model_cache::ModelCache;
+    let s = scene("width = 96\nheight = 64\nenvironment = \"cubemaps/humus_Park2_512\"\n");
+    // A model no other test uses (the cache is the device's, shared by the tests running in parallel).
+    let mut model = cube();
+    model.meshes[0].positions.iter_mut().for_each(|p| p[0] *= 1.25);
+    let i = Inputs { model: model.clone(), env: inputs(&s).env, background: None };
+    let (mut first, p) = prepare(gpu(), &s, &i).unwrap();
+    first.render(gpu(), &p, Layer::Composite).unwrap();
+    let prepared = first.prepared_model().unwrap().clone();
+    assert!(!prepared.colour_computed(), "no colour correction asked, yet the model's statistics were computed");
+    let computed = ModelCache::of(gpu()).unwrap().counts().computed;
+    let (mut second, _) = prepare(gpu(), &s, &Inputs { model: model.clone(), ..i }).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&prepared, second.prepared_model().unwrap()), "the same model was prepared twice");
+    let mut corrected = p;
+    corrected.colour = ColourSettings { method: previz::colour::transfer::TransferMethod::Reinhard, strength: 1.0 };
+    second.render(gpu(), &corrected, Layer::Composite).unwrap();
+    assert!(prepared.colour_computed(), "a colour correction ran without the model's statistics");
+    let mut changed = model;
+    changed.materials[0].diffuse = [0.2, 0.4, 0.6];
+    second.set_model(gpu(), &changed).unwrap();
+    let counts = ModelCache::of(gpu()).unwrap().counts();
+    assert!(!std::sync::Arc::ptr_eq(&prepared, second.prepared_model().unwrap()), "a changed model reused the old one's work");
+    assert!(counts.computed > computed, "{counts:?}");
+}
+
+/// Antialiasing: on the silhouette of a cube, FXAA brings the single-sampled frame closer to the
+/// 4× MSAA one (mean absolute difference of the 8-bit RGB over the pixels the 4× frame's model
+/// covers partly), and 4× differs from 1× there (the edges are really aliased at 1×).
+#[test]
+fn fxaa_brings_the_silhouette_towards_4x_msaa() {
+    use previz::render::Antialiasing;
+    let s =
+        scene("width = 160\nheight = 120\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.6\nrotation = [0, 0, 30]\n");
+    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
+    let render = |aa, layer| {
+        let (mut c, p) = previz::setup::prepare_antialiased(gpu(), &s, &i, aa).unwrap();
+        c.render(gpu(), &p, layer).unwrap().rgba
+    };
+    let reference = render(Antialiasing::Msaa(4), Layer::Composite);
+    let silhouette: Vec<bool> = render(Antialiasing::Msaa(4), Layer::Model).chunks_exact(4).map(|p| (8..=247).contains(&p[3])).collect();
+    let edge_error = |rgba: &[u8]| {
+        let (sum, n) = rgba
+            .chunks_exact(4)
+            .zip(reference.chunks_exact(4))
+            .zip(&silhouette)
+            .filter(|(_, e)| **e)
+            .fold((0.0f64, 0usize), |(s, n), ((a, b), _)| {
+                (s + (0..3).map(|c| (f64::from(a[c]) - f64::from(b[c])).abs()).sum::<f64>() / 3.0, n + 1)
+            });
+        sum / n as f64
+    };
+    let n = silhouette.iter().filter(|e| **e).count();
+    let (one, fxaa) =
+        (edge_error(&render(Antialiasing::Msaa(1), Layer::Composite)), edge_error(&render(Antialiasing::Fxaa, Layer::Composite)));
+    eprintln!("{n} silhouette pixels: mean |1x - 4x| {one:.2}, |FXAA - 4x| {fxaa:.2} (8-bit)");
+    assert!(n > 50, "only {n} silhouette pixels");
+    assert!(one > 5.0, "1x is within {one} of 4x on the silhouette: nothing to antialias");
+    assert!(fxaa < one, "FXAA {fxaa} is no closer to 4x than 1x {one}");
+}

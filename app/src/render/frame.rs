@@ -180,17 +180,20 @@ pub fn lod_level(errors: &[f32], bounds: (Vec3, Vec3), p: &FrameParams, height_p
 }
 
 /// The colour correction of a frame: from the environment's statistics (`source`) towards the
-/// model's (`target`, or why it has none — every texel masked out, an error then).
-pub fn colour_correction(
+/// model's (`target`, or why it has none — every texel masked out, an error then). `target` is
+/// asked only when a correction is on: the model's statistics are computed on demand.
+pub fn colour_correction<'a>(
     settings: ColourSettings,
     source: &ColourStats,
-    target: &std::result::Result<ColourStats, String>,
+    target: impl FnOnce() -> &'a std::result::Result<ColourStats, String>,
 ) -> Result<ColourCorrection> {
-    Ok(match (settings.method, target) {
-        (TransferMethod::None, _) => ColourCorrection::identity(),
-        (m, Ok(target)) => ColourCorrection::new(m, settings.strength, source, target),
-        (m, Err(why)) => bail!("colour correction {} needs the model's colour statistics: {why}", m.name()),
-    })
+    if settings.method == TransferMethod::None {
+        return Ok(ColourCorrection::identity());
+    }
+    match target() {
+        Ok(target) => Ok(ColourCorrection::new(settings.method, settings.strength, source, target)),
+        Err(why) => bail!("colour correction {} needs the model's colour statistics: {why}", settings.method.name()),
+    }
 }
 
 #[cfg(test)]
@@ -391,10 +394,11 @@ mod tests {
     #[test]
     fn colour_correction_needs_the_model_statistics_only_when_on() {
         let stats = ColourStats::from_linear(&[[0.2, 0.3, 0.4], [0.5, 0.5, 0.5]]).unwrap();
-        let none = colour_correction(ColourSettings::NONE, &stats, &Err("all masked".into())).unwrap();
+        let none = colour_correction(ColourSettings::NONE, &stats, || panic!("no correction needs no statistics")).unwrap();
         assert_eq!(bytemuck::bytes_of(&none), bytemuck::bytes_of(&ColourCorrection::identity()));
         let on = ColourSettings { method: TransferMethod::ALL[1], strength: 1.0 };
-        let err = colour_correction(on, &stats, &Err("all masked".into())).unwrap_err();
+        let masked = Err("all masked".to_string());
+        let err = colour_correction(on, &stats, || &masked).unwrap_err();
         assert!(format!("{err:#}").contains("all masked"), "{err:#}");
     }
 }

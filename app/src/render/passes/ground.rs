@@ -6,14 +6,14 @@
 
 use super::super::uniforms::InstanceUniforms;
 use crate::gpu::build;
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline_into};
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, depth_state, pipeline_into};
 use crate::render::shaders::Technique;
 use crate::scene::occlusion::{self, GroundSky};
 use anyhow::{Result, bail};
 use wgpu::ShaderStages;
 
 /// The ground pipeline: six vertices from the vertex index, alpha-blended over the background.
-pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
+pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
@@ -29,18 +29,24 @@ pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
             build::sampler_entry(6, fs, wgpu::SamplerBindingType::Filtering),
         ],
     );
-    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT);
+    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT, samples);
     PassPipeline { layout, pipeline }
 }
 
-/// The ground pipeline with bind-group `layout`, drawing into `format` targets.
-pub fn pipeline_for(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+/// The ground pipeline with bind-group `layout`, drawing into `format` targets of `samples` per
+/// pixel.
+pub fn pipeline_for(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+    samples: u32,
+) -> wgpu::RenderPipeline {
     let spec = PipelineSpec {
         technique: Technique::Ground,
         layouts: &[layout],
         vertex_buffers: &[],
         depth: depth_state(false, wgpu::DepthBiasState::default()),
-        samples: SAMPLES,
+        samples,
         blend: Some(Some(wgpu::BlendState::ALPHA_BLENDING)),
     };
     pipeline_into(device, spec, format)

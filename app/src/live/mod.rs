@@ -23,6 +23,7 @@ pub mod app;
 pub mod export;
 #[cfg(target_os = "ios")]
 pub mod ios;
+pub mod phone;
 pub mod window;
 
 #[cfg(test)]

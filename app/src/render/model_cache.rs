@@ -90,7 +90,8 @@ impl PreparedModel {
         }
         // Ambient occlusion: each vertex's share of the sky past the model itself. Occluders
         // reflect light too: the multi-bounce fit for the mesh material's albedo.
-        for ((vertices, ao), mesh) in vertices.iter_mut().zip(occlusion::model_ao(model)).zip(&model.meshes) {
+        let occluders = Occluders::of_model(model);
+        for ((vertices, ao), mesh) in vertices.iter_mut().zip(occlusion::model_ao_with(model, &occluders)).zip(&model.meshes) {
             let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
             for (v, a) in vertices.iter_mut().zip(ao) {
                 v.ao = occlusion::multi_bounce(a, albedo);
@@ -103,7 +104,7 @@ impl PreparedModel {
             chain: LodChain::build(model),
             model: model.clone(),
             colour: OnceLock::new(),
-            occluders: OnceLock::new(),
+            occluders: OnceLock::from(occluders),
             ground: Mutex::new(None),
             ground_computed: Default::default(),
         })

@@ -36,6 +36,33 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     a_second_composite_reuses_the_pipelines();
 }
 
+/// Called from the one test: turning the model computes the ground's sky visibility again and
+/// writes it into the texture made up front (no allocation), once per placement; moving it
+/// alone does not.
+fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Compositor, params: &previz::render::FrameParams) {
+    let before = settled_counters();
+    let updates = compositor.ground_sky_updates();
+    for i in 1..=3 {
+        let mut p = *params;
+        p.placement.position.x += 0.2 * i as f32;
+        p.placement.rotation.z = 0.3 * i as f32;
+        for _ in 0..2 {
+            compositor.render(gpu(), &p, Layer::Composite).unwrap();
+        }
+        assert_eq!(compositor.ground_sky_updates(), updates + i, "placement {i}");
+    }
+    // Moving the model without turning or scaling it reuses the map (it moves with the model).
+    let mut moved = *params;
+    moved.placement.rotation.z = 0.3 * 3.0; // the last turn above
+    for dx in [0.1, -0.3, 0.25] {
+        moved.placement.position.x += dx;
+        compositor.render(gpu(), &moved, Layer::Composite).unwrap();
+    }
+    assert_eq!(compositor.ground_sky_updates(), updates + 3, "moving the model computed the map again");
+    let after = settled_counters();
+    assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
+}
+
 /// Called from the one test: with FXAA (its pass and input texture) and with 4× MSAA, frames
 /// allocate nothing either.
 fn antialiased_frames_allocate_nothing() {
@@ -53,24 +80,6 @@ fn antialiased_frames_allocate_nothing() {
         }
         assert_unchanged(&before, &settled_counters(), &FRAME_RESOURCES, &format!("frames with {}", aa.name()));
     }
-}
-
-/// Called from the one test: moving the model computes the ground's sky visibility again and
-/// writes it into the texture made up front (no allocation), once per placement.
-fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Compositor, params: &previz::render::FrameParams) {
-    let before = settled_counters();
-    let updates = compositor.ground_sky_updates();
-    for i in 1..=3 {
-        let mut p = *params;
-        p.placement.position.x += 0.2 * i as f32;
-        p.placement.rotation.z = 0.3 * i as f32;
-        for _ in 0..2 {
-            compositor.render(gpu(), &p, Layer::Composite).unwrap();
-        }
-        assert_eq!(compositor.ground_sky_updates(), updates + i, "placement {i}");
-    }
-    let after = settled_counters();
-    assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
 }
 
 /// Called from the one test: a model moving away switches level of detail and shadow-map size

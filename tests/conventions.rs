@@ -227,4 +227,15 @@ fn an_overcast_sky_darkens_the_ground_under_the_model_and_nowhere_else() {
         }
     }
     assert!(darkened > 500, "only {darkened} pixels of ground darkened");
+    // Moved without turning, the model takes its map along (the compositor does not compute it
+    // again): the same frame as a compositor that computes it at the new place.
+    let mut moved = params;
+    moved.placement.position += glam::Vec3::new(0.7, 0.4, 0.0) * r;
+    let updates = compositor.ground_sky_updates();
+    let reused = compositor.render(common::gpu(), &moved, Layer::Composite).unwrap();
+    assert_eq!(compositor.ground_sky_updates(), updates);
+    let (mut fresh, _) = previz::setup::prepare(common::gpu(), &s, &inputs).unwrap();
+    let computed = fresh.render(common::gpu(), &moved, Layer::Composite).unwrap();
+    let worst = reused.rgba.iter().zip(&computed.rgba).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 1, "the moved map differs from one computed in place by {worst} levels");
 }

@@ -18,7 +18,7 @@ use super::pipelines::Pipelines;
 use super::targets::Targets;
 use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use crate::gpu::{Gpu, GpuTimer, build};
-use crate::scene::{CubeMap, Model, Rgba8Image};
+use crate::scene::{CubeMap, Model, Rgba8Image, occlusion};
 use anyhow::{Result, anyhow};
 use glam::Vec3;
 use std::sync::Arc;
@@ -86,9 +86,10 @@ pub struct Compositor {
     shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
-    /// The placement (model matrix) the ground pass's sky visibility was computed for, and how
-    /// many times it has been computed: once per placement, not per frame.
-    ground_sky_placement: Option<glam::Mat4>,
+    /// The ground's sky visibility the ground pass holds (from the model cache, for the model
+    /// matrix without its translation), and how many times one has been uploaded: once per turn
+    /// or scale of the model, not per frame.
+    ground_sky_uploaded: Option<Arc<occlusion::GroundSky>>,
     ground_sky_updates: usize,
 }
 
@@ -147,7 +148,7 @@ impl Compositor {
             level: 0,
             shadow_index: 0,
             passes_run: PassesRun::default(),
-            ground_sky_placement: None,
+            ground_sky_uploaded: None,
             ground_sky_updates: 0,
         })
     }
@@ -196,7 +197,7 @@ impl Compositor {
         let prepared = ModelCache::of(gpu)?.prepare(model)?;
         let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
-        self.ground_sky_placement = None;
+        self.ground_sky_uploaded = None;
         Ok(())
     }
 
@@ -232,16 +233,17 @@ impl Compositor {
         self.passes_run
     }
 
+    /// How many times the ground's sky visibility under the model has been uploaded (once per
+    /// turn or scale of a model whose sky occlusion is drawn; moving it reuses the map; the
+    /// model cache computes each once per device: `PreparedModel::ground_sky_computed`).
+    pub fn ground_sky_updates(&self) -> usize {
+        self.ground_sky_updates
+    }
+
     /// What was computed from the loaded model's content (shared with every compositor on the
     /// device that loads the same model).
     pub fn prepared_model(&self) -> Option<&Arc<PreparedModel>> {
         self.model.as_ref().map(|m| &m.prepared)
-    }
-
-    /// How many times the ground's sky visibility under the model has been computed and
-    /// uploaded (once per placement of a model whose sky occlusion is drawn).
-    pub fn ground_sky_updates(&self) -> usize {
-        self.ground_sky_updates
     }
 
     /// The loaded model's bounds in model space.
@@ -390,16 +392,21 @@ impl Compositor {
     }
 
     /// The ground's sky visibility under the model as `p` places it, computed and uploaded when
-    /// the placement differs from the last one it was computed for.
+    /// the model's turn or scale differs from the last one it was computed for.
     fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let matrix = super::view::model_matrix(model.bounds(), &p.placement);
-        if self.ground_sky_placement == Some(matrix) {
+        // The map moves with the model (its square is centred under it, in the plane of its
+        // base), so only a turn or a scale computes it again: dragging the model costs nothing.
+        let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
+        // Computed by the device's model cache once per key (shared by every compositor on the
+        // device), uploaded here when it is not the map this compositor holds.
+        let sky = model.prepared.ground_sky(key);
+        if self.ground_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &sky)) {
             return Ok(());
         }
-        let sky = model.prepared.ground_sky(matrix);
         self.ground.write_sky(&gpu.queue, &sky)?;
-        self.ground_sky_placement = Some(matrix);
+        self.ground_sky_uploaded = Some(sky);
         self.ground_sky_updates += 1;
         Ok(())
     }

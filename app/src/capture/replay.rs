@@ -240,7 +240,9 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let mut complete_t = None;
     let mut track = Vec::new();
     let mut aim_filter: Option<OrientationFilter> = None;
-    let mut sun_fix: Option<(f32, HeadingMeasurement)> = None;
+    // The sun measurement of the shot with the sun nearest its centre: (off-axis angle, the
+    // heading error of the shot's sensor pose, the shot's time).
+    let mut sun_fix: Option<(f32, HeadingMeasurement, f64)> = None;
     let n = ((trace.end() - trace.start()) * cfg.frame_hz).floor() as usize;
     for k in 0..=n {
         let t = trace.start() + k as f64 / cfg.frame_hz;
@@ -278,7 +280,10 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if tapped.is_none() && tap_t.is_some_and(|tt| t >= tt) {
             let frame = phone.render_with_exposure(truth, exposure)?;
             assistant.tap(t, &pose, Arc::new(frame))?;
-            sun_fix = nearer_centre(sun_fix, measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?);
+            sun_fix = nearer_centre(
+                sun_fix,
+                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
+            );
             // From the tap on, the guidance judges aims with a copy of the filter whose heading
             // is held (pose::fusion): the heading relative to the front then comes from the
             // gyroscope, while the compass's error changes with heading by several degrees
@@ -293,7 +298,10 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if let Some(i) = assistant.observe(t, &aim_pose)? {
             let frame = phone.render_with_exposure(truth, exposure)?;
             assistant.capture(i, t, &pose, Arc::new(frame))?;
-            sun_fix = nearer_centre(sun_fix, measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?);
+            sun_fix = nearer_centre(
+                sun_fix,
+                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
+            );
             if assistant.phase() == Phase::Complete {
                 complete_t = Some(t);
                 break;
@@ -336,7 +344,14 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
             capture.meta.time_utc = Some(time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
             result.faces = score(env, trace, &capture, cfg.score)?;
             // True north from the sun (after scoring: the faces are scored in their own frame).
-            capture.calibrate_north_with_sun(spa_sun(cfg.clock, location), sun_fix.map(|(_, m)| m));
+            // The image alignment turned each shot's pose by its alignment turn (about the
+            // vertical, taking that much off the heading): the recorded pose errs by the
+            // measured error less that turn.
+            let from_frames = sun_fix.map(|(_, m, t)| {
+                let turn = capture.meta.shots.iter().find(|s| s.t == t).and_then(|s| s.alignment_turn_deg).unwrap_or(0.0);
+                HeadingMeasurement { error: m.error - turn.to_radians(), ..m }
+            });
+            capture.calibrate_north_with_sun(spa_sun(cfg.clock, location), from_frames);
             result.capture = Some(capture);
         }
     }
@@ -376,7 +391,10 @@ fn measure_sun(
 /// Of two sun measurements, the one from the shot with the sun nearer its centre: the shots'
 /// headings err differently, and the stitched faces take the sun mostly from that shot (the
 /// blend weighs each shot's pixels by their distance from its frame's edge).
-fn nearer_centre(a: Option<(f32, HeadingMeasurement)>, b: Option<(f32, HeadingMeasurement)>) -> Option<(f32, HeadingMeasurement)> {
+fn nearer_centre<T>(
+    a: Option<(f32, HeadingMeasurement, T)>,
+    b: Option<(f32, HeadingMeasurement, T)>,
+) -> Option<(f32, HeadingMeasurement, T)> {
     match (a, b) {
         (Some(a), Some(b)) => Some(if b.0 < a.0 { b } else { a }),
         (a, b) => a.or(b),

@@ -11,7 +11,7 @@ use previz::ui::controls::Controls;
 const SCENE: &str = "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
 [camera]\nheading = 90.0\npitch = -10.0\n[sun]\ndirection = [0.0, 0.9, 0.35]\n";
 
-/// Run one egui pass over the panel with `events`, at 800×600 points.
+/// Run one egui pass over the panel with `events`, at 800×600 points, where the app places it.
 fn pass(ctx: &egui::Context, controls: &mut Controls, events: Vec<egui::Event>) -> egui::FullOutput {
     let input = egui::RawInput {
         screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0))),
@@ -19,7 +19,7 @@ fn pass(ctx: &egui::Context, controls: &mut Controls, events: Vec<egui::Event>) 
         ..Default::default()
     };
     let mut out = ctx.run_pass(input, |ctx| {
-        controls.show(ctx);
+        controls.show(ctx, previz::ui::layout::composite_regions(ctx.content_rect()).controls);
     });
     // The font atlas uploads a renderer would take (egui asserts they were taken).
     out.textures_delta.set.drain().for_each(drop);

@@ -25,6 +25,7 @@ use crate::camera::sim::{SimSettings, VirtualPhone};
 use crate::pose::frames::angle_between;
 use crate::pose::fusion::{FusionConfig, OrientationFilter};
 use crate::pose::hand_motion::UserPathParams;
+use crate::pose::sun_heading::{HeadingMeasurement, SUN_FRAME_EXPOSURE, heading_measurement, sight_sun, sun_in_view};
 use crate::pose::trace::TruthTrace;
 use crate::pose::{HeadingSource, OrientationEstimator, Pose};
 use crate::scene::CubeMap;
@@ -58,6 +59,10 @@ pub struct ReplayConfig {
     pub render_threads: usize,
     /// Stitch mode: align the shots from their overlaps ([`super::align`]).
     pub align: bool,
+    /// The simulated clock (UTC) of the capture: with it and the GPS fix, SPA's sun calibrates
+    /// the capture's north ([`CubeCapture::calibrate_north_with_sun`]). None: the wall clock is
+    /// recorded and the sun is not used (the environment's sun is not where SPA has it now).
+    pub clock: Option<chrono::DateTime<chrono::Utc>>,
 }
 
 impl Default for ReplayConfig {
@@ -77,6 +82,7 @@ impl Default for ReplayConfig {
             score: true,
             render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             align: true,
+            clock: None,
         }
     }
 }
@@ -234,6 +240,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let mut complete_t = None;
     let mut track = Vec::new();
     let mut aim_filter: Option<OrientationFilter> = None;
+    let mut sun_fix: Option<(f32, HeadingMeasurement)> = None;
     let n = ((trace.end() - trace.start()) * cfg.frame_hz).floor() as usize;
     for k in 0..=n {
         let t = trace.start() + k as f64 / cfg.frame_hz;
@@ -271,6 +278,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if tapped.is_none() && tap_t.is_some_and(|tt| t >= tt) {
             let frame = phone.render_with_exposure(truth, exposure)?;
             assistant.tap(t, &pose, Arc::new(frame))?;
+            sun_fix = nearer_centre(sun_fix, measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?);
             // From the tap on, the guidance judges aims with a copy of the filter whose heading
             // is held (pose::fusion): the heading relative to the front then comes from the
             // gyroscope, while the compass's error changes with heading by several degrees
@@ -285,6 +293,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if let Some(i) = assistant.observe(t, &aim_pose)? {
             let frame = phone.render_with_exposure(truth, exposure)?;
             assistant.capture(i, t, &pose, Arc::new(frame))?;
+            sun_fix = nearer_centre(sun_fix, measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?);
             if assistant.phase() == Phase::Complete {
                 complete_t = Some(t);
                 break;
@@ -323,12 +332,55 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         Ok(mut capture) => {
             capture.meta.exposure = locked;
             capture.meta.location = location;
-            capture.meta.time_utc = Some(chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
+            let time = cfg.clock.unwrap_or_else(chrono::Utc::now);
+            capture.meta.time_utc = Some(time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
             result.faces = score(env, trace, &capture, cfg.score)?;
+            // True north from the sun (after scoring: the faces are scored in their own frame).
+            capture.calibrate_north_with_sun(spa_sun(cfg.clock, location), sun_fix.map(|(_, m)| m));
             result.capture = Some(capture);
         }
     }
     Ok(result)
+}
+
+/// SPA's apparent sun direction (ENU) for a clock and a GPS fix, when both are known.
+fn spa_sun(clock: Option<chrono::DateTime<chrono::Utc>>, location: Option<Location>) -> Option<glam::Vec3> {
+    let (time, l) = clock.zip(location)?;
+    let mut input = crate::sun::SunInput::new(time, l.lat_deg, l.lon_deg);
+    input.site.elevation_m = l.alt_m;
+    crate::sun::position(&input, crate::sun::Algorithm::Spa).ok().map(|p| p.direction_enu())
+}
+
+/// A shot with the sun in it: a short exposure ([`SUN_FRAME_EXPOSURE`]) at the true pose
+/// measures the heading error of the shot's estimated pose, with the sun's angle off the
+/// optical axis (radians). None when the sun is unknown, below the horizon, out of the frame or
+/// not seen.
+fn measure_sun(
+    phone: &VirtualPhone,
+    cfg: &ReplayConfig,
+    sun: Option<glam::Vec3>,
+    pose: &Pose,
+    truth: Quat,
+    exposure: f32,
+) -> Result<Option<(f32, HeadingMeasurement)>> {
+    let Some(sun) = sun.filter(|s| s.z > 0.0 && sun_in_view(pose.q, *s, cfg.vfov_deg, cfg.width, cfg.height, 2.0)) else {
+        return Ok(None);
+    };
+    let dark = phone.render_with_exposure(truth, exposure * SUN_FRAME_EXPOSURE)?;
+    Ok(sight_sun(&dark, cfg.vfov_deg, pose.q)?.and_then(|s| {
+        let off_axis = s.dir_camera.angle_between(glam::Vec3::NEG_Z);
+        heading_measurement(&s, sun, f64::from(pose.tilt_accuracy_deg).to_radians()).map(|m| (off_axis, m))
+    }))
+}
+
+/// Of two sun measurements, the one from the shot with the sun nearer its centre: the shots'
+/// headings err differently, and the stitched faces take the sun mostly from that shot (the
+/// blend weighs each shot's pixels by their distance from its frame's edge).
+fn nearer_centre(a: Option<(f32, HeadingMeasurement)>, b: Option<(f32, HeadingMeasurement)>) -> Option<(f32, HeadingMeasurement)> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.0 < a.0 { b } else { a }),
+        (a, b) => a.or(b),
+    }
 }
 
 /// A simulated user who follows the on-screen guidance, and what they captured.

@@ -9,20 +9,21 @@
 //! and the NDK sensors + GPS ([`crate::sensors::android::AndroidSensors`]). The camera's field of
 //! view (its intrinsics, cropped to the stream) is the projection's, and the frame is the
 //! camera's image turned upright for the screen. Until the camera permission is granted the
-//! background is grey ([`PhoneCamera`] tries to open the camera again twice a second).
+//! background is grey ([`OpeningCamera`] tries to open the camera again twice a second); the app
+//! reads the permission answers while it runs ([`AndroidPermissions`]: the refusal screen, its
+//! "Ask again", the manual place when location is refused).
 
-use super::app::App;
+use super::app::{App, PermissionSource};
+use super::phone::{OpenCamera, OpeningCamera};
 use super::window;
 use super::{LiveConfig, LiveSession, Sources};
+use crate::camera::FrameSource;
 use crate::camera::android::{Camera2, query_back_camera};
-use crate::camera::platform::CameraInfo;
-use crate::camera::{Frame, FrameImage, FrameSink, FrameSource};
 use crate::pose::DisplayRotation;
-use crate::scene::Rgba8Image;
 use crate::scene::demo;
 use crate::sensors::android::AndroidSensors;
 use crate::sensors::jni_location;
-use crate::sensors::permissions::{Permission, PermissionFlow};
+use crate::sensors::permissions::{Answer, Permission, PermissionFlow};
 use crate::sensors::sim::NoiseLevel;
 use crate::setup::scene_file::SceneBuilder;
 use anyhow::{Context, Result};
@@ -30,7 +31,6 @@ use jni::Env;
 use jni::objects::JObject;
 use jni::vm::JavaVM;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 use winit::event_loop::EventLoop;
 use winit::platform::android::EventLoopBuilderExtAndroid;
 use winit::platform::android::activity::AndroidApp;
@@ -51,7 +51,7 @@ fn android_main(app: AndroidApp) {
 
 fn run(app: AndroidApp) -> Result<()> {
     // The first-start system dialog for the camera and location permissions; the camera opens
-    // once granted (PhoneCamera), the location bridge asks again on its first poll.
+    // once granted (OpeningCamera), the location bridge asks again on its first poll.
     let mut flow = PermissionFlow::default();
     if let Err(e) = with_activity(|env, activity| flow.start(env, activity)) {
         log(&format!("previz: cannot ask for permissions: {e:#}"));
@@ -79,89 +79,39 @@ fn run(app: AndroidApp) -> Result<()> {
         seed: 1,
     };
     let make = move |gpu: &crate::gpu::Gpu| -> Result<App> {
+        let open: OpenCamera =
+            Box::new(move || Ok(Box::new(Camera2::open(CAMERA_SIZE.0, CAMERA_SIZE.1, display)?) as Box<dyn FrameSource>));
         let sources = Sources {
-            camera: Box::new(PhoneCamera::new(CAMERA_SIZE, display, info)),
+            camera: Box::new(OpeningCamera::new(info.image_size(), open, log)),
             sensors: Box::new(AndroidSensors::start()?),
             rotation: display,
             truth: None,
         };
         let mut app = App::new(LiveSession::new(gpu, &env, &model, &scene, cfg, sources)?, export_dir);
-        // The answers as they are when the window first shows (a refusal from an earlier start
-        // shows the refusal screen; a dialog still open counts as pending). Not refreshed while
-        // the app runs yet: the window shell has no per-frame platform hook (docs/mobile.md).
-        match with_activity(|env, activity| flow.refresh(env, activity)) {
-            Ok(()) => app.set_permissions(flow.answer(Permission::Camera), flow.answer(Permission::Location)),
-            Err(e) => log(&format!("previz: cannot read the permissions: {e:#}")),
-        }
+        // The answers now (a refusal from an earlier start shows the refusal screen; a dialog
+        // still open counts as pending) and about twice a second while the app runs.
+        app.set_permission_source(Box::new(AndroidPermissions { flow }));
         Ok(app)
     };
     window::run_app_on(event_loop, "Previz", (width, height), Box::new(make))
 }
 
-/// The back camera, opened once the CAMERA permission is granted; until then grey frames of the
-/// camera image's size at 30 Hz.
-struct PhoneCamera {
-    size: (u32, u32),
-    display: DisplayRotation,
-    info: CameraInfo,
-    camera: Option<Camera2>,
-    start: Instant,
-    next_try: Instant,
+/// The permission answers read back through JNI ([`PermissionFlow::refresh`]) while the app
+/// runs; "Ask again" shows the system dialog again.
+struct AndroidPermissions {
+    flow: PermissionFlow,
 }
 
-impl PhoneCamera {
-    fn new(size: (u32, u32), display: DisplayRotation, info: CameraInfo) -> PhoneCamera {
-        let now = Instant::now();
-        PhoneCamera { size, display, info, camera: None, start: now, next_try: now }
+impl PermissionSource for AndroidPermissions {
+    fn answers(&mut self) -> Result<(Answer, Answer)> {
+        let flow = &mut self.flow;
+        with_activity(|env, activity| flow.refresh(env, activity))?;
+        Ok((flow.answer(Permission::Camera), flow.answer(Permission::Location)))
     }
 
-    /// Open the camera when it is time to try again (twice a second until it opens).
-    fn try_open(&mut self) {
-        if self.camera.is_some() || Instant::now() < self.next_try {
-            return;
-        }
-        self.next_try = Instant::now() + Duration::from_millis(500);
-        match Camera2::open(self.size.0, self.size.1, self.display) {
-            Ok(c) => self.camera = Some(c),
-            Err(e) => log(&format!("previz: camera not open yet: {e:#}")),
-        }
-    }
-
-    /// A grey frame while there is no camera, paced at 30 Hz.
-    fn grey(&self) -> Frame {
-        std::thread::sleep(Duration::from_millis(33));
-        let (w, h) = self.info.image_size();
-        Frame { image: Rgba8Image { width: w, height: h, pixels: vec![96; (4 * w * h) as usize] }, t: self.start.elapsed().as_secs_f64() }
-    }
-}
-
-impl FrameSource for PhoneCamera {
-    fn next_frame(&mut self) -> Result<Option<Frame>> {
-        self.try_open();
-        match &mut self.camera {
-            Some(c) => c.next_frame(),
-            None => Ok(Some(self.grey())),
-        }
-    }
-
-    fn lend_next_frame(&mut self, sink: &mut FrameSink<'_>) -> Result<bool> {
-        self.try_open();
-        match &mut self.camera {
-            Some(c) => c.lend_next_frame(sink),
-            None => {
-                let frame = self.grey();
-                sink(frame.t, FrameImage::Rgba(frame.image))?;
-                Ok(true)
-            }
-        }
-    }
-
-    fn pause(&mut self) -> Result<()> {
-        self.camera.as_mut().map_or(Ok(()), |c| c.pause())
-    }
-
-    fn resume(&mut self) -> Result<()> {
-        self.camera.as_mut().map_or(Ok(()), |c| c.resume())
+    fn ask_again(&mut self) -> Result<()> {
+        let flow = &mut self.flow;
+        with_activity(|env, activity| flow.ask_again(env, activity))
     }
 }
 

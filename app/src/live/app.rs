@@ -118,6 +118,20 @@ struct Requests {
     ask_permissions: bool,
 }
 
+/// The platform's permission answers, read by the app while it runs (the phone shells: Android
+/// through JNI, iOS through AVFoundation and Core Location; the desktop has none and everything
+/// is allowed).
+pub trait PermissionSource {
+    /// The camera's and location's answers now.
+    fn answers(&mut self) -> Result<(Answer, Answer)>;
+    /// The user pressed "Ask again" on the refusal screen: ask the system again.
+    fn ask_again(&mut self) -> Result<()>;
+}
+
+/// The app reads the platform's answers every this many frames (about twice a second on a
+/// phone): the user may allow or refuse in the system dialog or the settings at any time.
+pub const PERMISSION_POLL_FRAMES: u32 = 15;
+
 /// The interactive app (module docs).
 pub struct App {
     session: LiveSession,
@@ -139,7 +153,9 @@ pub struct App {
     script: VecDeque<Step>,
     last_export: Option<PathBuf>,
     captured: Option<PathBuf>,
-    ask_permissions: bool,
+    permissions: Option<Box<dyn PermissionSource>>,
+    /// Frames since the answers were last read.
+    since_poll: u32,
     quit: bool,
 }
 
@@ -154,11 +170,11 @@ impl App {
         let time = session.config().start.to_rfc3339_opts(chrono::SecondsFormat::Secs, true);
         let scene_model = match &session.scene().model {
             Some(p) => ModelChoice { name: file_label(p), path: Some(p.clone()) },
-            None => ModelChoice { name: "demo teapot".into(), path: None },
+            None => ModelChoice { name: "demo truck".into(), path: None },
         };
         let mut models = vec![scene_model];
         if models[0].path.is_some() {
-            models.push(ModelChoice { name: "demo teapot".into(), path: None });
+            models.push(ModelChoice { name: "demo truck".into(), path: None });
         }
         App {
             session,
@@ -180,7 +196,8 @@ impl App {
             script: VecDeque::new(),
             last_export: None,
             captured: None,
-            ask_permissions: false,
+            permissions: None,
+            since_poll: 0,
             quit: false,
         }
     }
@@ -191,10 +208,25 @@ impl App {
         self.location_permission = location;
     }
 
-    /// True once after the user pressed "Ask again" on the refusal screen (the shell asks the
-    /// system again).
-    pub fn take_permission_request(&mut self) -> bool {
-        std::mem::take(&mut self.ask_permissions)
+    /// The platform's answers, read now and every [`PERMISSION_POLL_FRAMES`] frames; "Ask
+    /// again" reaches it.
+    pub fn set_permission_source(&mut self, source: Box<dyn PermissionSource>) {
+        self.permissions = Some(source);
+        self.poll_permissions();
+    }
+
+    /// Read the platform's answers (an error goes to the status line; the answers stay).
+    fn poll_permissions(&mut self) {
+        self.since_poll = 0;
+        let Some(source) = &mut self.permissions else { return };
+        match source.answers() {
+            Ok((camera, location)) => self.set_permissions(camera, location),
+            Err(e) => self.status = format!("cannot read the permissions: {e:#}"),
+        }
+    }
+
+    pub fn permissions(&self) -> (Answer, Answer) {
+        (self.camera_permission, self.location_permission)
     }
 
     /// Run these steps, in order, each as soon as the app can.
@@ -316,6 +348,10 @@ impl App {
     pub fn frame(&mut self, gpu: &Gpu) -> Result<bool> {
         if self.quit || self.script.front() == Some(&Step::Quit) {
             return Ok(false);
+        }
+        self.since_poll += 1;
+        if self.since_poll >= PERMISSION_POLL_FRAMES {
+            self.poll_permissions();
         }
         if refused(self.camera_permission) {
             return Ok(true);
@@ -455,49 +491,63 @@ impl App {
     }
 
     fn composite_ui(&mut self, ctx: &egui::Context, perf: &str) {
+        use crate::ui::layout::{BAR_ID, MODEL_ID, STATUS_ID, composite_regions};
+        // Each panel in its own part of the screen, none over another (ui::layout).
+        let regions = composite_regions(ctx.content_rect());
         let sensors = self.session.sensors();
-        egui::Window::new("previz live").anchor(egui::Align2::LEFT_TOP, egui::vec2(8.0, 8.0)).resizable(false).show(ctx, |ui| {
-            ui.label(perf);
-            for line in status_lines(self.last.as_ref(), &sensors) {
-                ui.label(line);
-            }
-            let env = self.session.scene().environment.as_deref().map_or_else(|| "demo".to_string(), file_label);
-            ui.label(format!("environment: {env}"));
-        });
+        egui::Window::new("previz live").id(egui::Id::unique(STATUS_ID)).fixed_rect(regions.status).vscroll(true).collapsible(true).show(
+            ctx,
+            |ui| {
+                ui.label(perf);
+                for line in status_lines(self.last.as_ref(), &sensors) {
+                    ui.label(line);
+                }
+                let env = self.session.scene().environment.as_deref().map_or_else(|| "demo".to_string(), file_label);
+                ui.label(format!("environment: {env}"));
+            },
+        );
         let mut controls = self.controls;
-        self.requests.reset |= controls.show(ctx);
+        self.requests.reset |= controls.show(ctx, regions.controls);
         if controls != self.controls {
             self.controls = controls;
             self.session.set_controls(controls);
         }
-        egui::Window::new("model").anchor(egui::Align2::LEFT_BOTTOM, egui::vec2(8.0, -8.0)).resizable(false).show(ctx, |ui| {
-            let mut chosen = self.model;
-            egui::ComboBox::from_label("model").selected_text(self.models[self.model].name.clone()).show_ui(ui, |ui| {
-                for (i, m) in self.models.iter().enumerate() {
-                    ui.selectable_value(&mut chosen, i, m.name.clone());
+        egui::Window::new("model").id(egui::Id::unique(MODEL_ID)).fixed_rect(regions.model).vscroll(true).collapsible(true).show(
+            ctx,
+            |ui| {
+                let mut chosen = self.model;
+                egui::ComboBox::from_id_salt("model-picker")
+                    .selected_text(self.models[self.model].name.clone())
+                    .width(ui.available_width() - 8.0)
+                    .show_ui(ui, |ui| {
+                        for (i, m) in self.models.iter().enumerate() {
+                            ui.selectable_value(&mut chosen, i, m.name.clone());
+                        }
+                    });
+                if chosen != self.model {
+                    self.requests.model = Some(chosen);
                 }
-            });
-            if chosen != self.model {
-                self.requests.model = Some(chosen);
-            }
-            ui.label("(drop a model file on the window to add it)");
-            if self.location_permission != Answer::Granted {
-                ui.separator();
-                ui.label(refusal_message(Permission::Location, self.location_permission).unwrap_or_default().replace('→', ">"));
-                ui.horizontal(|ui| {
-                    ui.add(egui::DragValue::new(&mut self.place.lat).range(-90.0..=90.0).speed(0.01).prefix("lat "));
-                    ui.add(egui::DragValue::new(&mut self.place.lon).range(-180.0..=180.0).speed(0.01).prefix("lon "));
-                });
-                ui.add(egui::TextEdit::singleline(&mut self.place.time).desired_width(200.0));
-                self.requests.place |= ui.button("set place and time").clicked();
-            }
-        });
-        egui::Area::new(egui::Id::unique("shutter")).anchor(egui::Align2::CENTER_BOTTOM, egui::vec2(0.0, -12.0)).show(ctx, |ui| {
+                ui.label("(drop a model file on the window to add it)");
+                if self.location_permission != Answer::Granted {
+                    ui.separator();
+                    ui.label(refusal_message(Permission::Location, self.location_permission).unwrap_or_default().replace('→', ">"));
+                    ui.horizontal_wrapped(|ui| {
+                        ui.add(egui::DragValue::new(&mut self.place.lat).range(-90.0..=90.0).speed(0.01).prefix("lat "));
+                        ui.add(egui::DragValue::new(&mut self.place.lon).range(-180.0..=180.0).speed(0.01).prefix("lon "));
+                    });
+                    ui.add(egui::TextEdit::singleline(&mut self.place.time).desired_width(ui.available_width().min(200.0)));
+                    self.requests.place |= ui.button("set place and time").clicked();
+                }
+            },
+        );
+        // The buttons and the status message in the bar along the bottom.
+        egui::Area::new(egui::Id::unique(BAR_ID)).fixed_pos(regions.bar.min).show(ctx, |ui| {
+            ui.set_max_size(regions.bar.size());
             ui.horizontal(|ui| {
                 self.requests.capture |= ui.button("capture").clicked();
                 self.requests.shutter |= ui.button("shutter").clicked();
                 if !self.status.is_empty() {
-                    ui.label(&self.status);
+                    ui.add(egui::Label::new(&self.status).truncate());
                 }
             });
         });
@@ -544,8 +594,13 @@ impl App {
     /// returned.
     pub fn apply(&mut self, gpu: &Gpu) -> Result<()> {
         let r = std::mem::take(&mut self.requests);
-        self.ask_permissions |= r.ask_permissions;
         let mut result = Ok(());
+        if r.ask_permissions {
+            if let Some(source) = &mut self.permissions {
+                result = source.ask_again();
+            }
+            self.poll_permissions();
+        }
         if r.reset {
             self.controls = Controls { open: self.controls.open, ..self.initial.0 };
             self.session.params_mut().placement = self.initial.1;

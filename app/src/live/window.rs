@@ -1,5 +1,5 @@
-//! The app in a winit window: `previz live` on the desktop and the Android NativeActivity
-//! ([`super::android`]). This is only the shell: it owns the window, the surface and egui's
+//! The app in a winit window: `previz live` on the desktop, the Android NativeActivity
+//! ([`super::android`]) and the iPhone ([`super::ios`]). This is only the shell: it owns the window, the surface and egui's
 //! winit state, and forwards everything to the [`App`] — each redraw [`App::frame`] advances
 //! and draws into the compositor's target, one egui pass ([`App::ui`]) draws that target over
 //! the whole window with the app's UI on top into the window surface (DESIGN.md "One frame",
@@ -23,20 +23,11 @@ use winit::window::{Window, WindowId};
 /// Builds the app once the window's GPU device exists.
 pub type MakeApp = Box<dyn FnOnce(&Gpu) -> Result<App>>;
 
-/// Builds a session once the window's GPU device exists ([`run_on`] wraps it in an [`App`]).
-pub type MakeSession = Box<dyn FnOnce(&Gpu) -> Result<super::LiveSession>>;
-
 /// Open a window and run the app until its session ends or the window is closed.
 pub fn run(title: &str, size: (u32, u32), make: MakeApp) -> Result<()> {
     let event_loop = EventLoop::new()
         .map_err(|e| anyhow!("cannot open a window ({e}); on a machine without a display run under Xvfb, or use --frames N -o DIR"))?;
     run_app_on(event_loop, title, size, make)
-}
-
-/// Run the app made of a session (`make`) in a window of `event_loop`; the shutter and captures
-/// save into `export_dir`.
-pub fn run_on(event_loop: EventLoop<()>, title: &str, size: (u32, u32), export_dir: std::path::PathBuf, make: MakeSession) -> Result<()> {
-    run_app_on(event_loop, title, size, Box::new(move |gpu: &Gpu| Ok(App::new(make(gpu)?, export_dir))))
 }
 
 /// Run the app in a window of `event_loop` (the platform shells build their own loop: the

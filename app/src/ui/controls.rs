@@ -12,6 +12,10 @@
 use crate::render::{FrameParams, LightingMethod};
 use glam::{Quat, Vec2, Vec3};
 
+/// Below this inner width (points) the panel labels its sliders with the seed's codes alone
+/// (DL, SL, ...), so a phone's narrow panel fits a usable slider.
+pub const NARROW_PANEL: f32 = 230.0;
+
 /// The panel's values (what the user set), applied to every frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Controls {
@@ -72,18 +76,26 @@ impl Controls {
         p.method = self.method;
     }
 
-    /// The panel, anchored top-right. Returns true when Reset was pressed (the caller restores
-    /// the scene's values and the model's placement).
-    pub fn show(&mut self, ctx: &egui::Context) -> bool {
+    /// The panel in `rect` (its contents scroll when the screen is short;
+    /// [`crate::ui::layout`]). Returns true when Reset was pressed (the caller restores the
+    /// scene's values and the model's placement).
+    pub fn show(&mut self, ctx: &egui::Context, rect: egui::Rect) -> bool {
         let mut reset = false;
         egui::Window::new("controls")
-            .anchor(egui::Align2::RIGHT_TOP, egui::vec2(-8.0, 8.0))
-            .resizable(false)
+            .id(egui::Id::unique(crate::ui::layout::CONTROLS_ID))
+            .fixed_rect(rect)
+            .vscroll(true)
             .collapsible(true)
             .open(&mut self.open)
             .show(ctx, |ui| {
-                let slider = |ui: &mut egui::Ui, label: &str, v: &mut f32, max: f32| {
-                    ui.add(egui::Slider::new(v, 0.0..=max).text(label));
+                // Sliders as wide as the panel allows beside their value and label; a narrow
+                // panel (a phone) labels them with the seed's codes alone, the name on hover.
+                let narrow = ui.available_width() < NARROW_PANEL;
+                let reserved = if narrow { 95.0 } else { 140.0 };
+                ui.spacing_mut().slider_width = (ui.available_width() - reserved).clamp(24.0, 160.0);
+                let label = |name: &'static str| if narrow { name.split(' ').next().unwrap_or(name) } else { name };
+                let slider = |ui: &mut egui::Ui, name: &'static str, v: &mut f32, max: f32| {
+                    ui.add(egui::Slider::new(v, 0.0..=max).text(label(name))).on_hover_text(name);
                 };
                 slider(ui, "DL daylight", &mut self.daylight, 2.0);
                 slider(ui, "SL sunlight", &mut self.sunlight, 1.0);
@@ -93,7 +105,7 @@ impl Controls {
                 slider(ui, "A ambient", &mut self.ambient, 2.0);
                 slider(ui, "D diffuse", &mut self.diffuse, 2.0);
                 slider(ui, "S specular", &mut self.specular, 2.0);
-                ui.add(egui::Slider::new(&mut self.gloss, 1.0..=256.0).logarithmic(true).text("G gloss"));
+                ui.add(egui::Slider::new(&mut self.gloss, 1.0..=256.0).logarithmic(true).text(label("G gloss"))).on_hover_text("G gloss");
                 ui.separator();
                 for (v, label) in self.rotation_deg.iter_mut().zip(["X", "Y", "Z"]) {
                     ui.add(egui::Slider::new(v, -180.0..=180.0).suffix("°").text(label));
@@ -107,7 +119,7 @@ impl Controls {
             });
         if !self.open {
             // Folded away: one button brings it back.
-            egui::Area::new(egui::Id::unique("controls-unfold")).anchor(egui::Align2::RIGHT_TOP, egui::vec2(-8.0, 8.0)).show(ctx, |ui| {
+            egui::Area::new(egui::Id::unique("controls-unfold")).fixed_pos(rect.min).show(ctx, |ui| {
                 if ui.button("controls").clicked() {
                     self.open = true;
                 }
@@ -265,6 +277,7 @@ mod tests {
                 reflection: 0.0,
                 ior: 1.5,
                 shadow_opacity: 0.6,
+                sky_occlusion: 0.0,
                 live_depth: 1.0,
                 sky_sh: [[0.0; 3]; 9],
                 sun_colour: [1.0; 3],

@@ -98,6 +98,12 @@ struct Light {
     // rgb: the sun's colour (luminance 1; frame.sunlight scales it); w: tangent of the sun's
     // angular radius.
     sun: vec4<f32>,
+    // The ground square of the ground pass's sky-visibility map (scene::occlusion::ground_square):
+    // world (min.x, min.y, max.x, max.y); texel row 0 at min.y.
+    ground_square: vec4<f32>,
+    // x: how dark the ground gets where the model hides all of its sky (the sky's share of its
+    // light, render::Lighting::sky_occlusion); yzw: 0.
+    ground_sky: vec4<f32>,
 };
 
 // A world direction in the environment map's own ENU frame (frame.wgsl env_dir before the

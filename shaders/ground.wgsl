@@ -6,6 +6,10 @@
 @group(0) @binding(2) var shadow_map: texture_depth_2d;
 @group(0) @binding(3) var shadow_smp: sampler_comparison;
 @group(0) @binding(4) var<uniform> light: Light;
+// The cosine-weighted sky the ground sees past the model, over light.ground_square (written once
+// per placement from scene::occlusion::ground_sky).
+@group(0) @binding(5) var ground_sky: texture_2d<f32>;
+@group(0) @binding(6) var ground_sky_smp: sampler;
 
 struct GroundOut {
     @builtin(position) clip: vec4<f32>,
@@ -32,10 +36,21 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     if (frame.camera_pos.z <= plane.model[3].z) {
         return vec4<f32>(0.0);
     }
-    let visibility = sun_visibility_soft(shadow_map, shadow_smp, frame, in.world, light.sun.w);
-    // The shadow removes the sun's share of the ground's light: shadow_opacity is that share
-    // (measured from the environment by setup::light), none when there is no sunlight.
-    let sun_up = select(0.0, 1.0, frame.sun_dir.z > 0.0 && frame.sunlight > 0.0);
-    let alpha = frame.shadow_opacity * sun_up * (1.0 - visibility);
-    return vec4<f32>(0.0, 0.0, 0.0, alpha);
+    // The sun's shadow removes the sun's share of the ground's light: shadow_opacity is that
+    // share (measured from the environment by setup::light), none when there is no sunlight.
+    var sun_lost = 0.0;
+    if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
+        let visibility = sun_visibility_soft(shadow_map, shadow_smp, frame, in.world, light.sun.w);
+        sun_lost = frame.shadow_opacity * (1.0 - visibility);
+    }
+    // The model hides part of the sky: the sky's share of the ground's light times the share of
+    // the (cosine-weighted) sky hidden here. Outside the square the sky is whole.
+    let square = light.ground_square;
+    let uv = (in.world.xy - square.xy) / max(square.zw - square.xy, vec2<f32>(1e-6));
+    var sky_seen = 1.0;
+    if (all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0))) {
+        sky_seen = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0.0).r;
+    }
+    let sky_lost = light.ground_sky.x * (1.0 - sky_seen);
+    return vec4<f32>(0.0, 0.0, 0.0, clamp(sun_lost + sky_lost, 0.0, 1.0));
 }

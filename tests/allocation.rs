@@ -5,9 +5,9 @@
 mod common;
 
 use common::{FRAME_RESOURCES, assert_unchanged, gpu, scene, settled_counters, triangle};
-use previz::render::Layer;
+use previz::render::{Antialiasing, Layer};
 use previz::scene::CubeMap;
-use previz::setup::{Inputs, prepare};
+use previz::setup::{Inputs, prepare, prepare_antialiased};
 
 #[test]
 fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
@@ -16,6 +16,7 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
         Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
     let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
+    let start = params;
     let before = settled_counters();
     for i in 0..5 {
         params.camera.pose *= glam::Quat::from_rotation_y(0.1 * i as f32);
@@ -25,8 +26,51 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     }
     let after = settled_counters();
     assert_unchanged(&before, &after, &FRAME_RESOURCES, "frames");
+    // The uniform grey map has no sun: the ground's contact shadow is the model's occlusion of
+    // the sky, computed once for the placement, not per frame.
+    assert!(params.lighting.sky_occlusion > 0.99, "{}", params.lighting.sky_occlusion);
+    assert_eq!(compositor.ground_sky_updates(), 1);
+    placements_write_the_ground_sky_once_each(&mut compositor, &start);
     lod_switches_allocate_nothing();
+    antialiased_frames_allocate_nothing();
     a_second_composite_reuses_the_pipelines();
+}
+
+/// Called from the one test: with FXAA (its pass and input texture) and with 4× MSAA, frames
+/// allocate nothing either.
+fn antialiased_frames_allocate_nothing() {
+    let s = scene("width = 160\nheight = 120\n");
+    let inputs =
+        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    for aa in [Antialiasing::Fxaa, Antialiasing::Msaa(4)] {
+        let (mut compositor, mut params) = prepare_antialiased(gpu(), &s, &inputs, aa).unwrap();
+        assert_eq!(compositor.antialiasing(), aa);
+        compositor.render(gpu(), &params, Layer::Composite).unwrap();
+        let before = settled_counters();
+        for i in 0..3 {
+            params.camera.pose *= glam::Quat::from_rotation_y(0.1 * i as f32);
+            compositor.render(gpu(), &params, Layer::Composite).unwrap();
+        }
+        assert_unchanged(&before, &settled_counters(), &FRAME_RESOURCES, &format!("frames with {}", aa.name()));
+    }
+}
+
+/// Called from the one test: moving the model computes the ground's sky visibility again and
+/// writes it into the texture made up front (no allocation), once per placement.
+fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Compositor, params: &previz::render::FrameParams) {
+    let before = settled_counters();
+    let updates = compositor.ground_sky_updates();
+    for i in 1..=3 {
+        let mut p = *params;
+        p.placement.position.x += 0.2 * i as f32;
+        p.placement.rotation.z = 0.3 * i as f32;
+        for _ in 0..2 {
+            compositor.render(gpu(), &p, Layer::Composite).unwrap();
+        }
+        assert_eq!(compositor.ground_sky_updates(), updates + i, "placement {i}");
+    }
+    let after = settled_counters();
+    assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
 }
 
 /// Called from the one test: a model moving away switches level of detail and shadow-map size

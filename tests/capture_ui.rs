@@ -115,10 +115,11 @@ fn capture_guidance_golden_images() {
     common::assert_golden("capture_overlay_in_view", &in_view);
 
     // 2: after back and right, held still looking 40° down at 300°: the last target (down, 50°
-    // away) is out of view; an arrow points down. Compass fine: no badge, no "Hold still".
+    // away) is out of view; an arrow points down. The heading is calibrated against the sun:
+    // the yellow "north from the sun" badge instead of the gyro-only one, no "Hold still".
     s.take(pose(20.0, -0.5, HeadingSource::Magnetometer));
     s.take(pose(290.5, 0.5, HeadingSource::Magnetometer));
-    let p = pose(300.0, -40.0, HeadingSource::Magnetometer);
+    let p = pose(300.0, -40.0, HeadingSource::Sun);
     for _ in 0..6 {
         s.t += 1.0 / 30.0;
         s.assistant.observe(s.t, &p).unwrap();
@@ -139,4 +140,9 @@ fn capture_guidance_golden_images() {
     };
     assert!(amber(&in_view), "no gyro-only badge while the compass is disturbed: {:?}", common::pixel(&in_view, 18, 64));
     assert!(!amber(&r), "a gyro-only badge with the compass fine");
+    let sun_badge = |img: &Rendered| {
+        (17..21).all(|x| (62..70).all(|y| common::pixel(img, x, y)[..3].iter().zip([255u8, 225, 90]).all(|(a, b)| a.abs_diff(b) <= 6)))
+    };
+    assert!(sun_badge(&r), "no sun badge with the heading from the sun: {:?}", common::pixel(&r, 18, 64));
+    assert!(!sun_badge(&in_view), "a sun badge while gyro-only");
 }

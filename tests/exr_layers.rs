@@ -81,8 +81,10 @@ fn the_layers_exr_composes_to_the_png_composite() {
     assert!(worst <= 2.0 * f32::EPSILON, "beauty differs from model over background × matte by {worst} (relative)");
 
     // Not trivially so: the model covers part of the frame (with antialiased edges), and its
-    // shadow darkens the ground; the darkest matte is 1 − the frame's shadow opacity
-    // (the ground blends black at alpha = opacity × (1 − sun visibility)).
+    // shadow darkens the ground: the ground blends black at alpha = opacity × (1 − sun
+    // visibility) + sky occlusion × (1 − sky visibility), so the sun's full shadow reaches
+    // 1 − opacity and the contact point under the bunny, where both are lost, 1 − opacity − sky
+    // occlusion (0 here: the two shares of the ground's light add up to 1).
     let alpha = p("model.A");
     let covered = alpha.iter().filter(|&&a| a > 0.0).count();
     assert!(covered > 1000 && covered < w * h / 2, "{covered} covered pixels");
@@ -93,7 +95,11 @@ fn the_layers_exr_composes_to_the_png_composite() {
     let darkest = matte.iter().copied().fold(f32::INFINITY, f32::min);
     assert!(shadowed > 200, "only {shadowed} pixels in shadow");
     assert!(matte.iter().all(|&m| (0.0..=1.0).contains(&m)), "matte outside 0..1");
-    assert!((darkest - (1.0 - opacity)).abs() < 2e-3, "darkest matte {darkest}, shadow opacity {opacity}");
+    let sky_occlusion = json["light"]["sky_occlusion"].as_f64().unwrap() as f32;
+    assert!((opacity + sky_occlusion - 1.0).abs() < 1e-5, "shadow opacity {opacity} + sky occlusion {sky_occlusion}");
+    assert!(darkest < 0.02, "darkest matte {darkest}: nothing under the bunny's contact point");
+    let sun_shadow = matte.iter().filter(|&&m| m <= 1.0 - opacity + 0.01).count();
+    assert!(sun_shadow > 200, "only {sun_shadow} pixels in the sun's full shadow (1 - {opacity}) or darker");
     // Depth: finite wherever the model covers fully, +inf wherever it does not cover at all.
     let depth = p("depth.Z");
     for i in 0..w * h {

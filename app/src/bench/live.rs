@@ -10,14 +10,19 @@ use crate::setup::scene_file::Scene;
 use anyhow::{Result, anyhow};
 use std::sync::Arc;
 
-/// The stages, in the order of a frame.
-pub const STAGES: [&str; 5] = [
+/// The stages, in the order of a frame, then the floor: the same frame's background alone
+/// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
+pub const STAGES: [&str; 6] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
     "compositor (GPU)",
     "whole frame incl. readback (wall)",
+    "floor: background only (GPU)",
 ];
+/// Index of the compositor's row in [`STAGES`], and of the floor's.
+pub const COMPOSITOR: usize = 3;
+pub const FLOOR: usize = 5;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug)]
@@ -48,14 +53,16 @@ pub fn run(
     };
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 5] = Default::default();
+    let mut samples: [Vec<f64>; 6] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let f = session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
         let r = session.render(gpu)?;
         let wall = t.elapsed().as_secs_f64() * 1e3;
+        let floor = session.render_layer(gpu, crate::render::Layer::Background)?;
         if i >= warmup {
-            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, r.timings.gpu_ms.unwrap_or(f64::NAN), wall]) {
+            let gpu_ms = |r: &crate::render::Rendered| r.timings.gpu_ms.unwrap_or(f64::NAN);
+            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), wall, gpu_ms(&floor)]) {
                 v.push(x);
             }
         }
@@ -64,11 +71,18 @@ pub fn run(
     Ok(STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect())
 }
 
-/// The rows as a markdown table.
+/// The compositor's median GPU time over the floor's (issue 11's goal: at most 1.5).
+pub fn floor_ratio(rows: &[StageRow]) -> f64 {
+    rows[COMPOSITOR].median_ms / rows[FLOOR].median_ms
+}
+
+/// The rows as a markdown table, then the compositor's ratio to the floor.
 pub fn markdown(rows: &[StageRow]) -> String {
     let mut s = String::from("| stage | median ms | p95 ms |\n|---|---:|---:|\n");
     for r in rows {
         s += &format!("| {} | {:.3} | {:.3} |\n", r.stage, r.median_ms, r.p95_ms);
     }
+    let ratio = floor_ratio(rows);
+    s += &format!("\ncompositor / floor (GPU medians): {ratio:.2}x (goal <= 1.5x: {})\n", if ratio <= 1.5 { "met" } else { "not met" });
     s
 }

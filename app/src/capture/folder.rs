@@ -26,6 +26,7 @@ fn heading_source_name(s: Option<HeadingSource>) -> String {
     match s {
         Some(HeadingSource::Magnetometer) => "compass",
         Some(HeadingSource::GyroOnly) => "gyro-only",
+        Some(HeadingSource::Sun) => "sun",
         Some(HeadingSource::Platform) => "platform",
         Some(HeadingSource::Unknown) | None => "unknown",
     }
@@ -60,7 +61,7 @@ pub struct FaceMeta {
     pub heading_deg: f64,
     pub pitch_deg: f64,
     pub roll_deg: f64,
-    /// "compass", "gyro-only", "platform" or "unknown".
+    /// "compass", "sun", "gyro-only", "platform" or "unknown".
     pub heading_source: String,
     /// The pose filter's own 1σ accuracy estimate (degrees); null when not known.
     pub accuracy_deg: Option<f32>,
@@ -148,6 +149,24 @@ pub struct CaptureMeta {
     /// Stitch mode: the alignment of the shots from their overlaps; null when not aligned.
     #[serde(default)]
     pub alignment: Option<AlignmentMeta>,
+    /// Where the reference heading comes from and its 1σ; null in folders written before it.
+    #[serde(default)]
+    pub heading: Option<HeadingMeta>,
+}
+
+/// The reference heading's source ([`CubeCapture::calibrate_north_with_sun`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HeadingMeta {
+    /// "magnetometer", "sun" or "gyro-only" (the front shot's pose was gyro-only).
+    pub source: String,
+    /// 1σ of the reference heading (degrees): the front shot's filter estimate, or the sun
+    /// measurement's.
+    pub accuracy_deg: Option<f64>,
+    /// The turn the sun calibration applied to the reference heading and every pose (degrees,
+    /// clockwise); null when the sun was not used.
+    pub sun_correction_deg: Option<f64>,
+    /// Why the sun was or was not used, for people.
+    pub note: String,
 }
 
 impl CaptureMeta {
@@ -163,9 +182,19 @@ impl CaptureMeta {
             exposure: None,
             location: None,
             time_utc: None,
+            alignment: None,
+            heading: Some(HeadingMeta {
+                source: match faces.iter().find(|f| f.face == Face::Front).map(|f| f.heading_source.as_str()) {
+                    Some("gyro-only") => "gyro-only",
+                    _ => "magnetometer",
+                }
+                .into(),
+                accuracy_deg: faces.iter().find(|f| f.face == Face::Front).and_then(|f| f.accuracy_deg).map(f64::from),
+                sun_correction_deg: None,
+                note: "sun not looked for".into(),
+            }),
             faces,
             shots,
-            alignment: None,
         }
     }
 
@@ -206,6 +235,74 @@ impl CubeCapture {
 
     pub fn face(&self, face: Face) -> &FaceImage {
         &self.faces[face.layer()]
+    }
+
+    /// True north from the sun: take the heading error measured on the shots' short-exposure
+    /// frames (`from_frames`, [`crate::pose::sun_heading`]; the shots' poses place the faces), or
+    /// else find the sun in the faces (works when they are not clipped around the sun) and
+    /// compare its azimuth (through the reference heading) with `sun_enu` (SPA's direction for
+    /// the capture's place and time; None when either is unknown); then turn the reference
+    /// heading and every recorded pose by the measured error. The metadata's
+    /// `heading` says what happened: source "sun" with the measurement's 1σ, or the magnetic
+    /// heading kept and why. Returns the correction applied (degrees, clockwise).
+    pub fn calibrate_north_with_sun(
+        &mut self,
+        sun_enu: Option<glam::Vec3>,
+        from_frames: Option<crate::pose::sun_heading::HeadingMeasurement>,
+    ) -> Option<f64> {
+        use crate::pose::sun_heading::{heading_measurement, sight_sun_in_capture};
+        let kept = self.meta.heading.clone().unwrap_or(HeadingMeta {
+            source: "magnetometer".into(),
+            accuracy_deg: None,
+            sun_correction_deg: None,
+            note: String::new(),
+        });
+        let keep = |meta: &mut CaptureMeta, note: &str| {
+            meta.heading = Some(HeadingMeta { note: format!("{note}: magnetic heading kept"), sun_correction_deg: None, ..kept.clone() });
+            None
+        };
+        let Some(sun) = sun_enu else { return keep(&mut self.meta, "no sun position (location or time unknown)") };
+        if sun.z <= 0.0 {
+            return keep(&mut self.meta, "the sun is below the horizon");
+        }
+        let (m, seen_in) = match from_frames {
+            Some(m) => (m, "the shots' short-exposure frames"),
+            None => {
+                let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians()) else {
+                    return keep(&mut self.meta, "no sun in the capture (clouds, or not in view)");
+                };
+                // The faces are levelled by the accelerometer: its 0.5° floor is the tilt 1σ.
+                let Some(m) = heading_measurement(&seen, sun, 0.5f64.to_radians()) else {
+                    return keep(&mut self.meta, "the brightest spot is not where the sun is");
+                };
+                (m, "the faces")
+            }
+        };
+        let turn = -m.error.to_degrees();
+        self.meta.reference_heading_deg = (self.meta.reference_heading_deg + turn).rem_euclid(360.0);
+        let rot = glam::DQuat::from_rotation_z(m.error);
+        let turned = |p: [f64; 4]| {
+            let q = rot * glam::DQuat::from_xyzw(p[1], p[2], p[3], p[0]);
+            [q.w, q.x, q.y, q.z]
+        };
+        for f in &mut self.meta.faces {
+            f.pose_wxyz = turned(f.pose_wxyz);
+            f.heading_deg = (f.heading_deg + turn).rem_euclid(360.0);
+        }
+        for s in &mut self.meta.shots {
+            s.pose_wxyz = turned(s.pose_wxyz);
+        }
+        self.meta.heading = Some(HeadingMeta {
+            source: "sun".into(),
+            accuracy_deg: Some(m.sigma.to_degrees()),
+            sun_correction_deg: Some(turn),
+            note: format!(
+                "sun seen in {seen_in} {:.2}° from SPA's azimuth (elevation {:+.2}°)",
+                m.error.to_degrees(),
+                m.elevation_difference.to_degrees()
+            ),
+        });
+        Some(turn)
     }
 
     /// The faces as a cube map in linear light (sRGB decoded; the camera's tone curve is not

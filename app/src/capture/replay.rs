@@ -25,6 +25,7 @@ use crate::camera::sim::{SimSettings, VirtualPhone};
 use crate::pose::frames::angle_between;
 use crate::pose::fusion::{FusionConfig, OrientationFilter};
 use crate::pose::hand_motion::UserPathParams;
+use crate::pose::sun_heading::{HeadingMeasurement, SUN_FRAME_EXPOSURE, heading_measurement, sight_sun, sun_in_view};
 use crate::pose::trace::TruthTrace;
 use crate::pose::{HeadingSource, OrientationEstimator, Pose};
 use crate::scene::CubeMap;
@@ -58,6 +59,10 @@ pub struct ReplayConfig {
     pub render_threads: usize,
     /// Stitch mode: align the shots from their overlaps ([`super::align`]).
     pub align: bool,
+    /// The simulated clock (UTC) of the capture: with it and the GPS fix, SPA's sun calibrates
+    /// the capture's north ([`CubeCapture::calibrate_north_with_sun`]). None: the wall clock is
+    /// recorded and the sun is not used (the environment's sun is not where SPA has it now).
+    pub clock: Option<chrono::DateTime<chrono::Utc>>,
 }
 
 impl Default for ReplayConfig {
@@ -76,7 +81,8 @@ impl Default for ReplayConfig {
             disturbances: Vec::new(),
             score: true,
             render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            align: false,
+            align: true,
+            clock: None,
         }
     }
 }
@@ -111,6 +117,12 @@ pub struct FaceReport {
     pub psnr_db: Option<f64>,
     /// Mean FLIP error against the ideal face (0 = identical).
     pub mean_flip: Option<f32>,
+    /// PSNR and mean FLIP against the ideal face at the front shot's *true* heading: what the
+    /// stitch itself got right (seams, misplaced shots), without the reference heading's own
+    /// error (the compass's, [`ReplayResult::reference_heading_error_deg`]), which turns every
+    /// face alike and which true north from the sun corrects.
+    pub stitch_psnr_db: Option<f64>,
+    pub stitch_flip: Option<f32>,
     pub heading_source: String,
 }
 
@@ -141,6 +153,9 @@ pub struct ReplayResult {
     pub shot_t: Vec<Option<f64>>,
     /// The assistant's reference heading (degrees), once the front was taken.
     pub reference_heading_deg: Option<f64>,
+    /// The reference heading minus the front shot's true heading (degrees, −180..180), once
+    /// the front was taken.
+    pub reference_heading_error_deg: Option<f64>,
 }
 
 impl ReplayResult {
@@ -225,6 +240,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let mut complete_t = None;
     let mut track = Vec::new();
     let mut aim_filter: Option<OrientationFilter> = None;
+    let mut sun_fix: Option<(f32, HeadingMeasurement)> = None;
     let n = ((trace.end() - trace.start()) * cfg.frame_hz).floor() as usize;
     for k in 0..=n {
         let t = trace.start() + k as f64 / cfg.frame_hz;
@@ -262,6 +278,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if tapped.is_none() && tap_t.is_some_and(|tt| t >= tt) {
             let frame = phone.render_with_exposure(truth, exposure)?;
             assistant.tap(t, &pose, Arc::new(frame))?;
+            sun_fix = nearer_centre(sun_fix, measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?);
             // From the tap on, the guidance judges aims with a copy of the filter whose heading
             // is held (pose::fusion): the heading relative to the front then comes from the
             // gyroscope, while the compass's error changes with heading by several degrees
@@ -276,6 +293,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         if let Some(i) = assistant.observe(t, &aim_pose)? {
             let frame = phone.render_with_exposure(truth, exposure)?;
             assistant.capture(i, t, &pose, Arc::new(frame))?;
+            sun_fix = nearer_centre(sun_fix, measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?);
             if assistant.phase() == Phase::Complete {
                 complete_t = Some(t);
                 break;
@@ -305,18 +323,64 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         taken,
         shot_t,
         reference_heading_deg: assistant.reference_heading_deg(),
+        reference_heading_error_deg: tapped
+            .zip(assistant.reference_heading_deg())
+            .map(|(t, href)| crate::pose::frames::heading_difference_deg(href, front_true_heading_deg(trace, t))),
     };
     match finished {
         Err(e) => result.incomplete = Some(format!("{e:#}")),
         Ok(mut capture) => {
             capture.meta.exposure = locked;
             capture.meta.location = location;
-            capture.meta.time_utc = Some(chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
+            let time = cfg.clock.unwrap_or_else(chrono::Utc::now);
+            capture.meta.time_utc = Some(time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
             result.faces = score(env, trace, &capture, cfg.score)?;
+            // True north from the sun (after scoring: the faces are scored in their own frame).
+            capture.calibrate_north_with_sun(spa_sun(cfg.clock, location), sun_fix.map(|(_, m)| m));
             result.capture = Some(capture);
         }
     }
     Ok(result)
+}
+
+/// SPA's apparent sun direction (ENU) for a clock and a GPS fix, when both are known.
+fn spa_sun(clock: Option<chrono::DateTime<chrono::Utc>>, location: Option<Location>) -> Option<glam::Vec3> {
+    let (time, l) = clock.zip(location)?;
+    let mut input = crate::sun::SunInput::new(time, l.lat_deg, l.lon_deg);
+    input.site.elevation_m = l.alt_m;
+    crate::sun::position(&input, crate::sun::Algorithm::Spa).ok().map(|p| p.direction_enu())
+}
+
+/// A shot with the sun in it: a short exposure ([`SUN_FRAME_EXPOSURE`]) at the true pose
+/// measures the heading error of the shot's estimated pose, with the sun's angle off the
+/// optical axis (radians). None when the sun is unknown, below the horizon, out of the frame or
+/// not seen.
+fn measure_sun(
+    phone: &VirtualPhone,
+    cfg: &ReplayConfig,
+    sun: Option<glam::Vec3>,
+    pose: &Pose,
+    truth: Quat,
+    exposure: f32,
+) -> Result<Option<(f32, HeadingMeasurement)>> {
+    let Some(sun) = sun.filter(|s| s.z > 0.0 && sun_in_view(pose.q, *s, cfg.vfov_deg, cfg.width, cfg.height, 2.0)) else {
+        return Ok(None);
+    };
+    let dark = phone.render_with_exposure(truth, exposure * SUN_FRAME_EXPOSURE)?;
+    Ok(sight_sun(&dark, cfg.vfov_deg, pose.q)?.and_then(|s| {
+        let off_axis = s.dir_camera.angle_between(glam::Vec3::NEG_Z);
+        heading_measurement(&s, sun, f64::from(pose.tilt_accuracy_deg).to_radians()).map(|m| (off_axis, m))
+    }))
+}
+
+/// Of two sun measurements, the one from the shot with the sun nearer its centre: the shots'
+/// headings err differently, and the stitched faces take the sun mostly from that shot (the
+/// blend weighs each shot's pixels by their distance from its frame's edge).
+fn nearer_centre(a: Option<(f32, HeadingMeasurement)>, b: Option<(f32, HeadingMeasurement)>) -> Option<(f32, HeadingMeasurement)> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.0 < a.0 { b } else { a }),
+        (a, b) => a.or(b),
+    }
 }
 
 /// A simulated user who follows the on-screen guidance, and what they captured.
@@ -420,6 +484,11 @@ pub fn replay_guided(
     }
 }
 
+/// True heading (degrees) of the camera at time `t` of `trace`.
+fn front_true_heading_deg(trace: &TruthTrace, t: f64) -> f64 {
+    crate::pose::frames::heading_pitch_roll(trace.orientation_at(t)).heading.to_degrees()
+}
+
 fn quat_of(wxyz: [f64; 4]) -> DQuat {
     DQuat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0]).normalize()
 }
@@ -429,17 +498,20 @@ fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool)
     let meta = &capture.meta;
     let exposure = meta.exposure.context("the capture has no locked exposure to score against")?;
     let error = |t: f64, wxyz: [f64; 4]| angle_between(quat_of(wxyz), trace.orientation_at(t)).to_degrees();
+    // The tap is the first shot.
+    let tap_t = meta.shots.iter().map(|s| s.t).fold(f64::INFINITY, f64::min);
+    let true_front = front_true_heading_deg(trace, if tap_t.is_finite() { tap_t } else { trace.start() });
     let mut out = Vec::with_capacity(6);
     for face in Face::ALL {
         let fm = meta.face(face).with_context(|| format!("capture metadata has no {} face", face.name()))?;
         let img = capture.face(face);
         let max_shot = meta.shots.iter().filter(|s| s.face == face).map(|s| error(s.t, s.pose_wxyz)).fold(0.0, f64::max);
-        let (psnr_db, flip) = if images {
-            let ideal = ideal_face(env, meta.reference_heading_deg, face, img.size, exposure);
+        let scores = |heading: f64| {
+            let ideal = ideal_face(env, heading, face, img.size, exposure);
             (psnr(&ideal, &img.rgb), mean_flip(&ideal, &img.rgb, img.size, img.size))
-        } else {
-            (None, None)
         };
+        let ((psnr_db, flip), (stitch_psnr_db, stitch_flip)) =
+            if images { (scores(meta.reference_heading_deg), scores(true_front)) } else { ((None, None), (None, None)) };
         out.push(FaceReport {
             face,
             capture_t: fm.t,
@@ -448,6 +520,8 @@ fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool)
             coverage: img.coverage,
             psnr_db,
             mean_flip: flip,
+            stitch_psnr_db,
+            stitch_flip,
             heading_source: fm.heading_source.clone(),
         });
     }

@@ -126,6 +126,12 @@ pub struct RunRow {
     /// PSNR per face in [`Face::ALL`] order (dB; None when incomplete or identical).
     pub face_psnr: [Option<f64>; 6],
     pub mean_flip: Option<f64>,
+    /// Mean PSNR and FLIP of the faces against the ideal faces at the front's true heading
+    /// ([`super::replay::FaceReport::stitch_psnr_db`]).
+    pub stitch_psnr_db: Option<f64>,
+    pub stitch_flip: Option<f64>,
+    /// The reference heading's error (degrees).
+    pub reference_heading_error_deg: Option<f64>,
     pub min_coverage: Option<f64>,
     pub gyro_only_fraction: f64,
     pub assembly_ms: f64,
@@ -232,6 +238,9 @@ fn row(job: Job, href: f64, r: &ReplayResult) -> RunRow {
         max_error_deg: errors.iter().copied().reduce(f64::max),
         face_psnr,
         mean_flip: mean(&flips),
+        stitch_psnr_db: mean(&r.faces.iter().filter_map(|f| f.stitch_psnr_db).collect::<Vec<_>>()),
+        stitch_flip: mean(&r.faces.iter().filter_map(|f| f.stitch_flip.map(f64::from)).collect::<Vec<_>>()),
+        reference_heading_error_deg: r.reference_heading_error_deg,
         min_coverage: r.faces.iter().map(|f| f64::from(f.coverage)).reduce(f64::min),
         gyro_only_fraction: r.gyro_only_fraction,
         assembly_ms: r.assembly_ms,
@@ -298,6 +307,10 @@ pub struct Summary {
     pub mean_psnr_db: Option<f64>,
     pub face_psnr_db: [Option<f64>; 6],
     pub mean_flip: Option<f64>,
+    pub stitch_psnr_db: Option<f64>,
+    pub stitch_flip: Option<f64>,
+    /// RMS of the reference heading's error over the completed runs (degrees).
+    pub rms_reference_error_deg: Option<f64>,
     pub mean_min_coverage: Option<f64>,
     pub mean_shots: f64,
     pub mean_assembly_ms: f64,
@@ -362,6 +375,9 @@ pub fn summarise(rows: &[RunRow]) -> Vec<Summary> {
                 mean_psnr_db: mean_of(done.iter().filter_map(|r| r.mean_psnr())),
                 face_psnr_db: std::array::from_fn(|i| mean_of(done.iter().filter_map(|r| r.face_psnr[i]))),
                 mean_flip: mean_of(done.iter().filter_map(|r| r.mean_flip)),
+                stitch_psnr_db: mean_of(done.iter().filter_map(|r| r.stitch_psnr_db)),
+                stitch_flip: mean_of(done.iter().filter_map(|r| r.stitch_flip)),
+                rms_reference_error_deg: mean_of(done.iter().filter_map(|r| r.reference_heading_error_deg.map(|e| e * e))).map(f64::sqrt),
                 mean_min_coverage: mean_of(done.iter().filter_map(|r| r.min_coverage)),
                 mean_shots: g.iter().map(|r| r.shots as f64).sum::<f64>() / g.len().max(1) as f64,
                 mean_assembly_ms: mean_of(done.iter().map(|r| r.assembly_ms)).unwrap_or(0.0),
@@ -381,7 +397,7 @@ pub fn rows_csv(rows: &[RunRow]) -> String {
     let mut s = String::from(
         "case,noise,mode,seed,reference_heading_deg,completed,time_to_complete_s,shots,targets,mean_orientation_error_deg,\
 max_orientation_error_deg,psnr_front_db,psnr_up_db,psnr_down_db,psnr_right_db,psnr_back_db,psnr_left_db,mean_psnr_db,mean_flip,\
-min_coverage,gyro_only_fraction,assembly_ms,guided_passes,missing\n",
+stitch_psnr_db,stitch_flip,reference_heading_error_deg,min_coverage,gyro_only_fraction,assembly_ms,guided_passes,missing\n",
     );
     for r in rows {
         let _ = writeln!(
@@ -401,7 +417,17 @@ min_coverage,gyro_only_fraction,assembly_ms,guided_passes,missing\n",
             r.face_psnr.iter().map(|p| opt(*p, 3)).collect::<Vec<_>>().join(","),
             opt(r.mean_psnr(), 3),
             opt(r.mean_flip, 5),
-            format_args!("{},{:.4},{:.2},{},{}", opt(r.min_coverage, 4), r.gyro_only_fraction, r.assembly_ms, r.attempts, r.missing),
+            format_args!(
+                "{},{},{},{},{:.4},{:.2},{},{}",
+                opt(r.stitch_psnr_db, 3),
+                opt(r.stitch_flip, 5),
+                opt(r.reference_heading_error_deg, 3),
+                opt(r.min_coverage, 4),
+                r.gyro_only_fraction,
+                r.assembly_ms,
+                r.attempts,
+                r.missing
+            ),
         );
     }
     s
@@ -410,13 +436,13 @@ min_coverage,gyro_only_fraction,assembly_ms,guided_passes,missing\n",
 /// The summary as a markdown table.
 pub fn summary_markdown(summaries: &[Summary]) -> String {
     let mut s = String::from(
-        "| case | noise | mode | runs | complete | median time (s) | mean orient. err (°) | p95 max err (°) | mean PSNR (dB) | mean FLIP | min coverage | shots | passes | assembly (ms) | gyro-only frames |\n\
-|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| case | noise | mode | runs | complete | median time (s) | mean orient. err (°) | p95 max err (°) | mean PSNR (dB) | mean FLIP | stitch PSNR (dB) | stitch FLIP | RMS ref. heading err (°) | min coverage | shots | passes | assembly (ms) | gyro-only frames |\n\
+|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in summaries {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.0}% | {} | {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.1} | {:.0}% |",
+            "| {} | {} | {} | {} | {:.0}% | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.1} | {:.0}% |",
             m.case.name(),
             m.noise.name(),
             m.mode.name(),
@@ -427,6 +453,9 @@ pub fn summary_markdown(summaries: &[Summary]) -> String {
             opt(m.p95_error_deg, 2),
             opt(m.mean_psnr_db, 1),
             opt(m.mean_flip, 3),
+            opt(m.stitch_psnr_db, 1),
+            opt(m.stitch_flip, 3),
+            opt(m.rms_reference_error_deg, 2),
             opt(m.mean_min_coverage, 3),
             m.mean_shots,
             m.mean_attempts,

@@ -82,10 +82,10 @@ pub struct RunArgs {
     /// stretch: one shot per face stretched over it (seed 000); stitch: extra shots, full coverage
     #[arg(long, value_enum, default_value = "stitch")]
     pub mode: Mode,
-    /// Stitch mode: correct the shots' headings from their overlaps before assembly
-    /// (experimental: it does not raise the faces' PSNR yet, see docs/capture.md)
-    #[arg(long)]
-    pub align: bool,
+    /// Stitch mode: do not correct the shots' headings from their overlaps before assembly
+    /// (the alignment is on by default, see docs/capture.md)
+    #[arg(long = "no-align")]
+    pub no_align: bool,
     /// Print per-face capture time, orientation error, coverage, PSNR and mean FLIP as JSON
     #[arg(long)]
     pub json: bool,
@@ -140,7 +140,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
         tolerance_deg: a.tolerance,
         face_size: a.face_size,
         score: true,
-        align: a.align,
+        align: !a.no_align,
         ..ReplayConfig::default()
     };
     let assistant_cfg = cfg.assistant().context("bad --vfov, --tolerance or --face-size")?;
@@ -171,6 +171,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
             "tolerance_deg": a.tolerance,
             "face_size": a.face_size,
             "reference_heading_deg": capture.meta.reference_heading_deg,
+            "reference_heading_error_deg": result.reference_heading_error_deg,
             "exposure": capture.meta.exposure,
             "tap_t": result.tap_t,
             "time_to_complete_s": result.time_to_complete(),
@@ -185,6 +186,8 @@ fn run_capture(a: RunArgs) -> Result<()> {
                 "coverage": f.coverage,
                 "psnr_db": f.psnr_db,
                 "mean_flip": f.mean_flip,
+                "stitch_psnr_db": f.stitch_psnr_db,
+                "stitch_flip": f.stitch_flip,
                 "heading_source": f.heading_source,
             })).collect::<Vec<_>>(),
         });

@@ -193,6 +193,7 @@ fn light_json(
         "sunlight": l.sunlight,
         "daylight": l.daylight,
         "shadow_opacity": l.shadow_opacity,
+        "sky_occlusion": l.sky_occlusion,
     })
 }
 

@@ -29,13 +29,14 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
     let fade = crate::sun::twilight::sunlight_factor_toward(sun_dir);
     // The scene's sunlight, daylight and shadow opacity are multipliers on the light measured
     // in the environment (setup::light); composite fades the sunlight by the sun's elevation
-    // again. (The shadow's measured share depends on the sunlight and daylight multipliers:
-    // with both at 1 the round trip is exact.)
+    // again.
     let unit = session.unit_light();
     let ratio = |v: f32, of: f32| if of > 0.0 { v / of } else { 0.0 };
     let sunlight = if fade > 0.0 { ratio(l.sunlight / fade, unit.sunlight) } else { 0.0 };
     let daylight = ratio(l.daylight, unit.daylight);
-    let shadow_opacity = ratio(l.shadow_opacity, unit.shadow_opacity).min(1.0);
+    // The ground's shadow strengths follow the sun (setup::light::ground_strengths): the
+    // scene's multiplier on them is the session's.
+    let shadow_opacity = base.effects.shadow_opacity as f32;
     let f = |v: f32| Value::Float(f64::from(v));
     let v3 = |v: glam::Vec3| Value::Array(vec![f(v.x), f(v.y), f(v.z)]);
     let table = |entries: Vec<(&str, Value)>| Value::Table(entries.into_iter().map(|(k, v)| (k.to_string(), v)).collect());

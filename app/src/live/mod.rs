@@ -385,6 +385,13 @@ impl LiveSession {
         if let Some(c) = &self.controls {
             c.apply(&mut self.params, sunlight);
         }
+        // The ground's shadows follow the sun as it moves (setup::lighting for the same light).
+        let l = &mut self.params.lighting;
+        let unit = &self.unit_light;
+        let daylight = if unit.daylight > 0.0 { l.daylight / unit.daylight } else { 1.0 };
+        let multiplier = self.scene.effects.shadow_opacity as f32;
+        (l.shadow_opacity, l.sky_occlusion) =
+            crate::setup::light::ground_strengths(l.sunlight, l.sun_dir, daylight * unit.ground_sky, multiplier);
         self.layer = if pose.is_some() && self.show_model { Layer::Composite } else { Layer::Background };
         let user_tapped = match &self.sources.truth {
             Some(truth) => truth.samples().iter().any(|s| s.tap && s.t <= t && previous.is_none_or(|p| s.t > p)),
@@ -543,6 +550,7 @@ impl LiveSession {
         self.sun_from_clock = true;
         self.params.lighting.daylight = light.daylight;
         self.params.lighting.shadow_opacity = light.shadow_opacity;
+        self.params.lighting.sky_occlusion = light.sky_occlusion;
         self.params.lighting.sky_sh = light.sky_sh;
         self.params.lighting.sun_colour = light.sun_colour;
         self.params.lighting.sun_angular_radius = light.sun_angular_radius;

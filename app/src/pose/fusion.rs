@@ -26,6 +26,19 @@
 //!   game rotation vector does for panoramas. The compass's error changes with heading (residual
 //!   hard iron) and with small undetected disturbances — at `phone` noise by up to 10° within
 //!   one capture — while a gyroscope with a learnt bias drifts a fraction of a degree in it.
+//!
+//! **True north from the sun** ([`OrientationFilter::sun_heading`], measured by
+//! [`super::sun_heading`]): the sun seen in a frame gives the heading error of the estimate to
+//! a fraction of a degree. It is fused as a measurement of the heading (a Kalman update on yaw
+//! with the filter's heading 1σ as the prior and the measurement's own 1σ): the correction is
+//! blended into the output over [`SUN_BLEND_S`] (no visible snap). The compass's own error
+//! (its low-passed disagreement with the estimate less the measured error) is learnt as an
+//! offset, so the magnetometer then corrects towards the sun-calibrated heading instead of
+//! pulling it back to its steady error; and while the calibration is fresh the compass counts
+//! only by its share of the two variances (an undetected disturbance cannot drag the heading).
+//! The calibration's 1σ grows with time (k_mag × the compass floor per second: as fast as the
+//! compass can move the heading) and with turning (a residual hard-iron error changes with
+//! orientation), so the compass takes over again when the sun is no longer seen.
 
 use super::frames::{DisplayRotation, angle_difference, camera_pose_from_device};
 use super::hard_iron::HardIronCalibrator;
@@ -127,6 +140,24 @@ impl Default for FusionConfig {
     }
 }
 
+/// Time constant (s) over which a sun heading correction is blended into the estimate.
+pub const SUN_BLEND_S: f64 = 0.25;
+/// Time constant (s) of the compass disagreement the sun calibration learns the offset from.
+const COMPASS_LP_S: f64 = 0.5;
+/// Turning (radians, any axis) after which a sun calibration is worth no more than the compass.
+const SUN_VALID_TURN: f64 = std::f64::consts::FRAC_PI_2;
+
+/// A sun heading measurement taken into the filter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SunFix {
+    /// Time of the update (s).
+    t: f64,
+    /// Heading 1σ right after the update (radians).
+    sigma: f64,
+    /// Rotation (radians) since the update.
+    turned: f64,
+}
+
 /// Readings older than this (s) are not used for corrections.
 const FRESH_S: f64 = 0.25;
 /// A gap in gyroscope readings longer than this (s) restarts the integration.
@@ -183,6 +214,15 @@ pub struct OrientationFilter {
     mag_time: f64,
     /// Heading hold: since when, and the heading 1σ then (radians).
     hold: Option<(f64, f64)>,
+    /// Learnt from the sun: how far clockwise of the model's magnetic north the (calibrated)
+    /// magnetometer sees the field (radians); the magnetometer correction aims at
+    /// declination + this. A compass-only heading is this much too far anticlockwise.
+    compass_offset: f64,
+    /// Heading correction from the sun not yet blended in (radians, to subtract).
+    pending_turn: f64,
+    sun: Option<SunFix>,
+    /// Low-passed disagreement of the compass with the estimate (radians, before the offset).
+    compass_lp: Option<f64>,
 }
 
 impl OrientationFilter {
@@ -219,7 +259,56 @@ impl OrientationFilter {
             carried_tilt_sigma: 0.0,
             mag_time: 0.0,
             hold: None,
+            compass_offset: 0.0,
+            pending_turn: 0.0,
+            sun: None,
+            compass_lp: None,
         }
+    }
+
+    /// Take a heading measurement from the sun ([`super::sun_heading::heading_measurement`]):
+    /// `error` is the estimate's heading error at time `t` (radians, positive = estimate too
+    /// far clockwise) with 1σ `sigma`. A Kalman update on yaw: gain K = P / (P + σ²) with P the
+    /// filter's heading variance; K·error is taken off the heading (blended in over
+    /// [`SUN_BLEND_S`]) and learnt as the compass's offset, and the heading variance becomes
+    /// P·(1 − K). Returns the correction (radians), or None when the filter has no heading yet
+    /// or the measurement is not finite and positive.
+    pub fn sun_heading(&mut self, t: f64, error: f64, sigma: f64) -> Option<f64> {
+        if !(self.initialised && self.heading_known && error.is_finite() && sigma.is_finite() && sigma > 0.0) {
+            return None;
+        }
+        self.t = self.t.max(t);
+        let p = self.heading_sigma().powi(2);
+        let r = sigma * sigma;
+        let k = p / (p + r);
+        // The part of an earlier correction not yet blended in is already known.
+        let innovation = angle_difference(error, self.pending_turn);
+        let correction = k * innovation;
+        self.pending_turn += correction;
+        // The compass's own error now: its recent disagreement with the estimate less the
+        // estimate's measured error; the offset follows it (halfway per measurement).
+        if let Some(lp) = self.compass_lp {
+            let c = angle_difference(lp, error);
+            self.compass_offset = if self.sun.is_none() { c } else { self.compass_offset + 0.5 * angle_difference(c, self.compass_offset) };
+        }
+        let after = (p * (1.0 - k)).sqrt();
+        self.sun = Some(SunFix { t, sigma: after, turned: 0.0 });
+        // A held or gyro-only heading restarts its drift from the calibrated value.
+        if self.hold.is_some() {
+            self.hold = Some((t, after));
+        }
+        if self.gyro_only_since.is_some() {
+            self.gyro_only_since = Some(t);
+            self.heading_sigma_at_loss = after;
+        }
+        self.carried_heading_sigma = 0.0;
+        Some(correction)
+    }
+
+    /// How far clockwise of the model's magnetic north the magnetometer sees the field, as
+    /// learnt from the sun (radians; 0 without a sun measurement).
+    pub fn compass_offset(&self) -> f64 {
+        self.compass_offset
     }
 
     /// Heading hold on or off at time `t` (see the module documentation): while on, the
@@ -451,10 +540,22 @@ impl OrientationFilter {
             let h = mw.x.hypot(mw.y);
             // A field (almost) along the vertical carries no heading.
             if h > 0.1 * m.length() {
-                let delta = angle_difference(mw.x.atan2(mw.y), self.applied_declination);
+                // Aimed at the sun-calibrated heading, less the part of a sun correction still
+                // being blended in (or the compass would correct it a second time).
+                let raw = angle_difference(mw.x.atan2(mw.y), self.applied_declination);
+                let a = 1.0 - (-dt / COMPASS_LP_S).exp();
+                self.compass_lp = Some(self.compass_lp.map_or(raw, |lp| lp + a * angle_difference(raw, lp)));
+                let delta = angle_difference(raw, self.compass_offset + self.pending_turn);
+                // Against a fresh sun calibration the compass counts by its share of the two
+                // variances (a Kalman weighting): it barely moves a heading the sun has just
+                // measured, and takes over again as that measurement ages.
+                let weight = self.sun_sigma().map_or(1.0, |s| {
+                    let m = self.heading_sigma_mag();
+                    s * s / (s * s + m * m)
+                });
                 let z = self.up_in_device();
-                correction += self.cfg.k_mag * scale * delta * z;
-                bias_error += delta * z;
+                correction += self.cfg.k_mag * scale * weight * delta * z;
+                bias_error += weight * delta * z;
                 self.carried_heading_sigma *= (-self.cfg.k_mag * scale * dt).exp();
                 if !self.starting_up() {
                     self.mag_time += dt;
@@ -468,6 +569,16 @@ impl OrientationFilter {
             self.bias = self.bias.clamp_length_max(MAX_BIAS);
         }
         self.q = (self.q * DQuat::from_scaled_axis(correction * dt)).normalize();
+        if self.pending_turn != 0.0 {
+            // A turn about the world vertical by +θ takes θ off the heading (clockwise).
+            let step = self.pending_turn * (1.0 - (-dt / SUN_BLEND_S).exp());
+            let step = if self.pending_turn.abs() < 1e-9 { self.pending_turn } else { step };
+            self.q = (DQuat::from_rotation_z(step) * self.q).normalize();
+            self.pending_turn -= step;
+        }
+        if let Some(fix) = self.sun.as_mut() {
+            fix.turned += self.rate * dt;
+        }
 
         let tau = self.smoothing_tau();
         self.smoothed = if tau > 0.0 {
@@ -513,8 +624,24 @@ impl OrientationFilter {
             (Some(t0), Some((th, sh))) if th < t0 => gyro(th, sh),
             (Some(t0), _) => gyro(t0, self.heading_sigma_at_loss),
             (None, Some((th, sh))) => gyro(th, sh),
-            (None, None) => self.heading_sigma_mag(),
+            (None, None) => {
+                let mag = self.heading_sigma_mag();
+                self.sun_sigma().map_or(mag, |sun| sun.min(mag))
+            }
         }
+    }
+
+    /// Heading 1σ of the sun calibration now (radians): its value after the update, growing
+    /// towards the compass floor as the phone turns away from where it was measured, and with
+    /// time as fast as the compass can pull the heading when its error changes by the floor
+    /// (an undetected disturbance): k_mag × floor per second. This process noise keeps later
+    /// sun measurements weighty (a Kalman filter without it would trust its first fixes for
+    /// ever and let the compass drift the heading away).
+    fn sun_sigma(&self) -> Option<f64> {
+        let fix = self.sun?;
+        let turned = self.cfg.heading_floor * (fix.turned / SUN_VALID_TURN).min(1.0);
+        let aged = self.cfg.k_mag * self.cfg.heading_floor * (self.t - fix.t).max(0.0);
+        Some(fix.sigma.hypot(turned).hypot(aged))
     }
 
     fn heading_source(&self) -> HeadingSource {
@@ -524,6 +651,8 @@ impl OrientationFilter {
             HeadingSource::Unknown
         } else if self.disturbed {
             HeadingSource::GyroOnly
+        } else if self.sun_sigma().is_some_and(|s| s < self.heading_sigma_mag()) {
+            HeadingSource::Sun
         } else {
             HeadingSource::Magnetometer
         }
@@ -764,6 +893,79 @@ mod tests {
         feed_rotation(&mut f, q, DVec3::ZERO, 15.0, 10.0, turned);
         let moved = angle_between(f.device_orientation().unwrap(), q).to_degrees();
         assert!(moved > 6.0 && moved < 8.5, "{moved}");
+    }
+
+    /// Heading error (radians, clockwise positive) of the filter against `truth` (device → ENU).
+    fn heading_error(f: &OrientationFilter, truth: DQuat) -> f64 {
+        let y = |q: DQuat| {
+            let v = q * DVec3::Y;
+            v.x.atan2(v.y)
+        };
+        angle_difference(y(f.device_orientation().unwrap()), y(truth))
+    }
+
+    #[test]
+    fn a_sun_measurement_removes_the_compass_error_and_keeps_it_removed() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        // Phone upright looking north-east; the compass reads the field turned 3° clockwise
+        // (same magnitude and dip: a residual hard-iron error the disturbance test cannot see).
+        let q = from_heading_pitch_roll(0.8, 0.1, 0.0);
+        let dev = crate::pose::frames::device_from_camera_pose(q, DisplayRotation::R0);
+        let turned = DQuat::from_rotation_z(-3f64.to_radians()) * FIELD;
+        feed_rotation(&mut f, dev, DVec3::ZERO, 0.0, 20.0, turned);
+        let before = heading_error(&f, dev);
+        assert!((before.to_degrees() + 3.0).abs() < 0.05, "compass-only error {}°", before.to_degrees());
+        let p0 = f.pose(DisplayRotation::R0).unwrap();
+        assert_eq!(p0.heading_source, HeadingSource::Magnetometer);
+        // The sun measures that error with 1σ 0.1°: the Kalman gain is P/(P + R) with P ≥ the
+        // 2° floor, so ≥ 99.7 % of it is taken off.
+        let sigma = 0.1f64.to_radians();
+        let k = f.sun_heading(20.0, before, sigma).unwrap() / before;
+        let p = (f64::from(p0.heading_accuracy_deg).to_radians()).powi(2);
+        assert!((k - p / (p + sigma * sigma)).abs() < 1e-9 && k > 0.997, "gain {k}");
+        // 1σ right after: sqrt(P(1 − K)), just under the measurement's 0.1°.
+        let right_after = f.pose(DisplayRotation::R0).unwrap();
+        assert!((f64::from(right_after.heading_accuracy_deg) - (p * (1.0 - k)).sqrt().to_degrees()).abs() < 1e-3);
+        assert_eq!(right_after.heading_source, HeadingSource::Sun);
+        // Not a jump: blended in over 0.25 s; a frame later (10 ms) only ~4 % has moved.
+        feed_rotation(&mut f, dev, DVec3::ZERO, 20.0, 0.01, turned);
+        let moved = before - heading_error(&f, dev);
+        assert!(moved.abs() < 0.1 * before.abs(), "moved {}° in 10 ms", moved.to_degrees());
+        feed_rotation(&mut f, dev, DVec3::ZERO, 20.01, 2.0, turned);
+        let after = heading_error(&f, dev);
+        assert!(after.to_degrees().abs() < 0.02, "after the sun {}°", after.to_degrees());
+        // 2 s on, the calibration's 1σ has grown by k_mag × 2° floor per second (0.8°), still
+        // below the compass's.
+        let p1 = f.pose(DisplayRotation::R0).unwrap();
+        assert_eq!(p1.heading_source, HeadingSource::Sun);
+        assert!((p1.heading_accuracy_deg - 0.81).abs() < 0.02, "{}", p1.heading_accuracy_deg);
+        // The compass keeps correcting, now towards the calibrated heading: 30 s later (the
+        // calibration aged: the source is the compass again) still right, and the learnt
+        // offset is the compass's 3° error.
+        feed_rotation(&mut f, dev, DVec3::ZERO, 22.01, 30.0, turned);
+        assert!(heading_error(&f, dev).to_degrees().abs() < 0.02, "{}°", heading_error(&f, dev).to_degrees());
+        assert_eq!(f.pose(DisplayRotation::R0).unwrap().heading_source, HeadingSource::Magnetometer);
+        // The learnt offset: the field is seen 3° clockwise of where the model puts it.
+        assert!((f.compass_offset().to_degrees() - 3.0).abs() < 0.05, "offset {}°", f.compass_offset().to_degrees());
+        // No heading yet, a NaN error or a non-positive σ: not taken.
+        assert_eq!(f.sun_heading(52.0, f64::NAN, sigma), None);
+        assert_eq!(f.sun_heading(52.0, 0.01, 0.0), None);
+        assert_eq!(OrientationFilter::new(FusionConfig::default()).sun_heading(0.0, 0.01, sigma), None);
+    }
+
+    #[test]
+    fn an_uncertain_sun_measurement_moves_the_heading_by_its_weight() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        let q = DQuat::IDENTITY;
+        feed_rotation(&mut f, q, DVec3::ZERO, 0.0, 10.0, FIELD);
+        let p = f64::from(f.pose(DisplayRotation::R0).unwrap().heading_accuracy_deg).to_radians().powi(2);
+        // A measurement as uncertain as the compass (σ² = P) takes half of its 4° reading.
+        let c = f.sun_heading(10.0, 4f64.to_radians(), p.sqrt()).unwrap();
+        assert!((c.to_degrees() - 2.0).abs() < 1e-6, "{}", c.to_degrees());
+        let after = f64::from(f.pose(DisplayRotation::R0).unwrap().heading_accuracy_deg).to_radians();
+        assert!((after - (p / 2.0).sqrt()).abs() < 1e-3, "{} vs {}", after.to_degrees(), (p / 2.0).sqrt().to_degrees());
     }
 
     #[test]

@@ -18,6 +18,8 @@ pub mod hand_motion;
 pub mod hard_iron;
 pub mod magnetic;
 pub mod stability;
+pub mod sun_heading;
+pub mod sun_study;
 pub mod tilt_compass;
 pub mod trace;
 
@@ -31,6 +33,9 @@ pub enum HeadingSource {
     Magnetometer,
     /// Gyroscope only: the magnetometer is disturbed; heading drifts slowly.
     GyroOnly,
+    /// Calibrated against the sun seen in the camera (the magnetometer keeps correcting with
+    /// the learnt offset).
+    Sun,
     /// The platform's fused attitude (Android rotation vector, iOS CoreMotion).
     Platform,
     /// No heading yet (no magnetometer reading accepted so far).
@@ -43,6 +48,7 @@ impl HeadingSource {
         match self {
             HeadingSource::Magnetometer => "compass",
             HeadingSource::GyroOnly => "gyro only (magnetic disturbance)",
+            HeadingSource::Sun => "sun",
             HeadingSource::Platform => "platform attitude",
             HeadingSource::Unknown => "no heading yet",
         }

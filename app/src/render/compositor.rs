@@ -4,9 +4,11 @@
 //! `set_background`); a frame only writes uniforms (and the camera image) and encodes passes,
 //! so per-frame work allocates no GPU resources.
 
+use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment};
-use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level};
+use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level, sky_square};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
+use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::GroundPass;
@@ -19,15 +21,24 @@ use crate::gpu::{Gpu, GpuTimer, build};
 use crate::scene::{CubeMap, Model, Rgba8Image};
 use anyhow::{Result, anyhow};
 use glam::Vec3;
+use std::sync::Arc;
 use std::time::Instant;
+
+/// Timer slots: the shadow pass, and the passes after it.
+const SHADOW_SLOT: u32 = 0;
+const REST_SLOT: u32 = 1;
+const TIMER_SLOTS: u32 = 2;
 
 /// Milliseconds spent in each stage of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
     /// CPU: writing uniforms and encoding the passes.
     pub encode_ms: f64,
-    /// GPU: first pass start to last pass end (timestamp queries); None if unsupported.
+    /// GPU: the frame's passes (timestamp queries: the shadow pass, plus the first later pass's
+    /// start to the last pass's end); None if unsupported.
     pub gpu_ms: Option<f64>,
+    /// GPU: the shadow pass alone (None when it did not run or without timestamp queries).
+    pub shadow_gpu_ms: Option<f64>,
     /// CPU wall time from submit until the pixels are in memory.
     pub readback_ms: f64,
 }
@@ -52,6 +63,9 @@ pub struct Compositor {
     /// The light measured from the environment (`Light`), read by the ground and model passes.
     light_buf: wgpu::Buffer,
     targets: Targets,
+    /// The post-process antialiasing pass (with [`Antialiasing::Fxaa`]).
+    fxaa: Option<FxaaPass>,
+    antialiasing: Antialiasing,
     /// The float layer targets, made by the first `render_layers`.
     layer_targets: Option<LayerTargets>,
     shadow: ShadowPass,
@@ -72,6 +86,10 @@ pub struct Compositor {
     shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
+    /// The placement (model matrix) the ground pass's sky visibility was computed for, and how
+    /// many times it has been computed: once per placement, not per frame.
+    ground_sky_placement: Option<glam::Mat4>,
+    ground_sky_updates: usize,
 }
 
 /// Which of the optional passes a frame ran.
@@ -82,22 +100,29 @@ pub struct PassesRun {
 }
 
 impl Compositor {
-    /// Pipelines and targets for `width`×`height` output.
+    /// Pipelines and targets for `width`×`height` output, antialiased as the adapter wants
+    /// ([`Antialiasing::for_adapter`]).
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
-        gpu.check_size("output", width, height)?;
-        gpu.checked("the compositor's render targets", || Self::create(gpu, width, height))
+        Self::with_antialiasing(gpu, width, height, Antialiasing::for_adapter(&gpu.adapter.get_info()))
     }
 
-    fn create(gpu: &Gpu, width: u32, height: u32) -> Result<Compositor> {
+    /// [`Compositor::new`] with the antialiasing given (the study in `previz bench frame`).
+    pub fn with_antialiasing(gpu: &Gpu, width: u32, height: u32, aa: Antialiasing) -> Result<Compositor> {
+        gpu.check_size("output", width, height)?;
+        gpu.checked("the compositor's render targets", || Self::create(gpu, width, height, aa))
+    }
+
+    fn create(gpu: &Gpu, width: u32, height: u32, aa: Antialiasing) -> Result<Compositor> {
         let device = &gpu.device;
-        let pipelines = Pipelines::shared(gpu)?;
+        let pipelines = Pipelines::shared(gpu, aa.samples())?;
         let frame_buf = build::uniform_buffer::<FrameUniforms>(device, "frame");
         let instance_buf = build::uniform_buffer::<InstanceUniforms>(device, "instance");
         let light_buf = build::uniform_buffer::<LightUniforms>(device, "light");
-        let targets = Targets::new(device, (width, height))?;
+        let targets = Targets::new(device, (width, height), aa)?;
+        let fxaa = targets.aa_input().map(|input| FxaaPass::new(device, &pipelines, input));
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
-        let ground = GroundPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.maps());
+        let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
         Ok(Compositor {
             width,
@@ -106,6 +131,8 @@ impl Compositor {
             instance_buf,
             light_buf,
             targets,
+            fxaa,
+            antialiasing: aa,
             layer_targets: None,
             shadow,
             background,
@@ -113,18 +140,25 @@ impl Compositor {
             model_pass,
             env: None,
             model: None,
-            timer: GpuTimer::new(gpu, 1),
+            timer: GpuTimer::new(gpu, TIMER_SLOTS),
             pipelines,
             full_detail: false,
             full_shadow: false,
             level: 0,
             shadow_index: 0,
             passes_run: PassesRun::default(),
+            ground_sky_placement: None,
+            ground_sky_updates: 0,
         })
     }
 
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+
+    /// How this compositor antialiases the composite.
+    pub fn antialiasing(&self) -> Antialiasing {
+        self.antialiasing
     }
 
     /// Upload the environment cube map, scaled by `exposure` (linear light), and its priors.
@@ -154,11 +188,15 @@ impl Compositor {
         self.env.as_ref().map(|e| e.priors)
     }
 
-    /// Upload a model: one vertex/index buffer and material bind group per mesh. On an error
-    /// (bad mesh, or the GPU rejecting the upload) the current model stays.
+    /// Upload a model: one vertex/index buffer and material bind group per mesh. What the model's
+    /// content gives (ambient occlusion, level-of-detail chain) comes from the device's
+    /// [`ModelCache`], computed on the first upload of that content. On an error (bad mesh, or
+    /// the GPU rejecting the upload) the current model stays.
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
-        let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model))?;
+        let prepared = ModelCache::of(gpu)?.prepare(model)?;
+        let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
+        self.ground_sky_placement = None;
         Ok(())
     }
 
@@ -176,7 +214,7 @@ impl Compositor {
 
     /// The loaded model's level-of-detail chain: per level, triangles (None before a model).
     pub fn lod_triangles(&self) -> Option<&[usize]> {
-        self.model.as_ref().map(|m| m.lod_triangles.as_slice())
+        self.model.as_ref().map(|m| m.lod_triangles())
     }
 
     /// The level of detail the last rendered frame drew (0: the model as loaded).
@@ -192,6 +230,18 @@ impl Compositor {
     /// Which optional passes the last rendered frame ran.
     pub fn passes_run(&self) -> PassesRun {
         self.passes_run
+    }
+
+    /// What was computed from the loaded model's content (shared with every compositor on the
+    /// device that loads the same model).
+    pub fn prepared_model(&self) -> Option<&Arc<PreparedModel>> {
+        self.model.as_ref().map(|m| &m.prepared)
+    }
+
+    /// How many times the ground's sky visibility under the model has been computed and
+    /// uploaded (once per placement of a model whose sky occlusion is drawn).
+    pub fn ground_sky_updates(&self) -> usize {
+        self.ground_sky_updates
     }
 
     /// The loaded model's bounds in model space.
@@ -214,7 +264,8 @@ impl Compositor {
     }
 
     /// The uniform values for a frame (pure: no GPU access). A colour correction needs the
-    /// model's colour priors; a model without any (every texel masked out) is an error then.
+    /// model's colour priors (computed on the first frame that asks); a model without any
+    /// (every texel masked out) is an error then.
     pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
@@ -228,17 +279,18 @@ impl Compositor {
             shadow_map_sizes: if self.full_shadow { &sizes[sizes.len() - 1..] } else { sizes },
         };
         let (frame, instance, ground) = frame_uniforms(p, &context);
-        let light = light_uniforms(&p.lighting);
-        let colour = colour_correction(p.colour, &env.colour, &model.colour)?;
+        let sky = sky_square(model.bounds, &p.placement);
+        let light = light_uniforms(&p.lighting, (sky.min, sky.max));
+        let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
         let level =
-            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(&model.lod_errors, model.bounds, p, self.height).0 };
+            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(model.lod_errors(), model.bounds, p, self.height).0 };
         let shadow = fit_shadow(p, &context);
         // The model samples the map whatever the sun (its shading uses the visibility beyond the
         // sun's own term), so the shadow pass runs whenever the model or its shadow is on
         // screen; the ground pass only when its shader would darken something (sun up,
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
-        let ground_pass = shadow.needed && p.lighting.shadow_opacity > 0.0;
+        let ground_pass = (shadow.needed && p.lighting.shadow_opacity > 0.0) || (shadow_pass && p.lighting.sky_occlusion > 0.0);
         Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass, shadow_map_size: shadow.map_size })
     }
 
@@ -270,18 +322,23 @@ impl Compositor {
         let mut encoder = self.prepare_frame(gpu, p, layer)?;
         self.targets.copy_for_readback(&mut encoder);
         if let Some(timer) = &self.timer {
-            timer.resolve(&mut encoder, 1);
+            timer.resolve(&mut encoder, TIMER_SLOTS);
         }
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();
         gpu.queue.submit([encoder.finish()]);
         let rgba = self.targets.read(gpu)?;
-        let gpu_ms = match &self.timer {
-            Some(timer) => timer.read_ms(gpu, 1)?.first().copied(),
-            None => None,
+        let (gpu_ms, shadow_gpu_ms) = match &self.timer {
+            Some(timer) => {
+                let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
+                let shadow = self.passes_run.shadow.then_some(ms[SHADOW_SLOT as usize]);
+                (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow)
+            }
+            None => (None, None),
         };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
-        Ok(Rendered { width: self.width, height: self.height, rgba, timings: Timings { encode_ms, gpu_ms, readback_ms } })
+        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms };
+        Ok(Rendered { width: self.width, height: self.height, rgba, timings })
     }
 
     /// Render the frame's layers in float (render/layers.rs: background, shadow matte, model,
@@ -314,6 +371,10 @@ impl Compositor {
     /// Write the frame's uniforms; note its level of detail and the passes it runs.
     fn write_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<FrameData> {
         let data = self.frame_uniforms(p)?;
+        let composite = layer == Layer::Composite;
+        if composite && data.ground_pass && p.lighting.sky_occlusion > 0.0 {
+            self.update_ground_sky(gpu, p)?;
+        }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let queue = &gpu.queue;
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
@@ -323,10 +384,24 @@ impl Compositor {
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
         self.shadow_index = self.shadow.index_of(data.shadow_map_size);
-        let composite = layer == Layer::Composite;
         self.passes_run =
             PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
         Ok(data)
+    }
+
+    /// The ground's sky visibility under the model as `p` places it, computed and uploaded when
+    /// the placement differs from the last one it was computed for.
+    fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let matrix = super::view::model_matrix(model.bounds, &p.placement);
+        if self.ground_sky_placement == Some(matrix) {
+            return Ok(());
+        }
+        let sky = model.prepared.ground_sky(matrix);
+        self.ground.write_sky(&gpu.queue, &sky)?;
+        self.ground_sky_placement = Some(matrix);
+        self.ground_sky_updates += 1;
+        Ok(())
     }
 
     /// The passes of one frame, top-down (DESIGN.md "One frame"). The camera image (1.) was
@@ -335,17 +410,16 @@ impl Compositor {
     /// lavapipe (Mesa 22.3) in `vkCmdBeginDebugUtilsLabelEXT`.
     fn encode_frame(&self, encoder: &mut wgpu::CommandEncoder, layer: Layer, method: super::LightingMethod) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        let shadows = self.passes_run.shadow;
-        // The first pass recorded writes the start timestamp, the composite pass the end.
-        let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(0, begin, end));
+        // The first pass after the shadow pass writes the start timestamp, the last pass the end.
+        let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(REST_SLOT, begin, end));
 
         // 2-3a. The shadow map and the background texture.
         self.encode_shadow_and_env_view(encoder, model, true)?;
 
-        // 3b-5. Background, ground shadow and model into the multisampled target.
-        let first = !shadows && !self.background.from_env();
+        // 3b-5. Background, ground shadow and model into the composite target.
+        let first = !self.background.from_env();
         let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
-        let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, true));
+        let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));
         // 3b. Background pass: the camera image fills the target.
         if layer != Layer::Model {
             in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
@@ -358,21 +432,28 @@ impl Compositor {
         if layer != Layer::Background {
             in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?;
         }
+        drop(pass);
+        // 5b. Post-process antialiasing into the frame.
+        if let Some(fxaa) = &self.fxaa {
+            let mut pass = self.targets.begin_fxaa(encoder, stamp(false, true));
+            in_group(&mut pass, "fxaa pass", |pass| fxaa.draw(pass));
+        }
         Ok(())
     }
 
     /// Step 2, the shadow pass: the model's depth seen from the sun (not needed for the
     /// background alone); step 3a: the environment seen by the camera becomes the background
-    /// when there is no image. `timed`: the first pass writes the frame's start timestamp.
+    /// when there is no image. `timed`: the shadow pass is timed alone, and the environment view
+    /// pass starts the rest of the frame.
     fn encode_shadow_and_env_view(&self, encoder: &mut wgpu::CommandEncoder, model: &ModelGpu, timed: bool) -> Result<()> {
         let shadows = self.passes_run.shadow;
-        let stamp = |begin: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(0, begin, false)) } else { None };
+        let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
         if shadows {
-            let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(true));
+            let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(SHADOW_SLOT, true));
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
         if self.background.from_env() {
-            let mut pass = self.background.begin_env_view(encoder, stamp(!shadows));
+            let mut pass = self.background.begin_env_view(encoder, stamp(REST_SLOT, false));
             in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
         }
         Ok(())

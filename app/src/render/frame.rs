@@ -3,15 +3,15 @@
 
 use super::params::Lighting;
 use super::params::{ColourSettings, FrameParams, HemispherePriors};
-use super::shadow_fit;
+use super::shadow_fit::{self, GroundRect};
 use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use super::view;
 use crate::colour::correction::ColourCorrection;
 use crate::colour::stats::ColourStats;
 use crate::colour::transfer::TransferMethod;
-use crate::scene::lod;
+use crate::scene::{lod, occlusion};
 use anyhow::{Result, bail};
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
 /// What the frame maths needs besides the frame's parameters: fixed by the loaded model and
 /// environment and by the render targets.
@@ -76,8 +76,11 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
     let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
     let shadow = fit_shadow(p, c);
     let light = shadow.light_view_proj;
-    // The ground plane: where the shadow can fall (nothing when the sun is down).
-    let ground = shadow.receiver.map_or(Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::ZERO), |r| r.matrix());
+    // The ground plane: where the sun's shadow can fall and the sky's occlusion darkens it
+    // (nothing when neither does).
+    let sky = (p.lighting.sky_occlusion > 0.0).then(|| sky_square(bounds, &p.placement));
+    let ground = ground_quad(shadow.receiver, sky)
+        .map_or(Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::ZERO), |r| r.matrix());
     let (hs, hc) = c.env_heading.sin_cos();
     let priors = &c.priors;
     let frame = FrameUniforms {
@@ -109,10 +112,32 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
 }
 
 /// The `Light` uniform of a frame's lighting: the sky's SH9 coefficients and the sun's colour
-/// (alpha 0 and 1), and tan of the sun's angular radius.
-pub fn light_uniforms(l: &Lighting) -> LightUniforms {
+/// (alpha 0 and 1), tan of the sun's angular radius, the ground square of the sky-visibility
+/// map under the model (world min, max) and how dark the sky's occlusion makes the ground.
+pub fn light_uniforms(l: &Lighting, (min, max): (Vec2, Vec2)) -> LightUniforms {
     let [r, g, b] = l.sun_colour;
-    LightUniforms { sh: l.sky_sh.map(|[r, g, b]| [r, g, b, 0.0]), sun: [r, g, b, l.sun_angular_radius.tan()] }
+    LightUniforms {
+        sh: l.sky_sh.map(|[r, g, b]| [r, g, b, 0.0]),
+        sun: [r, g, b, l.sun_angular_radius.tan()],
+        ground_square: [min.x, min.y, max.x, max.y],
+        ground_sky: [l.sky_occlusion, 0.0, 0.0, 0.0],
+    }
+}
+
+/// The ground square whose sky visibility the ground pass samples, for a model with model-space
+/// `bounds` placed by `placement` (scene::occlusion::ground_square): world min, max and height.
+pub fn sky_square(bounds: (Vec3, Vec3), placement: &view::Placement) -> GroundRect {
+    let (min, max, z) = occlusion::ground_square(bounds, view::model_matrix(bounds, placement));
+    GroundRect { min, max, z }
+}
+
+/// The ground quad the ground pass draws: where the sun's shadow can fall (`receiver`) and,
+/// when the sky's occlusion darkens the ground, the sky-visibility square around the model.
+pub fn ground_quad(receiver: Option<GroundRect>, sky: Option<GroundRect>) -> Option<GroundRect> {
+    match (receiver, sky) {
+        (Some(r), Some(s)) => Some(GroundRect { min: r.min.min(s.min), max: r.max.max(s.max), z: r.z }),
+        (r, s) => r.or(s),
+    }
 }
 
 /// The frame's shadow: the shadow camera fitted to the model, the ground quad where its shadow
@@ -155,17 +180,20 @@ pub fn lod_level(errors: &[f32], bounds: (Vec3, Vec3), p: &FrameParams, height_p
 }
 
 /// The colour correction of a frame: from the environment's statistics (`source`) towards the
-/// model's (`target`, or why it has none — every texel masked out, an error then).
-pub fn colour_correction(
+/// model's (`target`, or why it has none — every texel masked out, an error then). `target` is
+/// asked only when a correction is on: the model's statistics are computed on demand.
+pub fn colour_correction<'a>(
     settings: ColourSettings,
     source: &ColourStats,
-    target: &std::result::Result<ColourStats, String>,
+    target: impl FnOnce() -> &'a std::result::Result<ColourStats, String>,
 ) -> Result<ColourCorrection> {
-    Ok(match (settings.method, target) {
-        (TransferMethod::None, _) => ColourCorrection::identity(),
-        (m, Ok(target)) => ColourCorrection::new(m, settings.strength, source, target),
-        (m, Err(why)) => bail!("colour correction {} needs the model's colour statistics: {why}", m.name()),
-    })
+    if settings.method == TransferMethod::None {
+        return Ok(ColourCorrection::identity());
+    }
+    match target() {
+        Ok(target) => Ok(ColourCorrection::new(settings.method, settings.strength, source, target)),
+        Err(why) => bail!("colour correction {} needs the model's colour statistics: {why}", settings.method.name()),
+    }
 }
 
 #[cfg(test)]
@@ -192,6 +220,7 @@ mod tests {
                 reflection: 0.25,
                 ior: 1.5,
                 shadow_opacity: 0.6,
+                sky_occlusion: 0.0,
                 live_depth: 2.0,
                 sky_sh: std::array::from_fn(|i| [i as f32, 0.5, 0.25]),
                 sun_colour: [1.2, 0.9, 0.7],
@@ -282,7 +311,11 @@ mod tests {
     #[test]
     fn the_light_uniform_carries_the_sky_and_the_suns_colour_and_size() {
         let (p, _) = scene(1.0);
-        let l = light_uniforms(&p.lighting);
+        let mut lighting = p.lighting;
+        lighting.sky_occlusion = 0.4;
+        let l = light_uniforms(&lighting, (Vec2::new(-1.0, -2.0), Vec2::new(3.0, 4.0)));
+        assert_eq!(l.ground_square, [-1.0, -2.0, 3.0, 4.0]);
+        assert_eq!(l.ground_sky, [0.4, 0.0, 0.0, 0.0]);
         assert_eq!(l.sh[3], [3.0, 0.5, 0.25, 0.0]);
         // tan(0.01) = 0.010000333 (series x + x³/3).
         assert_eq!(&l.sun[..3], &[1.2, 0.9, 0.7]);
@@ -317,6 +350,31 @@ mod tests {
     }
 
     #[test]
+    fn the_ground_quad_holds_the_suns_shadow_and_the_skys_square() {
+        // The 2×2×2 cube scaled by 2 (4 m high) stands at (0, 0, −10): its sky square is its
+        // 4×4 m footprint widened by twice its height (8 m) on every side.
+        let (mut p, c) = scene(2.0);
+        let sky = sky_square(c.bounds, &p.placement);
+        assert!(sky.min.abs_diff_eq(Vec2::splat(-10.0), 1e-4) && sky.max.abs_diff_eq(Vec2::splat(10.0), 1e-4), "{sky:?}");
+        assert!((sky.z + 10.0).abs() < 1e-5);
+        // With the sky's occlusion on, the ground quad is that square even with the sun
+        // overhead (its receiver, the footprint, lies inside it) ...
+        p.lighting.sky_occlusion = 0.5;
+        let g = Mat4::from_cols_array_2d(&frame_uniforms(&p, &c).2.model);
+        assert!(close(g.transform_point3(Vec3::new(1.0, 1.0, 0.0)), Vec3::new(10.0, 10.0, -10.0), 1e-4));
+        assert!(close(g.transform_point3(Vec3::new(-1.0, -1.0, 0.0)), Vec3::new(-10.0, -10.0, -10.0), 1e-4));
+        // ... and a long shadow reaching past it widens it (a sun 10° up in the South: the
+        // shadow of the 4 m box reaches 4 / tan 10° = 22.7 m North of the box's far side).
+        let el = 10f32.to_radians();
+        p.lighting.sun_dir = Vec3::new(0.0, -el.cos(), el.sin());
+        let r = ground_quad(fit_shadow(&p, &c).receiver, Some(sky)).unwrap();
+        assert!((r.max.y - (2.0 + 4.0 / el.tan())).abs() < 1e-3 && r.min == sky.min && r.max.x == sky.max.x, "{r:?}");
+        // The sun below the horizon: the sky's square alone; neither: nothing.
+        assert_eq!(ground_quad(None, Some(sky)), Some(sky));
+        assert_eq!(ground_quad(None, None), None);
+    }
+
+    #[test]
     fn the_level_follows_the_distance_and_the_scale() {
         // Camera at the origin, 90° vertical field of view, 200 rows: focal = 100 px. The 2 m
         // cube's sphere (r = √3) is centred 9 m away: distance 9 − √3 = 7.27 m at scale 1.
@@ -336,10 +394,11 @@ mod tests {
     #[test]
     fn colour_correction_needs_the_model_statistics_only_when_on() {
         let stats = ColourStats::from_linear(&[[0.2, 0.3, 0.4], [0.5, 0.5, 0.5]]).unwrap();
-        let none = colour_correction(ColourSettings::NONE, &stats, &Err("all masked".into())).unwrap();
+        let none = colour_correction(ColourSettings::NONE, &stats, || panic!("no correction needs no statistics")).unwrap();
         assert_eq!(bytemuck::bytes_of(&none), bytemuck::bytes_of(&ColourCorrection::identity()));
         let on = ColourSettings { method: TransferMethod::ALL[1], strength: 1.0 };
-        let err = colour_correction(on, &stats, &Err("all masked".into())).unwrap_err();
+        let masked = Err("all masked".to_string());
+        let err = colour_correction(on, &stats, || &masked).unwrap_err();
         assert!(format!("{err:#}").contains("all masked"), "{err:#}");
     }
 }

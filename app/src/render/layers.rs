@@ -14,7 +14,7 @@
 //! Targets and pipelines exist only once layers are asked for.
 
 use super::passes::{background, ground, model};
-use super::pipelines::{DEPTH_FORMAT, Pipelines, SAMPLES};
+use super::pipelines::{DEPTH_FORMAT, LAYER_SAMPLES, Pipelines};
 use crate::gpu::{Gpu, Readback, build};
 use anyhow::Result;
 use glam::{Mat4, Vec3, Vec4};
@@ -47,9 +47,14 @@ impl LayerPipelines {
         gpu.shared("the layer pipelines", |gpu| {
             let device = &gpu.device;
             Ok(LayerPipelines {
-                background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT),
-                ground: ground::pipeline_for(device, &pipelines.ground.layout, LAYER_FORMAT),
-                model: model::pipelines_for(device, (&pipelines.model.layout, &pipelines.model.material_layout), LAYER_FORMAT),
+                background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, LAYER_SAMPLES),
+                ground: ground::pipeline_for(device, &pipelines.ground.layout, LAYER_FORMAT, LAYER_SAMPLES),
+                model: model::pipelines_for(
+                    device,
+                    (&pipelines.model.layout, &pipelines.model.material_layout),
+                    LAYER_FORMAT,
+                    LAYER_SAMPLES,
+                ),
                 depth: model::depth_pipeline(device, &pipelines.model),
             })
         })
@@ -116,8 +121,8 @@ impl LayerTargets {
     pub fn new(device: &wgpu::Device, (width, height): (u32, u32)) -> Result<LayerTargets> {
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
         let size = (width, height, 1);
-        let msaa = build::texture(device, "layer msaa colour", size, LAYER_FORMAT, SAMPLES, attach);
-        let msaa_depth = build::texture(device, "layer msaa depth", size, DEPTH_FORMAT, SAMPLES, attach);
+        let msaa = build::texture(device, "layer msaa colour", size, LAYER_FORMAT, LAYER_SAMPLES, attach);
+        let msaa_depth = build::texture(device, "layer msaa depth", size, DEPTH_FORMAT, LAYER_SAMPLES, attach);
         let resolved = |label: &str| -> Result<Resolved> {
             let texture = build::texture(device, label, size, LAYER_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
             let readback = Readback::for_texture(device, label, &texture)?;

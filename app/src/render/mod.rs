@@ -1,10 +1,12 @@
 //! The renderer: pipelines and the passes of one frame (the device is `crate::gpu`).
 
+pub mod antialiasing;
 pub mod compositor;
 pub mod environment;
 pub mod frame;
 pub mod layers;
 pub mod method;
+pub mod model_cache;
 pub mod params;
 pub mod passes;
 pub mod pipelines;
@@ -14,6 +16,7 @@ pub mod targets;
 pub mod uniforms;
 pub mod view;
 
+pub use antialiasing::Antialiasing;
 pub use compositor::{Compositor, PassesRun, Rendered, Timings};
 pub use frame::FrameData;
 pub use method::LightingMethod;

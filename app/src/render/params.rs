@@ -75,8 +75,11 @@ pub struct Lighting {
     pub reflection: f32,
     /// Refractive index of the model's material (refraction methods); eta = 1 / ior.
     pub ior: f32,
-    /// How dark the model's shadow makes the ground, 0..1.
+    /// How dark the model's shadow makes the ground, 0..1: the sun's share of the ground's light.
     pub shadow_opacity: f32,
+    /// How dark the model's occlusion of the sky makes the ground where it hides all of it, 0..1:
+    /// the sky's share of the ground's light (the contact shadow, the only one under overcast).
+    pub sky_occlusion: f32,
     /// Live-feed refraction: how far behind the surface (metres) the refracted ray meets the scene.
     pub live_depth: f32,
     /// The sky without the sun (sh9-ggx): SH9 coefficients of irradiance / π in linear RGB, in

@@ -12,8 +12,9 @@ use std::sync::Arc;
 /// Colour format of every render target: sRGB storage, linear shading.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Multisampling of the composite (coverage becomes the model layer's alpha).
-pub const SAMPLES: u32 = 4;
+/// Multisampling of the float layers (render/layers.rs: offline, so always the full 4×);
+/// the composite's comes from its [`super::Antialiasing`].
+pub const LAYER_SAMPLES: u32 = 4;
 
 /// Interleaved model vertex: position, normal, uv, ambient occlusion.
 #[repr(C)]
@@ -80,30 +81,48 @@ pub struct PassPipeline {
 }
 
 pub struct Pipelines {
+    /// Samples per pixel of the composite's targets that these pipelines draw into.
+    pub samples: u32,
     pub env_view: PassPipeline,
     pub background: PassPipeline,
     pub shadow: PassPipeline,
     pub ground: PassPipeline,
     pub model: model::ModelPipelines,
+    /// The post-process antialiasing pass (render/antialiasing.rs).
+    pub fxaa: PassPipeline,
     pub linear_sampler: wgpu::Sampler,
     pub repeat_sampler: wgpu::Sampler,
     pub shadow_sampler: wgpu::Sampler,
 }
 
 impl Pipelines {
-    /// The pipelines of `gpu`'s device: built once, inside a validation scope, and shared by
-    /// every compositor on it (a second composite in the same process compiles no shaders).
-    pub fn shared(gpu: &Gpu) -> Result<Arc<Pipelines>> {
-        gpu.shared("the render pipelines", |gpu| Ok(Pipelines::new(&gpu.device)))
+    /// The pipelines of `gpu`'s device for composites of `samples` samples per pixel: built
+    /// once per sample count, inside a validation scope, and shared by every compositor on it
+    /// (a second composite in the same process compiles no shaders).
+    pub fn shared(gpu: &Gpu, samples: u32) -> Result<Arc<Pipelines>> {
+        let sets = gpu.shared("the render pipeline sets", |_| Ok(BySamples::default()))?;
+        let find = |sets: &BySamples| sets.0.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|p| p.samples == samples).cloned();
+        if let Some(p) = find(&sets) {
+            return Ok(p);
+        }
+        let made = Arc::new(gpu.checked("the render pipelines", || Ok(Pipelines::new(&gpu.device, samples)))?);
+        let mut list = sets.0.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(p) = list.iter().find(|p| p.samples == samples) {
+            return Ok(p.clone());
+        }
+        list.push(made.clone());
+        Ok(made)
     }
 
-    fn new(device: &wgpu::Device) -> Pipelines {
+    fn new(device: &wgpu::Device, samples: u32) -> Pipelines {
         Pipelines {
+            samples,
             env_view: background::env_view_pipeline(device),
-            background: background::pipeline(device),
+            background: background::pipeline(device, samples),
             shadow: shadow::pipeline(device),
-            ground: ground::pipeline(device),
-            model: model::pipelines(device),
+            ground: ground::pipeline(device, samples),
+            model: model::pipelines(device, samples),
+            fxaa: super::antialiasing::fxaa_pipeline(device),
             linear_sampler: build::linear_sampler(device, "clamp", wgpu::AddressMode::ClampToEdge),
             repeat_sampler: build::linear_sampler(device, "repeat", wgpu::AddressMode::Repeat),
             shadow_sampler: device.create_sampler(&wgpu::SamplerDescriptor {
@@ -116,3 +135,7 @@ impl Pipelines {
         }
     }
 }
+
+/// The pipeline sets of one device, one per sample count asked for.
+#[derive(Default)]
+struct BySamples(std::sync::Mutex<Vec<Arc<Pipelines>>>);

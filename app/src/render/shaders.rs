@@ -9,10 +9,12 @@ pub enum Technique {
     Shadow,
     Ground,
     Model,
+    Fxaa,
 }
 
 impl Technique {
-    pub const ALL: [Technique; 5] = [Technique::Background, Technique::EnvView, Technique::Shadow, Technique::Ground, Technique::Model];
+    pub const ALL: [Technique; 6] =
+        [Technique::Background, Technique::EnvView, Technique::Shadow, Technique::Ground, Technique::Model, Technique::Fxaa];
 
     fn file(self) -> &'static str {
         match self {
@@ -21,6 +23,7 @@ impl Technique {
             Technique::Shadow => include_str!("../../../shaders/shadow.wgsl"),
             Technique::Ground => include_str!("../../../shaders/ground.wgsl"),
             Technique::Model => include_str!("../../../shaders/model.wgsl"),
+            Technique::Fxaa => include_str!("../../../shaders/fxaa.wgsl"),
         }
     }
 }

@@ -1,12 +1,17 @@
-//! The compositor's render targets at one output size: the multisampled colour and depth that
-//! the background, ground and model passes share, the resolved frame, and its readback.
+//! The compositor's render targets at one output size: the colour and depth that the
+//! background, ground and model passes share (multisampled, or single-sampled for FXAA or no
+//! antialiasing), the resolved frame, and its readback.
 
-use super::pipelines::{COLOR_FORMAT, DEPTH_FORMAT, SAMPLES};
+use super::antialiasing::Antialiasing;
+use super::pipelines::{COLOR_FORMAT, DEPTH_FORMAT};
 use crate::gpu::{Readback, build};
 use anyhow::Result;
 
 pub struct Targets {
-    msaa: wgpu::TextureView,
+    /// The multisampled colour (more than one sample per pixel).
+    msaa: Option<wgpu::TextureView>,
+    /// The single-sampled frame that the FXAA pass reads.
+    aa_input: Option<wgpu::TextureView>,
     depth: wgpu::TextureView,
     resolve: wgpu::Texture,
     resolve_view: wgpu::TextureView,
@@ -16,10 +21,15 @@ pub struct Targets {
 }
 
 impl Targets {
-    pub fn new(device: &wgpu::Device, (width, height): (u32, u32)) -> Result<Targets> {
+    pub fn new(device: &wgpu::Device, (width, height): (u32, u32), aa: Antialiasing) -> Result<Targets> {
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
-        let msaa = build::texture(device, "msaa colour", (width, height, 1), COLOR_FORMAT, SAMPLES, attach);
-        let depth = build::texture(device, "depth", (width, height, 1), DEPTH_FORMAT, SAMPLES, attach);
+        let samples = aa.samples();
+        let msaa = (samples > 1).then(|| build::texture(device, "msaa colour", (width, height, 1), COLOR_FORMAT, samples, attach));
+        let aa_input = (aa == Antialiasing::Fxaa).then(|| {
+            let usage = attach | wgpu::TextureUsages::TEXTURE_BINDING;
+            build::texture(device, "fxaa input", (width, height, 1), COLOR_FORMAT, 1, usage)
+        });
+        let depth = build::texture(device, "depth", (width, height, 1), DEPTH_FORMAT, samples, attach);
         // The resolved frame: read back (headless) or sampled by the window's UI pass (live),
         // which blends in gamma space and so samples the sRGB-encoded bytes as they are.
         let resolve = device.create_texture(&wgpu::TextureDescriptor {
@@ -34,7 +44,8 @@ impl Targets {
         });
         let readback = Readback::for_texture(device, "readback", &resolve)?;
         Ok(Targets {
-            msaa: msaa.create_view(&Default::default()),
+            msaa: msaa.map(|t| t.create_view(&Default::default())),
+            aa_input: aa_input.map(|t| t.create_view(&Default::default())),
             depth: depth.create_view(&Default::default()),
             resolve_view: resolve.create_view(&Default::default()),
             encoded_view: resolve
@@ -49,27 +60,59 @@ impl Targets {
         &self.encoded_view
     }
 
-    /// The pass that the background, ground and model draw into: multisampled colour cleared to
-    /// `clear` and depth cleared to 1, resolved into the frame; only the resolve is kept.
+    /// The single-sampled frame the FXAA pass reads (None without FXAA).
+    pub fn aa_input(&self) -> Option<&wgpu::TextureView> {
+        self.aa_input.as_ref()
+    }
+
+    /// The pass that the background, ground and model draw into: colour cleared to `clear` and
+    /// depth cleared to 1; multisampled colour is resolved into the frame (only the resolve is
+    /// kept), single-sampled colour is the frame itself or, with FXAA, the FXAA pass's input.
     pub fn begin_composite<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
         clear: wgpu::Color,
         timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) -> wgpu::RenderPass<'e> {
+        let single = self.aa_input.as_ref().unwrap_or(&self.resolve_view);
+        let (view, resolve_target, store) = match &self.msaa {
+            Some(msaa) => (msaa, Some(single), wgpu::StoreOp::Discard),
+            None => (single, None, wgpu::StoreOp::Store),
+        };
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.msaa,
+                view,
                 depth_slice: None,
-                resolve_target: Some(&self.resolve_view),
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Discard },
+                resolve_target,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &self.depth,
                 depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
                 stencil_ops: None,
             }),
+            timestamp_writes: timestamps,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
+    /// The FXAA pass: from [`Targets::aa_input`] into the frame.
+    pub fn begin_fxaa<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> wgpu::RenderPass<'e> {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("fxaa"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.resolve_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+            })],
+            depth_stencil_attachment: None,
             timestamp_writes: timestamps,
             occlusion_query_set: None,
             multiview_mask: None,

@@ -44,6 +44,8 @@ pub struct InstanceUniforms {
 pub struct LightUniforms {
     pub sh: [[f32; 4]; 9],
     pub sun: [f32; 4],
+    pub ground_square: [f32; 4],
+    pub ground_sky: [f32; 4],
 }
 
 /// Mirrors `struct Material` in shaders/model.wgsl.
@@ -105,7 +107,7 @@ mod tests {
             ]
         );
         crate::assert_wgsl_layout!(module, InstanceUniforms, "Instance", [model, normal]);
-        crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun]);
+        crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun, ground_square, ground_sky]);
         crate::assert_wgsl_layout!(module, MaterialUniforms, "Material", [albedo, specular, terms]);
     }
 }

@@ -177,9 +177,14 @@ pub fn vertex_ao(mesh: &Mesh, occluders: &Occluders, rays: u32) -> Vec<f32> {
 /// it shares a triangle with), which multiplies the rays behind each value about sevenfold at the
 /// cost of a one-edge blur.
 pub fn model_ao(model: &Model) -> Vec<Vec<f32>> {
-    let occluders = Occluders::of_model(model);
+    model_ao_with(model, &Occluders::of_model(model))
+}
+
+/// [`model_ao`] against `occluders` already built for `model` (the renderer keeps them for the
+/// ground's [`ground_sky`]).
+pub fn model_ao_with(model: &Model, occluders: &Occluders) -> Vec<Vec<f32>> {
     let rays = rays_per_vertex(model.meshes.iter().map(|m| m.positions.len()).sum());
-    model.meshes.iter().map(|m| smooth_over_neighbours(m, &vertex_ao(m, &occluders, rays))).collect()
+    model.meshes.iter().map(|m| smooth_over_neighbours(m, &vertex_ao(m, occluders, rays))).collect()
 }
 
 /// Each vertex's value averaged with those of the vertices it shares a triangle with (each

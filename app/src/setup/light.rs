@@ -137,6 +137,25 @@ pub fn shadow_opacity(ground_sun: f32, ground_sky: f32) -> f32 {
     crate::light::measure::shadow_strength(share, 1.0)
 }
 
+/// The ground pass's two strengths, `(shadow_opacity, sky_occlusion)`, for a frame whose sun
+/// (unit direction `sun_dir`) gives `sunlight` = E_sun/π (faded, multipliers applied) and whose
+/// sky gives the ground `ground_sky` (multipliers applied), each times the scene's
+/// `effects.shadow_opacity` `multiplier` and clamped to 0..1: what setup::lighting computes for a
+/// scene, and the live view for its moving sun.
+pub fn ground_strengths(sunlight: f32, sun_dir: Vec3, ground_sky: f32, multiplier: f32) -> (f32, f32) {
+    let ground_sun = sunlight * std::f32::consts::PI * sun_dir.normalize_or_zero().z.max(0.0);
+    let scaled = |v: f32| (multiplier * v).clamp(0.0, 1.0);
+    (scaled(shadow_opacity(ground_sun, ground_sky)), scaled(sky_occlusion(ground_sun, ground_sky)))
+}
+
+/// How dark the ground gets where the model hides all of its sky (the sun kept): the sky's share
+/// of the ground's irradiance. The ground pass scales it by the share of the cosine-weighted sky
+/// the model hides there (scene::occlusion::ground_sky), so the sun's and the sky's shadows add
+/// up to what the ground loses.
+pub fn sky_occlusion(ground_sun: f32, ground_sky: f32) -> f32 {
+    if ground_sun + ground_sky > 0.0 { (ground_sky / (ground_sun + ground_sky)).clamp(0.0, 1.0) } else { 0.0 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +180,27 @@ mod tests {
         assert!((shadow_opacity(3.0, 1.0) - 0.75).abs() < 1e-6);
         assert_eq!(shadow_opacity(0.0, 1.0), 0.0);
         assert_eq!(shadow_opacity(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn the_sun_and_sky_shares_make_up_the_grounds_light() {
+        // Sun 3, sky 1: the sky is a quarter of the ground's light; overcast (no sun): all of it.
+        assert!((sky_occlusion(3.0, 1.0) - 0.25).abs() < 1e-6);
+        assert_eq!(sky_occlusion(0.0, 2.0), 1.0);
+        assert_eq!(sky_occlusion(0.0, 0.0), 0.0);
+        // E_sun/π = 1/π from straight up gives the ground 1, as much as the sky's 1: half each;
+        // the scene's multiplier scales both; a sun below the horizon leaves the sky's alone.
+        let pi = std::f32::consts::PI;
+        let (a, b) = ground_strengths(1.0 / pi, Vec3::Z, 1.0, 1.0);
+        assert!((a - 0.5).abs() < 1e-6 && (b - 0.5).abs() < 1e-6, "{a} {b}");
+        let (a, b) = ground_strengths(1.0 / pi, Vec3::Z * 3.0, 1.0, 0.5);
+        assert!((a - 0.25).abs() < 1e-6 && (b - 0.25).abs() < 1e-6, "{a} {b}");
+        // 30° up: the ground gets sin 30° = 1/2 of the sun's normal irradiance.
+        let (a, _) = ground_strengths(2.0 / pi, Vec3::new(0.0, 3f32.sqrt(), 1.0), 1.0, 1.0);
+        assert!((a - 0.5).abs() < 1e-6, "{a}");
+        assert_eq!(ground_strengths(1.0, Vec3::new(0.0, 1.0, -0.1), 1.0, 1.0), (0.0, 1.0));
+        for (sun, sky) in [(3.0, 1.0), (0.2, 5.0), (1.0, 0.0)] {
+            assert!((shadow_opacity(sun, sky) + sky_occlusion(sun, sky) - 1.0).abs() < 1e-6);
+        }
     }
 }

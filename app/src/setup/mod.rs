@@ -5,7 +5,7 @@
 //! the tests all set scenes up through here.
 
 use crate::gpu::Gpu;
-use crate::render::{Camera, ColourSettings, Compositor, FrameParams, Lighting, MaterialTerms, Placement, view};
+use crate::render::{Antialiasing, Camera, ColourSettings, Compositor, FrameParams, Lighting, MaterialTerms, Placement, view};
 use crate::scene::{CubeMap, Model, Rgba8Image, demo};
 use crate::setup::scene_file::Scene;
 use anyhow::{Context, Result};
@@ -112,7 +112,8 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
     let m = &scene.material;
     let fade = crate::sun::twilight::sunlight_factor_toward(light.sun_dir);
     let (sl, dl) = (scene.sun.sunlight as f32, scene.sun.daylight as f32);
-    let shadow = light::shadow_opacity(sl * light.ground_sun * fade, dl * light.ground_sky);
+    let (shadow_opacity, sky_occlusion) =
+        light::ground_strengths(sl * light.sunlight * fade, light.sun_dir, dl * light.ground_sky, scene.effects.shadow_opacity as f32);
     Lighting {
         sun_dir: light.sun_dir,
         sunlight: sl * light.sunlight * fade,
@@ -125,7 +126,8 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
         },
         reflection: scene.effects.reflection as f32,
         ior: scene.effects.ior as f32,
-        shadow_opacity: (scene.effects.shadow_opacity as f32 * shadow).clamp(0.0, 1.0),
+        shadow_opacity,
+        sky_occlusion,
         live_depth: scene.effects.live_depth as f32,
         sky_sh: light.sky_sh,
         sun_colour: light.sun_colour,
@@ -147,6 +149,15 @@ pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(
     Ok((compositor, params, light))
 }
 
+/// [`prepare`] with the antialiasing given instead of the adapter's (the study in `previz bench
+/// frame`).
+pub fn prepare_antialiased(gpu: &Gpu, scene: &Scene, inputs: &Inputs, aa: Antialiasing) -> Result<(Compositor, FrameParams)> {
+    let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, aa)?;
+    let (mut compositor, params, _) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
+    compositor.set_background(gpu, inputs.background.as_ref())?;
+    Ok((compositor, params))
+}
+
 /// A compositor with the scene's environment (at its exposure and heading) and model, and the
 /// parameters of the scene's frame; the background is the caller's (a photo, or the live
 /// camera frame by frame).
@@ -156,7 +167,17 @@ pub fn compositor_for(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) ->
 
 /// [`compositor_for`], and the light measured in the environment ([`SceneLight`]).
 pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams, SceneLight)> {
-    let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
+    set_up(gpu, Compositor::new(gpu, scene.width, scene.height)?, scene, env, model)
+}
+
+/// Give `compositor` the scene's environment and model; the frame's parameters and light.
+fn set_up(
+    gpu: &Gpu,
+    mut compositor: Compositor,
+    scene: &Scene,
+    env: &CubeMap,
+    model: &Model,
+) -> Result<(Compositor, FrameParams, SceneLight)> {
     let (exposure, heading) = (exposure(scene, env), (scene.env.heading as f32).to_radians());
     compositor.set_environment(gpu, env, exposure, heading)?;
     compositor.set_model(gpu, model)?;

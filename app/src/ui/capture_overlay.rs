@@ -1,7 +1,7 @@
 //! The capture assistant's on-screen guidance, drawn with egui over the camera view: the next
 //! target's name, a reticle on it when it is in view or an arrow towards it when not, progress
 //! (n/6 faces, shots in stitch mode), "Hold still" when the phone turns too fast, a badge when the
-//! heading is gyro-only (compass disturbed), and thumbnails of the faces taken so far.
+//! heading is gyro-only (compass disturbed) or calibrated against the sun, and thumbnails of the faces taken so far.
 
 use crate::capture::assistant::{Guidance, Phase};
 use crate::capture::targets::Face;
@@ -13,6 +13,10 @@ pub const THUMB: f32 = 64.0;
 
 /// Label of the gyro-only badge.
 pub const GYRO_ONLY_TEXT: &str = "gyro-only (compass disturbed)";
+/// Label of the badge shown while the heading is calibrated against the sun.
+pub const SUN_NORTH_TEXT: &str = "north from the sun";
+/// Its colour (the sun calibration succeeded).
+pub const SUN_NORTH_COLOUR: Color32 = Color32::from_rgb(255, 225, 90);
 
 /// A square thumbnail (centre crop, box-filtered) of an sRGB frame, for [`egui::Context::load_texture`].
 pub fn thumbnail(image: &Rgba8Image, side: usize) -> egui::ColorImage {
@@ -133,6 +137,18 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
         painter.galley(rect.min + Vec2::new(8.0, 4.0), galley, Color32::BLACK);
     }
 
+    // The sun calibration succeeded: the heading comes from the sun (pose::sun_heading), with
+    // its 1σ. Same place as the gyro-only badge (the two never show together).
+    if !g.gyro_only && g.heading_source == Some(crate::pose::HeadingSource::Sun) {
+        let text = match g.heading_accuracy_deg {
+            Some(a) => format!("{SUN_NORTH_TEXT} ±{a:.1}°"),
+            None => SUN_NORTH_TEXT.to_string(),
+        };
+        let galley = painter.layout_no_wrap(text, FontId::proportional(18.0), Color32::BLACK);
+        let rect = Rect::from_min_size(screen.left_top() + Vec2::new(14.0, 58.0), galley.size() + Vec2::new(16.0, 8.0));
+        painter.rect_filled(rect, 6.0, SUN_NORTH_COLOUR);
+        painter.galley(rect.min + Vec2::new(8.0, 4.0), galley, Color32::BLACK);
+    }
     // Thumbnails of the faces, bottom left.
     let gap = 8.0;
     let y = screen.bottom() - THUMB - 28.0;

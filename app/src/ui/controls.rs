@@ -277,6 +277,7 @@ mod tests {
                 reflection: 0.0,
                 ior: 1.5,
                 shadow_opacity: 0.6,
+                sky_occlusion: 0.0,
                 live_depth: 1.0,
                 sky_sh: [[0.0; 3]; 9],
                 sun_colour: [1.0; 3],

@@ -3,9 +3,7 @@
 //! background texture (the environment-view pass), so every later pass reads one background.
 
 use crate::gpu::{Gpu, build};
-use crate::render::pipelines::{
-    COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, SAMPLES, depth_state, pipeline as make, pipeline_into,
-};
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, depth_state, pipeline as make, pipeline_into};
 use crate::render::shaders::Technique;
 use crate::scene::Rgba8Image;
 use anyhow::{Result, anyhow, bail};
@@ -36,22 +34,29 @@ pub fn env_view_pipeline(device: &wgpu::Device) -> PassPipeline {
     PassPipeline { layout, pipeline }
 }
 
-/// The background pipeline: a full-screen triangle into the multisampled composite target.
-pub fn pipeline(device: &wgpu::Device) -> PassPipeline {
+/// The background pipeline: a full-screen triangle into the composite target (`samples` per
+/// pixel).
+pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
     let fs = ShaderStages::FRAGMENT;
     let layout = build::layout(device, "background", &[build::texture_entry(0, fs, D2, true), build::sampler_entry(1, fs, Filtering)]);
-    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT);
+    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT, samples);
     PassPipeline { layout, pipeline }
 }
 
-/// The background pipeline with bind-group `layout`, drawing into `format` targets.
-pub fn pipeline_for(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+/// The background pipeline with bind-group `layout`, drawing into `format` targets of
+/// `samples` per pixel.
+pub fn pipeline_for(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+    samples: u32,
+) -> wgpu::RenderPipeline {
     let spec = PipelineSpec {
         technique: Technique::Background,
         layouts: &[layout],
         vertex_buffers: &[],
         depth: depth_state(false, wgpu::DepthBiasState::default()),
-        samples: SAMPLES,
+        samples,
         blend: Some(None),
     };
     pipeline_into(device, spec, format)

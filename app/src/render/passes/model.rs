@@ -4,21 +4,20 @@
 //! draws too.
 
 use crate::colour::correction::ColourCorrection;
-use crate::colour::stats::ColourStats;
 use crate::gpu::{Gpu, build};
 use crate::light::ggx;
-use crate::priors;
 use crate::render::LightingMethod;
 use crate::render::environment::EnvironmentViews;
+use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, SAMPLES, Vertex, depth_state};
+use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
-use crate::scene::lod::{IndexRange, LodChain};
-use crate::scene::occlusion;
-use crate::scene::{Mesh, Model};
-use anyhow::{Result, anyhow, bail};
+use crate::scene::Model;
+use crate::scene::lod::IndexRange;
+use anyhow::{Result, anyhow};
 use glam::Vec3;
+use std::sync::Arc;
 use wgpu::SamplerBindingType::{Comparison, Filtering};
 use wgpu::ShaderStages;
 use wgpu::TextureViewDimension::{Cube, D2};
@@ -36,8 +35,8 @@ pub struct ModelPipelines {
     pub by_method: Vec<wgpu::RenderPipeline>,
 }
 
-/// The model pipelines (one per method) and their layouts.
-pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
+/// The model pipelines (one per method, `samples` per pixel) and their layouts.
+pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
@@ -63,7 +62,7 @@ pub fn pipelines(device: &wgpu::Device) -> ModelPipelines {
         "material",
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
-    let by_method = pipelines_for(device, (&layout, &material_layout), COLOR_FORMAT);
+    let by_method = pipelines_for(device, (&layout, &material_layout), COLOR_FORMAT, samples);
     ModelPipelines { layout, material_layout, by_method }
 }
 
@@ -78,11 +77,12 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
 }
 
 /// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
-/// layouts (`layout`, `material_layout`), drawing into `format` targets.
+/// layouts (`layout`, `material_layout`), drawing into `format` targets of `samples` per pixel.
 pub fn pipelines_for(
     device: &wgpu::Device,
     (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     format: wgpu::TextureFormat,
+    samples: u32,
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
     LightingMethod::ALL
@@ -102,7 +102,7 @@ pub fn pipelines_for(
                         write_mask: wgpu::ColorWrites::ALL,
                     }),
                     depth: depth_state(true, wgpu::DepthBiasState::default()),
-                    samples: SAMPLES,
+                    samples,
                     constants: &constants,
                 },
             )
@@ -127,26 +127,6 @@ pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines) -> wgpu
             constants: &[("METHOD", 0.0)],
         },
     )
-}
-
-/// A mesh's vertices interleaved for the vertex buffer, after checking that its attribute
-/// arrays agree and its indices stay inside them (missing uvs become (0, 0)).
-pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
-    let n = mesh.positions.len();
-    if mesh.normals.len() != n || (!mesh.uvs.is_empty() && mesh.uvs.len() != n) {
-        bail!("a mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
-    }
-    if let Some(&bad) = mesh.indices.iter().find(|&&i| i as usize >= n) {
-        bail!("a mesh index ({bad}) points past its {n} vertices");
-    }
-    Ok((0..n)
-        .map(|i| Vertex {
-            position: mesh.positions[i],
-            normal: mesh.normals[i],
-            uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
-            ao: 1.0,
-        })
-        .collect())
 }
 
 /// A material's uniform for this frame: its own colours with the frame's Eq. 3 terms, and the
@@ -181,20 +161,26 @@ pub struct ModelGpu {
     meshes: Vec<MeshGpu>,
     /// Bounds in model space.
     pub bounds: (Vec3, Vec3),
-    /// Per level of detail, the simplification error (model units, non-decreasing from 0) and
-    /// the model's triangle count; the index buffers hold every level, so switching level
-    /// allocates nothing.
-    pub lod_errors: Vec<f32>,
-    pub lod_triangles: Vec<usize>,
     /// Each mesh's material buffer and its values as loaded, rewritten each frame with the
     /// frame's material terms.
     materials: Vec<(wgpu::Buffer, MaterialUniforms)>,
-    /// Colour statistics of the model's texture (or diffuse colours), the correction's target;
-    /// the reason when there are none (every texel masked out).
-    pub colour: std::result::Result<ColourStats, String>,
+    /// What was computed from the model's content (shared by every compositor on the device):
+    /// the level-of-detail chain (the index buffers hold every level, so switching level
+    /// allocates nothing), the colour statistics on demand, the ground under a placement.
+    pub prepared: Arc<PreparedModel>,
 }
 
 impl ModelGpu {
+    /// Per level of detail, the simplification error (model units, non-decreasing from 0).
+    pub fn lod_errors(&self) -> &[f32] {
+        &self.prepared.chain.errors
+    }
+
+    /// Per level of detail, the model's triangle count.
+    pub fn lod_triangles(&self) -> &[usize] {
+        &self.prepared.chain.triangles
+    }
+
     /// Draw every mesh at level of detail `level` (clamped to the chain); `material_group`:
     /// where to bind each mesh's material (None: no materials, the shadow pass).
     pub fn draw_meshes(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>, level: usize) {
@@ -291,14 +277,10 @@ impl ModelPass {
         self.bind_groups = bind_groups;
     }
 
-    /// Upload a model: one vertex/index buffer and material bind group per mesh. Returns the
-    /// GPU copy without touching the current one (the caller swaps it in once the GPU accepted
-    /// the upload).
-    pub fn upload(&self, gpu: &Gpu, model: &Model) -> Result<ModelGpu> {
-        let bounds = model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
-        if !(bounds.0.is_finite() && bounds.1.is_finite()) {
-            bail!("the model has non-finite vertex positions");
-        }
+    /// Upload a prepared model (render/model_cache.rs): one vertex/index buffer and material
+    /// bind group per mesh. Returns the GPU copy without touching the current one (the caller
+    /// swaps it in once the GPU accepted the upload).
+    pub fn upload(&self, gpu: &Gpu, model: &Model, prepared: Arc<PreparedModel>) -> Result<ModelGpu> {
         let device = &gpu.device;
         let textures: Vec<Option<wgpu::TextureView>> = model
             .materials
@@ -311,19 +293,7 @@ impl ModelPass {
             .collect();
         let mut meshes = Vec::new();
         let mut materials = Vec::new();
-        // Checked before simplifying: the simplifier indexes the vertices.
-        let mut vertex_lists =
-            model.meshes.iter().map(|m| if m.indices.is_empty() { Ok(Vec::new()) } else { interleave(m) }).collect::<Result<Vec<_>>>()?;
-        // Ambient occlusion, once per model: each vertex's share of the sky past the model itself.
-        // Occluders reflect light too: the multi-bounce fit for the mesh material's albedo.
-        for ((vertices, ao), mesh) in vertex_lists.iter_mut().zip(occlusion::model_ao(model)).zip(&model.meshes) {
-            let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
-            for (v, a) in vertices.iter_mut().zip(ao) {
-                v.ao = occlusion::multi_bounce(a, albedo);
-            }
-        }
-        let chain = LodChain::build(model);
-        for ((mesh, lods), vertices) in model.meshes.iter().zip(&chain.meshes).zip(vertex_lists) {
+        for ((mesh, lods), vertices) in model.meshes.iter().zip(&prepared.chain.meshes).zip(&prepared.vertices) {
             if mesh.indices.is_empty() {
                 continue;
             }
@@ -353,7 +323,7 @@ impl ModelPass {
             meshes.push(MeshGpu {
                 vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("vertices"),
-                    contents: bytemuck::cast_slice(&vertices),
+                    contents: bytemuck::cast_slice(vertices),
                     usage: wgpu::BufferUsages::VERTEX,
                 }),
                 indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -366,11 +336,7 @@ impl ModelPass {
             });
             materials.push((material_buf, uniforms));
         }
-        if meshes.is_empty() {
-            bail!("the model has no triangles");
-        }
-        let colour = priors::model_priors(model).map(|p| p.stats).map_err(|e| format!("{e:#}"));
-        Ok(ModelGpu { meshes, bounds, lod_errors: chain.errors, lod_triangles: chain.triangles, materials, colour })
+        Ok(ModelGpu { meshes, bounds: prepared.bounds, materials, prepared })
     }
 
     /// This frame's colour correction and material terms.
@@ -413,32 +379,6 @@ impl ModelPass {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn triangle() -> Mesh {
-        Mesh {
-            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
-            normals: vec![[0.0, 0.0, 1.0]; 3],
-            uvs: vec![],
-            indices: vec![0, 1, 2],
-            material: 0,
-        }
-    }
-
-    #[test]
-    fn interleave_checks_the_mesh() {
-        let v = interleave(&triangle()).unwrap();
-        assert_eq!(v.len(), 3);
-        assert_eq!((v[1].position, v[1].normal, v[1].uv), ([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0]));
-        let mut m = triangle();
-        m.indices[2] = 3;
-        assert!(format!("{:#}", interleave(&m).unwrap_err()).contains("index (3) points past its 3 vertices"));
-        let mut m = triangle();
-        m.normals.pop();
-        assert!(format!("{:#}", interleave(&m).unwrap_err()).contains("3 positions but 2 normals"));
-        let mut m = triangle();
-        m.uvs = vec![[0.5, 0.5]];
-        assert!(interleave(&m).is_err());
-    }
 
     #[test]
     fn material_terms_replace_the_loaded_ones() {

@@ -1,0 +1,352 @@
+//! Work done once per model, not once per compositor: the vertices with their ambient occlusion,
+//! the level-of-detail chain, and — only when a colour correction first asks — the model's colour
+//! statistics; and per placement, the ground's sky visibility under the model.
+//!
+//! Entries are keyed by the model's content (every position, normal, uv, index, material value
+//! and texel), so a second compositor, a second scene or the live view's model picker going back
+//! to a model reuse the work (the 100k-triangle dragon's occlusion alone takes ~1.6 s on the
+//! CPU), and any change to the model computes it again. One cache per device
+//! ([`ModelCache::of`]); it keeps the [`CAPACITY`] models used last.
+
+use super::pipelines::Vertex;
+use crate::colour::stats::ColourStats;
+use crate::gpu::Gpu;
+use crate::scene::lod::LodChain;
+use crate::scene::occlusion::{self, GroundSky, Occluders};
+use crate::scene::{Mesh, Model};
+use anyhow::{Result, anyhow, bail};
+use glam::{Mat4, Vec3};
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// Models kept per device (the least recently used goes first).
+pub const CAPACITY: usize = 8;
+
+/// A model's content as a 64-bit hash (SipHash over every value that the derived data reads).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ModelKey(u64);
+
+impl ModelKey {
+    pub fn of(model: &Model) -> ModelKey {
+        let mut h = std::hash::DefaultHasher::new();
+        model.meshes.len().hash(&mut h);
+        for m in &model.meshes {
+            for bytes in [
+                bytemuck::cast_slice::<_, u8>(&m.positions),
+                bytemuck::cast_slice(&m.normals),
+                bytemuck::cast_slice(&m.uvs),
+                bytemuck::cast_slice(&m.indices),
+            ] {
+                bytes.len().hash(&mut h);
+                h.write(bytes);
+            }
+            m.material.hash(&mut h);
+        }
+        model.materials.len().hash(&mut h);
+        for m in &model.materials {
+            let values = [m.diffuse.as_slice(), &m.specular, &[m.shininess, m.opacity]].concat();
+            values.iter().for_each(|v| v.to_bits().hash(&mut h));
+            match &m.texture {
+                Some(t) => (t.width, t.height, &t.pixels).hash(&mut h),
+                None => 0u8.hash(&mut h),
+            }
+        }
+        ModelKey(h.finish())
+    }
+}
+
+/// What a model's upload needs, computed once per model content.
+pub struct PreparedModel {
+    pub key: ModelKey,
+    /// Bounds in model space.
+    pub bounds: (Vec3, Vec3),
+    /// Per mesh, its interleaved vertices with ambient occlusion (empty for a mesh without
+    /// triangles).
+    pub vertices: Vec<Vec<Vertex>>,
+    pub chain: LodChain,
+    model: Model,
+    colour: OnceLock<std::result::Result<ColourStats, String>>,
+    occluders: OnceLock<Occluders>,
+    /// The ground under the last placement asked for: the model matrix's bits and its map.
+    ground: Mutex<Option<([u32; 16], Arc<GroundSky>)>>,
+    ground_computed: std::sync::atomic::AtomicUsize,
+}
+
+impl PreparedModel {
+    /// Check `model`, then compute its vertices with ambient occlusion and its level chain.
+    pub fn new(model: &Model) -> Result<PreparedModel> {
+        let bounds = model.bounds().ok_or_else(|| anyhow!("the model has no vertices"))?;
+        if !(bounds.0.is_finite() && bounds.1.is_finite()) {
+            bail!("the model has non-finite vertex positions");
+        }
+        if model.triangle_count() == 0 {
+            bail!("the model has no triangles");
+        }
+        // Checked before simplifying: the simplifier indexes the vertices.
+        let mut vertices =
+            model.meshes.iter().map(|m| if m.indices.is_empty() { Ok(Vec::new()) } else { interleave(m) }).collect::<Result<Vec<_>>>()?;
+        if let Some(m) = model.meshes.iter().find(|m| model.materials.get(m.material).is_none()) {
+            bail!("a mesh refers to missing material {}", m.material);
+        }
+        // Ambient occlusion: each vertex's share of the sky past the model itself. Occluders
+        // reflect light too: the multi-bounce fit for the mesh material's albedo.
+        let occluders = Occluders::of_model(model);
+        for ((vertices, ao), mesh) in vertices.iter_mut().zip(occlusion::model_ao_with(model, &occluders)).zip(&model.meshes) {
+            let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
+            for (v, a) in vertices.iter_mut().zip(ao) {
+                v.ao = occlusion::multi_bounce(a, albedo);
+            }
+        }
+        Ok(PreparedModel {
+            key: ModelKey::of(model),
+            bounds,
+            vertices,
+            chain: LodChain::build(model),
+            model: model.clone(),
+            colour: OnceLock::new(),
+            occluders: OnceLock::from(occluders),
+            ground: Mutex::new(None),
+            ground_computed: Default::default(),
+        })
+    }
+
+    /// Colour statistics of the model's texture (or diffuse colours), the colour correction's
+    /// target, or the reason there are none (every texel masked out): computed on the first call.
+    pub fn colour(&self) -> &std::result::Result<ColourStats, String> {
+        self.colour.get_or_init(|| crate::priors::model_priors(&self.model).map(|p| p.stats).map_err(|e| format!("{e:#}")))
+    }
+
+    /// Whether [`PreparedModel::colour`] has been computed.
+    pub fn colour_computed(&self) -> bool {
+        self.colour.get().is_some()
+    }
+
+    /// The ground's sky visibility under the model placed by `placement` (model space → world):
+    /// [`occlusion::ground_sky`] over [`occlusion::GROUND_TEXELS`]² texels, computed when the
+    /// placement differs from the last one asked for. The same `Arc` comes back while the
+    /// placement stays, so `Arc::ptr_eq` with the one uploaded says whether to upload.
+    pub fn ground_sky(&self, placement: Mat4) -> Arc<GroundSky> {
+        let bits = placement.to_cols_array().map(f32::to_bits);
+        let mut last = self.ground.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((b, sky)) = last.as_ref()
+            && *b == bits
+        {
+            return sky.clone();
+        }
+        let occluders = self.occluders.get_or_init(|| Occluders::of_model(&self.model));
+        let sky = Arc::new(occlusion::ground_sky(occluders, self.bounds, placement, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS));
+        self.ground_computed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        *last = Some((bits, sky.clone()));
+        sky
+    }
+
+    /// How many times [`PreparedModel::ground_sky`] computed a map.
+    pub fn ground_sky_computed(&self) -> usize {
+        self.ground_computed.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+/// A mesh's vertices interleaved for the vertex buffer (ambient occlusion 1), after checking that
+/// its attribute arrays agree and its indices stay inside them (missing uvs become (0, 0)).
+pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
+    let n = mesh.positions.len();
+    if mesh.normals.len() != n || (!mesh.uvs.is_empty() && mesh.uvs.len() != n) {
+        bail!("a mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
+    }
+    if let Some(&bad) = mesh.indices.iter().find(|&&i| i as usize >= n) {
+        bail!("a mesh index ({bad}) points past its {n} vertices");
+    }
+    Ok((0..n)
+        .map(|i| Vertex {
+            position: mesh.positions[i],
+            normal: mesh.normals[i],
+            uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
+            ao: 1.0,
+        })
+        .collect())
+}
+
+/// How often the cache computed and reused a model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CacheCounts {
+    pub computed: usize,
+    pub reused: usize,
+}
+
+/// The prepared models of one device, most recently used last.
+#[derive(Default)]
+pub struct ModelCache {
+    state: Mutex<(Vec<Arc<PreparedModel>>, CacheCounts)>,
+}
+
+impl ModelCache {
+    /// The cache of `gpu`'s device.
+    pub fn of(gpu: &Gpu) -> Result<Arc<ModelCache>> {
+        gpu.shared("the model cache", |_| Ok(ModelCache::default()))
+    }
+
+    /// The prepared `model`: the cached one when a model of the same content was prepared
+    /// before, else computed now (outside the lock: two threads may prepare different models
+    /// at once). A model that fails its checks is not cached.
+    pub fn prepare(&self, model: &Model) -> Result<Arc<PreparedModel>> {
+        let key = ModelKey::of(model);
+        {
+            let mut state = self.lock();
+            if let Some(i) = state.0.iter().position(|p| p.key == key) {
+                let hit = state.0.remove(i);
+                state.0.push(hit.clone());
+                state.1.reused += 1;
+                return Ok(hit);
+            }
+        }
+        let prepared = Arc::new(PreparedModel::new(model)?);
+        let mut state = self.lock();
+        state.0.retain(|p| p.key != key);
+        if state.0.len() >= CAPACITY {
+            state.0.remove(0);
+        }
+        state.0.push(prepared.clone());
+        state.1.computed += 1;
+        Ok(prepared)
+    }
+
+    pub fn counts(&self) -> CacheCounts {
+        self.lock().1
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, (Vec<Arc<PreparedModel>>, CacheCounts)> {
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Material;
+
+    /// A closed tetrahedron (4 triangles) with one material.
+    fn tetrahedron() -> Model {
+        let positions = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let normals = positions.iter().map(|p: &[f32; 3]| Vec3::from(*p).normalize_or(Vec3::NEG_ONE.normalize()).to_array()).collect();
+        let mesh = Mesh { positions, normals, uvs: vec![], indices: vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3], material: 0 };
+        Model { meshes: vec![mesh], materials: vec![Material::default()] }
+    }
+
+    fn triangle() -> Mesh {
+        Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            normals: vec![[0.0, 0.0, 1.0]; 3],
+            uvs: vec![],
+            indices: vec![0, 1, 2],
+            material: 0,
+        }
+    }
+
+    #[test]
+    fn interleave_checks_the_mesh() {
+        let v = interleave(&triangle()).unwrap();
+        assert_eq!(v.len(), 3);
+        assert_eq!((v[1].position, v[1].normal, v[1].uv), ([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0]));
+        let mut m = triangle();
+        m.indices[2] = 3;
+        assert!(format!("{:#}", interleave(&m).unwrap_err()).contains("index (3) points past its 3 vertices"));
+        let mut m = triangle();
+        m.normals.pop();
+        assert!(format!("{:#}", interleave(&m).unwrap_err()).contains("3 positions but 2 normals"));
+        let mut m = triangle();
+        m.uvs = vec![[0.5, 0.5]];
+        assert!(interleave(&m).is_err());
+    }
+
+    #[test]
+    fn the_same_content_is_prepared_once_and_any_change_prepares_again() {
+        let cache = ModelCache::default();
+        let model = tetrahedron();
+        let a = cache.prepare(&model).unwrap();
+        // A copy of the model (another load of the same file) is the same content.
+        let b = cache.prepare(&model.clone()).unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        assert_eq!(cache.counts(), CacheCounts { computed: 1, reused: 1 });
+        // A moved vertex, a new colour and a new texel each make a new entry.
+        let mut moved = model.clone();
+        moved.meshes[0].positions[3][2] = 1.5;
+        let mut recoloured = model.clone();
+        recoloured.materials[0].diffuse[1] = 0.1;
+        let mut textured = model.clone();
+        textured.materials[0].texture = Some(crate::scene::Rgba8Image { width: 1, height: 1, pixels: vec![9, 9, 9, 255] });
+        for changed in [&moved, &recoloured, &textured] {
+            let c = cache.prepare(changed).unwrap();
+            assert!(!Arc::ptr_eq(&a, &c));
+        }
+        assert_eq!(cache.counts(), CacheCounts { computed: 4, reused: 1 });
+        // The moved vertex is in the new entry's vertices and bounds.
+        assert_eq!(cache.prepare(&moved).unwrap().bounds.1.z, 1.5);
+        // The original is still cached (capacity 8).
+        assert!(Arc::ptr_eq(&a, &cache.prepare(&model).unwrap()));
+        assert_eq!(cache.counts(), CacheCounts { computed: 4, reused: 3 });
+    }
+
+    #[test]
+    fn the_least_recently_used_model_goes_first() {
+        let cache = ModelCache::default();
+        let models: Vec<Model> = (0..=CAPACITY)
+            .map(|i| {
+                let mut m = tetrahedron();
+                m.meshes[0].positions[3][2] = 1.0 + i as f32;
+                m
+            })
+            .collect();
+        let first = cache.prepare(&models[0]).unwrap();
+        for m in &models[1..CAPACITY] {
+            cache.prepare(m).unwrap();
+        }
+        // Using the first again makes the second the oldest; one more model evicts the second.
+        cache.prepare(&models[0]).unwrap();
+        cache.prepare(&models[CAPACITY]).unwrap();
+        assert_eq!(cache.counts(), CacheCounts { computed: CAPACITY + 1, reused: 1 });
+        assert!(Arc::ptr_eq(&first, &cache.prepare(&models[0]).unwrap()));
+        cache.prepare(&models[1]).unwrap();
+        assert_eq!(cache.counts(), CacheCounts { computed: CAPACITY + 2, reused: 2 });
+    }
+
+    #[test]
+    fn a_bad_model_is_an_error_and_not_cached() {
+        let cache = ModelCache::default();
+        let mut bad = tetrahedron();
+        bad.meshes[0].indices[5] = 9;
+        let err = cache.prepare(&bad).err().unwrap();
+        assert!(format!("{err:#}").contains("index (9) points past its 4 vertices"), "{err:#}");
+        let mut no_material = tetrahedron();
+        no_material.meshes[0].material = 3;
+        assert!(format!("{:#}", cache.prepare(&no_material).err().unwrap()).contains("missing material 3"));
+        assert_eq!(cache.counts(), CacheCounts::default());
+    }
+
+    #[test]
+    fn colour_statistics_wait_for_the_first_request() {
+        let prepared = PreparedModel::new(&tetrahedron()).unwrap();
+        assert!(!prepared.colour_computed());
+        // Untextured: the statistics of the diffuse colour (0.8 grey, linear).
+        let stats = prepared.colour().as_ref().unwrap();
+        assert!(prepared.colour_computed());
+        assert!(std::ptr::eq(stats, prepared.colour().as_ref().unwrap()));
+    }
+
+    #[test]
+    fn the_ground_map_is_computed_once_per_placement() {
+        let prepared = PreparedModel::new(&tetrahedron()).unwrap();
+        let here = Mat4::from_translation(Vec3::new(1.0, 2.0, 0.0));
+        let a = prepared.ground_sky(here);
+        let b = prepared.ground_sky(here);
+        assert!(Arc::ptr_eq(&a, &b) && prepared.ground_sky_computed() == 1);
+        // Moved: computed again, and the square follows the model.
+        let there = Mat4::from_translation(Vec3::new(3.0, 2.0, 0.0));
+        let c = prepared.ground_sky(there);
+        assert_eq!(prepared.ground_sky_computed(), 2);
+        assert!(((c.min + c.max) * 0.5 - (a.min + a.max) * 0.5 - glam::Vec2::new(2.0, 0.0)).length() < 1e-5);
+        // Back to the first placement: the map is computed again (only the last is kept), equal.
+        let d = prepared.ground_sky(here);
+        assert_eq!(prepared.ground_sky_computed(), 3);
+        assert_eq!(*d, *a);
+    }
+}

@@ -88,6 +88,9 @@ struct CaptureRun {
     tap: bool,
     /// Where the finished capture was saved.
     saved: Option<PathBuf>,
+    /// The assembled faces (in [`Face::ALL`] order) once the capture is finished: the preview
+    /// shows these.
+    assembled: Option<Vec<crate::scene::Rgba8Image>>,
 }
 
 /// A model the picker offers: the scene's, the bundled demo one, or a file the user opened.
@@ -283,10 +286,11 @@ impl App {
     pub fn start_capture(&mut self) -> Result<()> {
         let s = self.session.scene();
         let camera = Pinhole::from_vfov(s.width, s.height, s.camera.vfov as f32)?;
-        let mut cfg = AssistantConfig::new(CaptureMode::Stretch, camera);
+        let mut cfg = AssistantConfig::new(CaptureMode::Stitch, camera);
         cfg.face_size = CAPTURE_FACE_SIZE;
         let assistant = Assistant::new(cfg)?;
-        self.capture = Some(CaptureRun { assistant, thumbs: Default::default(), last_shot: None, tap: false, saved: None });
+        self.capture =
+            Some(CaptureRun { assistant, thumbs: Default::default(), last_shot: None, tap: false, saved: None, assembled: None });
         self.session.set_show_model(false);
         Ok(())
     }
@@ -429,6 +433,17 @@ impl App {
             let _ = std::fs::remove_dir(&dir);
             return Err(e);
         }
+        run.assembled = Some(
+            Face::ALL
+                .iter()
+                .map(|f| {
+                    let face = capture.face(*f);
+                    let pixels = face.rgb.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+                    crate::scene::Rgba8Image { width: face.size, height: face.size, pixels }
+                })
+                .collect(),
+        );
+        run.thumbs = Default::default();
         let env = capture.to_cube_map();
         self.session.set_environment(gpu, &env, &dir, capture.meta.reference_heading_deg)?;
         let daylight = self.session.params().lighting.daylight;
@@ -556,16 +571,27 @@ impl App {
     fn capture_ui(&mut self, ctx: &egui::Context) {
         let now = self.last.map_or(0.0, |f| f.t);
         let Some(run) = &mut self.capture else { return };
-        // Thumbnails of the faces taken so far (loaded once each).
+        // Thumbnails (loaded once each): while capturing, a shot of each face (its primary
+        // target's, else the first taken of that face: stitch mode may never take a face's
+        // primary target); once finished, the assembled faces.
         let targets = run.assistant.targets();
         for (i, face) in Face::ALL.iter().enumerate() {
             if run.thumbs[i].is_some() {
                 continue;
             }
-            let Some(shot) = targets.iter().position(|t| t.primary && t.face == *face).and_then(|k| run.assistant.shot(k)) else {
-                continue;
+            let image = match &run.assembled {
+                Some(faces) => faces.get(i),
+                None => {
+                    let of_face = |primary: bool| {
+                        (0..targets.len())
+                            .filter(|&k| targets[k].face == *face && (targets[k].primary || !primary))
+                            .find_map(|k| run.assistant.shot(k))
+                    };
+                    of_face(true).or_else(|| of_face(false)).map(|shot| shot.image.as_ref())
+                }
             };
-            run.thumbs[i] = Some(ctx.load_texture(face.name(), thumbnail(&shot.image, THUMB as usize), egui::TextureOptions::LINEAR));
+            let Some(image) = image else { continue };
+            run.thumbs[i] = Some(ctx.load_texture(face.name(), thumbnail(image, THUMB as usize), egui::TextureOptions::LINEAR));
         }
         let g = run.assistant.guidance();
         if run.saved.is_some() {

@@ -180,7 +180,7 @@ pub fn capture_then_look_around_path(
 ) -> Result<TruthTrace> {
     use crate::capture::{Mode, guided_path, targets};
     let plan =
-        targets::plan_targets(Mode::Stretch, camera, crate::capture::assistant::AssistantConfig::new(Mode::Stretch, *camera).tolerance_deg);
+        targets::plan_targets(Mode::Stitch, camera, crate::capture::assistant::AssistantConfig::new(Mode::Stitch, *camera).tolerance_deg);
     // Holds long enough for the assistant's dwell and a settling filter at every face.
     let params = UserPathParams { reference_heading_deg: Some(heading_deg), hold_s: (1.5, 2.0), ..UserPathParams::default() };
     let capture = guided_path::simulate_capture_path(seed, &plan, &params)?;

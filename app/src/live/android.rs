@@ -24,7 +24,6 @@ use crate::scene::demo;
 use crate::sensors::android::AndroidSensors;
 use crate::sensors::jni_location;
 use crate::sensors::permissions::{Answer, Permission, PermissionFlow};
-use crate::sensors::sim::NoiseLevel;
 use crate::setup::scene_file::SceneBuilder;
 use anyhow::{Context, Result};
 use jni::Env;
@@ -69,15 +68,7 @@ fn run(app: AndroidApp) -> Result<()> {
     scene.camera.vfov = info.fov_deg().map_or(FALLBACK_VFOV_DEG, |(_, v)| v);
     let env = Arc::new(demo::environment()?);
     let model = demo::model()?;
-    let cfg = LiveConfig {
-        lat_deg: 51.4545,
-        lon_deg: -2.5879,
-        start: chrono::Utc::now(),
-        frame_hz: 30.0,
-        duration_s: 3600.0,
-        noise: NoiseLevel::Phone,
-        seed: 1,
-    };
+    let cfg = LiveConfig::on_phone(chrono::Utc::now());
     let make = move |gpu: &crate::gpu::Gpu| -> Result<App> {
         let open: OpenCamera =
             Box::new(move || Ok(Box::new(Camera2::open(CAMERA_SIZE.0, CAMERA_SIZE.1, display)?) as Box<dyn FrameSource>));

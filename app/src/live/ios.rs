@@ -21,7 +21,6 @@ use crate::pose::DisplayRotation;
 use crate::scene::demo;
 use crate::sensors::ios::IosSensors;
 use crate::sensors::permissions::Answer;
-use crate::sensors::sim::NoiseLevel;
 use crate::setup::scene_file::SceneBuilder;
 use anyhow::{Context, Result};
 use objc2::rc::Retained;
@@ -75,15 +74,7 @@ fn run() -> Result<()> {
     (scene.width, scene.height) = SIZE;
     let env = Arc::new(demo::environment()?);
     let model = demo::model()?;
-    let cfg = LiveConfig {
-        lat_deg: 51.4545,
-        lon_deg: -2.5879,
-        start: chrono::Utc::now(),
-        frame_hz: 30.0,
-        duration_s: 3600.0,
-        noise: NoiseLevel::Phone,
-        seed: 1,
-    };
+    let cfg = LiveConfig::on_phone(chrono::Utc::now());
     let make = move |gpu: &crate::gpu::Gpu| -> Result<App> {
         // The first attempt shows the camera prompt; the field of view is the camera's once it
         // opens at start, else the fallback.

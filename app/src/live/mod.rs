@@ -79,6 +79,13 @@ pub struct LiveConfig {
 }
 
 impl LiveConfig {
+    /// The phone shells' session from `start` (the phone's clock): the demo's place (Bristol)
+    /// until the first GPS fix or the manual place moves it; the simulation fields are unused
+    /// there (real camera and sensors).
+    pub fn on_phone(start: DateTime<Utc>) -> LiveConfig {
+        LiveConfig { lat_deg: 51.4545, lon_deg: -2.5879, start, frame_hz: 30.0, duration_s: 3600.0, noise: NoiseLevel::Phone, seed: 1 }
+    }
+
     pub fn validate(&self) -> Result<()> {
         if !(self.lat_deg.is_finite() && (-90.0..=90.0).contains(&self.lat_deg)) {
             bail!("--lat must be a latitude in -90..=90 degrees, got {}", self.lat_deg);

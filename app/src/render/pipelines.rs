@@ -35,6 +35,25 @@ pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::R
     pipeline_into(device, spec, COLOR_FORMAT)
 }
 
+/// A full-screen pass's pipeline (no vertex buffers, no depth write): `technique` with bind-group
+/// `layout`, drawing into `format` targets of `samples` per pixel, blended with `blend`.
+pub(super) fn screen_pipeline(
+    device: &wgpu::Device,
+    (technique, layout): (Technique, &wgpu::BindGroupLayout),
+    (format, samples): (wgpu::TextureFormat, u32),
+    blend: Option<wgpu::BlendState>,
+) -> wgpu::RenderPipeline {
+    let spec = PipelineSpec {
+        technique,
+        layouts: &[layout],
+        vertex_buffers: &[],
+        depth: depth_state(false, wgpu::DepthBiasState::default()),
+        samples,
+        blend: Some(blend),
+    };
+    pipeline_into(device, spec, format)
+}
+
 /// A pass's pipeline drawing into `format` targets (the float layers, render/layers.rs).
 pub(super) fn pipeline_into(device: &wgpu::Device, spec: PipelineSpec<'_>, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
     let label = format!("{:?}", spec.technique);

@@ -3,7 +3,7 @@
 //! background texture (the environment-view pass), so every later pass reads one background.
 
 use crate::gpu::{Gpu, build};
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, depth_state, pipeline as make, pipeline_into};
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, pipeline as make, screen_pipeline};
 use crate::render::shaders::Technique;
 use crate::scene::Rgba8Image;
 use anyhow::{Result, anyhow, bail};
@@ -51,15 +51,7 @@ pub fn pipeline_for(
     format: wgpu::TextureFormat,
     samples: u32,
 ) -> wgpu::RenderPipeline {
-    let spec = PipelineSpec {
-        technique: Technique::Background,
-        layouts: &[layout],
-        vertex_buffers: &[],
-        depth: depth_state(false, wgpu::DepthBiasState::default()),
-        samples,
-        blend: Some(None),
-    };
-    pipeline_into(device, spec, format)
+    screen_pipeline(device, (Technique::Background, layout), (format, samples), None)
 }
 
 pub struct BackgroundPass {

@@ -6,7 +6,7 @@
 
 use super::super::uniforms::InstanceUniforms;
 use crate::gpu::build;
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, PipelineSpec, Pipelines, depth_state, pipeline_into};
+use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, Pipelines, screen_pipeline};
 use crate::render::shaders::Technique;
 use crate::scene::occlusion::{self, GroundSky};
 use anyhow::{Result, bail};
@@ -41,15 +41,7 @@ pub fn pipeline_for(
     format: wgpu::TextureFormat,
     samples: u32,
 ) -> wgpu::RenderPipeline {
-    let spec = PipelineSpec {
-        technique: Technique::Ground,
-        layouts: &[layout],
-        vertex_buffers: &[],
-        depth: depth_state(false, wgpu::DepthBiasState::default()),
-        samples,
-        blend: Some(Some(wgpu::BlendState::ALPHA_BLENDING)),
-    };
-    pipeline_into(device, spec, format)
+    screen_pipeline(device, (Technique::Ground, layout), (format, samples), Some(wgpu::BlendState::ALPHA_BLENDING))
 }
 
 pub struct GroundPass {

@@ -26,18 +26,17 @@ pub enum MethodRequest {
 }
 
 impl MethodRequest {
-    /// Every request, `auto` first (the CLI's possible values).
-    pub const ALL: [MethodRequest; 9] = [
-        MethodRequest::Auto,
-        MethodRequest::Fixed(LightingMethod::Sh9Ggx),
-        MethodRequest::Fixed(LightingMethod::BlinnPhong),
-        MethodRequest::Fixed(LightingMethod::Hemisphere),
-        MethodRequest::Fixed(LightingMethod::HemisphereOcclusion),
-        MethodRequest::Fixed(LightingMethod::CubeReflection),
-        MethodRequest::Fixed(LightingMethod::CubeRefraction),
-        MethodRequest::Fixed(LightingMethod::LiveReflection),
-        MethodRequest::Fixed(LightingMethod::LiveRefraction),
-    ];
+    /// Every request, `auto` first, then each method in [`LightingMethod::ALL`]'s order (the
+    /// CLI's possible values).
+    pub const ALL: [MethodRequest; LightingMethod::ALL.len() + 1] = {
+        let mut all = [MethodRequest::Auto; LightingMethod::ALL.len() + 1];
+        let mut i = 0;
+        while i < LightingMethod::ALL.len() {
+            all[i + 1] = MethodRequest::Fixed(LightingMethod::ALL[i]);
+            i += 1;
+        }
+        all
+    };
 
     /// The name used on the command line and in scene files.
     pub fn name(self) -> &'static str {

@@ -1,5 +1,7 @@
 // Ground pass: an invisible shadow-catcher plane under the model. It darkens the background
-// where the model shadows the sun and leaves it untouched elsewhere.
+// where the model shadows the sun or hides the sky and leaves it untouched elsewhere. The output
+// is what the ground loses per channel; the pipeline multiplies the background by 1 − that
+// (render::passes::ground), so a shadow keeps the colour of the light left in it.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> plane: Instance;
@@ -52,5 +54,26 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
         sky_seen = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0.0).r;
     }
     let sky_lost = light.ground_sky.x * (1.0 - sky_seen);
-    return vec4<f32>(0.0, 0.0, 0.0, clamp(sun_lost + sky_lost, 0.0, 1.0));
+    return vec4<f32>(ground_loss(sun_lost, sky_lost), 0.0);
+}
+
+// What the ground loses per channel when it loses `sun_lost` of its light's luminance to the
+// sun's shadow and `sky_lost` to the model's occlusion of the sky. The ground's light is the
+// sun's, in the sun's colour (light.sun.rgb), and the sky's, in the sky's colour on the ground
+// (light.ground_sky.yzw), each of luminance 1; their luminance shares are
+// frame.shadow_opacity : light.ground_sky.x. Per channel each loses its own share, so a shadow
+// out of a warm sun under a blue sky is blue (issue 9: the shadow's colour).
+fn ground_loss(sun_lost: f32, sky_lost: f32) -> vec3<f32> {
+    let sun_share = frame.shadow_opacity;
+    let sky_share = light.ground_sky.x;
+    let total = sun_share + sky_share;
+    if (total <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let sun_colour = light.sun.rgb;
+    let sky_colour = light.ground_sky.yzw;
+    // The ground's light per channel, luminance 1 (shares normalised).
+    let light_rgb = (sun_share * sun_colour + sky_share * sky_colour) / total;
+    let lost = (sun_lost * sun_colour + sky_lost * sky_colour) / max(light_rgb, vec3<f32>(1e-6));
+    return clamp(lost, vec3<f32>(0.0), vec3<f32>(1.0));
 }

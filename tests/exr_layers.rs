@@ -74,22 +74,24 @@ fn the_layers_exr_composes_to_the_png_composite() {
     for c in ["R", "G", "B"] {
         let (beauty, model, bg) = (p(c), p(&format!("model.{c}")), p(&format!("background.{c}")));
         for i in 0..w * h {
-            let expected = model[i] + (1.0 - p("model.A")[i]) * (bg[i] * p("shadow.Y")[i]);
+            let expected = model[i] + (1.0 - p("model.A")[i]) * (bg[i] * p(&format!("shadow.{c}"))[i]);
             worst = worst.max((beauty[i] - expected).abs() / expected.abs().max(1.0));
         }
     }
     assert!(worst <= 2.0 * f32::EPSILON, "beauty differs from model over background × matte by {worst} (relative)");
 
     // Not trivially so: the model covers part of the frame (with antialiased edges), and its
-    // shadow darkens the ground: the ground blends black at alpha = opacity × (1 − sun
-    // visibility) + sky occlusion × (1 − sky visibility), so the sun's full shadow reaches
+    // shadow darkens the ground: the ground loses opacity × (1 − sun visibility) + sky
+    // occlusion × (1 − sky visibility) of its light's luminance (per channel each light its own
+    // share, shaders/ground.wgsl ground_loss), so the sun's full shadow reaches
     // 1 − opacity and the contact point under the bunny, where both are lost, 1 − opacity − sky
     // occlusion (0 here: the two shares of the ground's light add up to 1).
     let alpha = p("model.A");
     let covered = alpha.iter().filter(|&&a| a > 0.0).count();
     assert!(covered > 1000 && covered < w * h / 2, "{covered} covered pixels");
     assert!(alpha.iter().any(|&a| a > 0.0 && a < 1.0), "no partial coverage");
-    let matte = p("shadow.Y");
+    // The matte's luminance (BT.709): each channel keeps its own share of the light.
+    let matte: Vec<f32> = (0..w * h).map(|i| 0.2126 * p("shadow.R")[i] + 0.7152 * p("shadow.G")[i] + 0.0722 * p("shadow.B")[i]).collect();
     let shadowed = matte.iter().filter(|&&m| m < 0.99).count();
     let opacity = json["light"]["shadow_opacity"].as_f64().unwrap() as f32;
     let darkest = matte.iter().copied().fold(f32::INFINITY, f32::min);

@@ -224,6 +224,126 @@ pub fn score(reference: &Reference, test: &[u8]) -> Result<(f32, f32, f32)> {
     Ok((masked_mean(&map, &all), masked_mean(&map, &reference.roi), lum_ratio))
 }
 
+/// Where a method's error in the region of interest comes from (docs/accuracy.md "Error
+/// budget"): the model's pixels against its shadow's, and inside the model the sunlit side
+/// against the side the sun does not reach.
+#[derive(Clone, Debug, Serialize)]
+pub struct ErrorBudget {
+    pub scene: String,
+    pub method: String,
+    /// Mean FLIP over the region of interest (the model plus its shadow).
+    pub flip_roi: f32,
+    /// Share of the region's pixels covered by the model (the rest is its shadow on the ground):
+    /// flip_roi = model_share · flip_model + (1 − model_share) · flip_shadow.
+    pub model_share: f32,
+    pub flip_model: f32,
+    pub flip_shadow: f32,
+    /// Share of the model's pixels on its sunlit side: where the method's sun gives at least half
+    /// of the pixel's light (the same frame without sunlight is at most half as bright).
+    pub lit_share: f32,
+    /// Mean linear luminance, this image / the reference, over the sunlit and the shaded side
+    /// (NaN when a side has no pixels).
+    pub luminance_lit: f32,
+    pub luminance_shaded: f32,
+    /// Mean linear R, G, B over the shadow region, this image / the reference.
+    pub shadow_rgb: [f32; 3],
+}
+
+/// Linear (sRGB-decoded) RGB of RGB8 pixels.
+fn linear_rgb(rgb: &[u8]) -> Vec<[f32; 3]> {
+    rgb.chunks_exact(3).map(|p| [0, 1, 2].map(|k| crate::colour::srgb_to_linear(f32::from(p[k]) / 255.0))).collect()
+}
+
+/// Mean of each channel where `mask` is set.
+fn masked_rgb(rgb: &[[f32; 3]], mask: &[bool]) -> [f32; 3] {
+    std::array::from_fn(|c| masked_mean(&rgb.iter().map(|p| p[c]).collect::<Vec<f32>>(), mask))
+}
+
+/// The error budget of `test` (RGB8) against `reference`; `without_sun` is the same frame drawn
+/// with the sunlight multiplier at 0, which tells the sunlit side of the model from the shaded.
+pub fn error_budget(reference: &Reference, test: &[u8], without_sun: &[u8]) -> Result<ErrorBudget> {
+    if test.len() != reference.rgb.len() || without_sun.len() != reference.rgb.len() {
+        bail!(
+            "images are {} and {} bytes, the reference {}x{} RGB is {}",
+            test.len(),
+            without_sun.len(),
+            reference.width,
+            reference.height,
+            reference.rgb.len()
+        );
+    }
+    let map = flip_map(&reference.rgb, test, reference.width, reference.height)
+        .ok_or_else(|| anyhow!("FLIP is not available on this platform"))?;
+    let (ours, theirs, sky) = (linear_rgb(test), linear_rgb(&reference.rgb), linear_rgb(without_sun));
+    let lum = |p: &[f32; 3]| crate::colour::luminance_bt709(*p);
+    let shadow: Vec<bool> = reference.roi.iter().zip(&reference.model).map(|(r, m)| *r && !*m).collect();
+    let lit: Vec<bool> = (0..ours.len()).map(|i| reference.model[i] && lum(&ours[i]) > 2.0 * lum(&sky[i])).collect();
+    let shaded: Vec<bool> = reference.model.iter().zip(&lit).map(|(m, l)| *m && !*l).collect();
+    let count = |m: &[bool]| m.iter().filter(|v| **v).count() as f32;
+    let ratio = |mask: &[bool]| {
+        let a: Vec<f32> = ours.iter().map(lum).collect();
+        let b: Vec<f32> = theirs.iter().map(lum).collect();
+        masked_mean(&a, mask) / masked_mean(&b, mask)
+    };
+    let (a, b) = (masked_rgb(&ours, &shadow), masked_rgb(&theirs, &shadow));
+    Ok(ErrorBudget {
+        scene: String::new(),
+        method: String::new(),
+        flip_roi: masked_mean(&map, &reference.roi),
+        model_share: count(&reference.model) / count(&reference.roi),
+        flip_model: masked_mean(&map, &reference.model),
+        flip_shadow: masked_mean(&map, &shadow),
+        lit_share: count(&lit) / count(&reference.model),
+        luminance_lit: ratio(&lit),
+        luminance_shaded: ratio(&shaded),
+        shadow_rgb: std::array::from_fn(|c| a[c] / b[c]),
+    })
+}
+
+/// RGB8 of a frame of `scene` drawn as a still composite.
+fn render_rgb(gpu: &crate::gpu::Gpu, scene: &Scene, inputs: &Inputs) -> Result<Vec<u8>> {
+    let (mut compositor, params) = crate::setup::prepare(gpu, scene, inputs)?;
+    let r = compositor.render(gpu, &params, crate::render::Layer::Composite)?;
+    Ok(r.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect())
+}
+
+/// The error budget of the scene's own method (`auto` resolves as `previz composite` does).
+pub fn budget_of_scene(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &Inputs, reference: &Reference) -> Result<ErrorBudget> {
+    let test = render_rgb(gpu, scene, inputs)?;
+    let mut dark = scene.clone();
+    dark.sun.sunlight = 0.0;
+    let without_sun = render_rgb(gpu, &dark, inputs)?;
+    let mut b = error_budget(reference, &test, &without_sun)?;
+    b.scene = name.into();
+    b.method = scene.method.method_or_ordinary().name().into();
+    Ok(b)
+}
+
+/// Markdown table of error budgets.
+pub fn budget_markdown(budgets: &[ErrorBudget]) -> String {
+    let mut s = String::from(
+        "| scene | method | FLIP ROI | model share of ROI | FLIP model | FLIP shadow | lit share of model | luminance lit / ref | luminance shaded / ref | shadow R, G, B / ref |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for b in budgets {
+        s += &format!(
+            "| {} | {} | {:.3} | {:.2} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2}, {:.2}, {:.2} |\n",
+            b.scene,
+            b.method,
+            b.flip_roi,
+            b.model_share,
+            b.flip_model,
+            b.flip_shadow,
+            b.lit_share,
+            b.luminance_lit,
+            b.luminance_shaded,
+            b.shadow_rgb[0],
+            b.shadow_rgb[1],
+            b.shadow_rgb[2]
+        );
+    }
+    s
+}
+
 /// Render every lighting method for `scene` and score each against `reference`.
 pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &Inputs, reference: &Reference) -> Result<Vec<AccuracyRow>> {
     if (scene.width, scene.height) != (reference.width, reference.height) {
@@ -416,6 +536,38 @@ mod tests {
         // Something other than white was drawn.
         assert!(img.iter().any(|&v| v < 128));
         assert!(chart(&[]).is_err());
+    }
+
+    #[test]
+    fn error_budget_splits_model_and_shadow() {
+        // 16x16: the left half is the model (its top rows sunlit), the right half's top rows its
+        // shadow; the rest is background outside the region of interest.
+        let (w, h) = (16u32, 16u32);
+        let n = (w * h) as usize;
+        let model: Vec<bool> = (0..n).map(|i| i as u32 % w < 8).collect();
+        let roi: Vec<bool> = (0..n).map(|i| i as u32 % w < 8 || (i as u32 / w) < 8).collect();
+        let rgb: Vec<u8> = (0..n).flat_map(|i| if model[i] { [160, 160, 160] } else { [100, 120, 140] }).collect();
+        let reference = Reference { width: w, height: h, rgb: rgb.clone(), roi, model: model.clone() };
+        // Identical image: no error, every ratio 1; the sky-only frame at a quarter of the light
+        // on the top half makes it the sunlit side (half of the model).
+        let without_sun: Vec<u8> = (0..n).flat_map(|i| if (i as u32 / w) < 8 { [40u8; 3] } else { [150u8; 3] }).collect();
+        let b = error_budget(&reference, &rgb, &without_sun).unwrap();
+        assert_eq!((b.flip_roi, b.flip_model, b.flip_shadow), (0.0, 0.0, 0.0));
+        assert!((b.model_share - 128.0 / 192.0).abs() < 1e-6, "{}", b.model_share);
+        assert!((b.lit_share - 0.5).abs() < 1e-6 && b.luminance_lit == 1.0 && b.luminance_shaded == 1.0, "{b:?}");
+        assert_eq!(b.shadow_rgb, [1.0; 3]);
+        // A bluer shadow: the error is the shadow's (FLIP's spatial filter spills a little over
+        // the model's edge) and only the shadow's blue ratio moves.
+        let test: Vec<u8> = (0..n)
+            .flat_map(|i| if !model[i] && (i as u32 / w) < 8 { [100, 120, 200] } else { [rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]] })
+            .collect();
+        let b = error_budget(&reference, &test, &without_sun).unwrap();
+        assert!(b.flip_shadow > 0.05 && b.flip_model < 0.3 * b.flip_shadow, "{b:?}");
+        let parts = b.model_share * b.flip_model + (1.0 - b.model_share) * b.flip_shadow;
+        assert!((b.flip_roi - parts).abs() < 1e-5, "{b:?}");
+        let blue = crate::colour::srgb_to_linear(200.0 / 255.0) / crate::colour::srgb_to_linear(140.0 / 255.0);
+        assert!((b.shadow_rgb[2] - blue).abs() < 1e-5 && b.shadow_rgb[0] == 1.0, "{b:?}");
+        assert!(error_budget(&reference, &test[3..], &without_sun).is_err());
     }
 
     #[test]

@@ -27,7 +27,8 @@ pub enum What {
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model
-    /// luminance, time), and the path tracer's own 1/4/16/64-spp ladder. `--export-reference DIR
+    /// luminance, time), the path tracer's own 1/4/16/64-spp ladder, and each scene's error
+    /// budget (model vs shadow, sunlit vs shaded side, shadow colour). `--export-reference DIR
     /// SCENE` instead writes SCENE as previz draws it for tests/reference/render_reference.py.
     Accuracy(AccuracyArgs),
     /// The model's level-of-detail chain in the scene: per level the triangles, the
@@ -235,6 +236,7 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
     let gpu = Gpu::headless()?;
     let bar = indicatif::ProgressBar::new(names.len() as u64);
     let mut rows = Vec::new();
+    let mut budgets = Vec::new();
     for name in &names {
         bar.set_message(name.clone());
         let reference = accuracy::load_reference(&a.references, name)?;
@@ -243,6 +245,7 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
         let inputs = load_inputs(&scene, demo)?;
         rows.extend(accuracy::score_methods(&gpu, name, &scene, &inputs, &reference)?);
         rows.extend(accuracy::score_ladder(&a.references, name, &reference)?);
+        budgets.push(accuracy::budget_of_scene(&gpu, name, &scene, &inputs, &reference)?);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -261,6 +264,8 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
     } else {
         println!("{} scenes on {}; references in {}\n", names.len(), gpu.describe(), a.references.display());
         print!("{}", accuracy::markdown(&rows));
+        println!("\nError budget of each scene's own method (docs/accuracy.md):\n");
+        print!("{}", accuracy::budget_markdown(&budgets));
     }
     Ok(())
 }

@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
     /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage), background.png and
-    /// layers.exr (linear float: beauty R,G,B,A; model.R/G/B/A premultiplied; shadow.Y matte, 1 = no
+    /// layers.exr (linear float: beauty R,G,B,A; model.R/G/B/A premultiplied; shadow.R/G/B matte, 1 = no
     /// darkening; background.R/G/B; depth.Z camera distance in metres, inf where no model) into DIR
     #[arg(long, value_name = "DIR")]
     pub layers: Option<PathBuf>,

@@ -29,6 +29,17 @@ pub fn basis(d: Vec3) -> [f32; 9] {
     ]
 }
 
+/// The colour (linear RGB scaled to BT.709 luminance 1; white when there is no light) of
+/// `Σ c_i Y_i(n)` for coefficients `c` already convolved with the cosine lobe (irradiance
+/// coefficients, as the sh9-ggx light carries them): the colour of the light a surface facing
+/// unit normal `n` receives.
+pub fn irradiance_colour(c: &[[f32; 3]; 9], n: Vec3) -> [f32; 3] {
+    let y = basis(n);
+    let e: [f32; 3] = std::array::from_fn(|k| c.iter().zip(y).map(|(ci, yi)| ci[k] * yi).sum::<f32>().max(0.0));
+    let lum = crate::colour::luminance_bt709(e);
+    if lum > 0.0 { e.map(|v| v / lum) } else { [1.0; 3] }
+}
+
 /// Clamped-cosine convolution factor Â_l of each coefficient (RH2001 eq. 8).
 pub const COSINE_LOBE: [f32; 9] = [PI, 2.0 * PI / 3.0, 2.0 * PI / 3.0, 2.0 * PI / 3.0, PI / 4.0, PI / 4.0, PI / 4.0, PI / 4.0, PI / 4.0];
 
@@ -97,6 +108,40 @@ pub fn brute_force_irradiance(samples: &[DirSample], n: Vec3) -> [f32; 3] {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn irradiance_colour_of_a_blue_sky_over_a_red_ground() {
+        // A sky of radiance (0.2, 0.4, 1.0) above the horizon and (1, 0.5, 0.25) below: a surface
+        // facing up sees only the sky, so its light has the sky's colour; facing down, the
+        // ground's (SH9 keeps a little of the other hemisphere: within 0.1).
+        let mut sky = Sh9 { coeffs: [[0.0; 3]; 9] };
+        let n = 64;
+        for i in 0..n {
+            for j in 0..2 * n {
+                let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+                let phi = std::f32::consts::PI * (j as f32 + 0.5) / n as f32;
+                let r = (1.0 - z * z).sqrt();
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let l = if z > 0.0 { [0.2, 0.4, 1.0] } else { [1.0, 0.5, 0.25] };
+                let w = 4.0 * std::f32::consts::PI / (2 * n * n) as f32;
+                for (k, y) in basis(d).iter().enumerate() {
+                    for c in 0..3 {
+                        sky.coeffs[k][c] += w * l[c] * y;
+                    }
+                }
+            }
+        }
+        let c: [[f32; 3]; 9] = std::array::from_fn(|i| sky.coeffs[i].map(|v| v * COSINE_LOBE[i]));
+        let lum = |v: [f32; 3]| crate::colour::luminance_bt709(v);
+        let (up, down) = (irradiance_colour(&c, Vec3::Z), irradiance_colour(&c, -Vec3::Z));
+        let (sky_c, ground_c) = ([0.2, 0.4, 1.0].map(|v| v / lum([0.2, 0.4, 1.0])), [1.0, 0.5, 0.25].map(|v| v / lum([1.0, 0.5, 0.25])));
+        for k in 0..3 {
+            assert!((up[k] - sky_c[k]).abs() < 0.1 * sky_c[k], "up {up:?} vs {sky_c:?}");
+            assert!((down[k] - ground_c[k]).abs() < 0.1 * ground_c[k], "down {down:?} vs {ground_c:?}");
+        }
+        assert!((lum(up) - 1.0).abs() < 1e-5);
+        assert_eq!(irradiance_colour(&[[0.0; 3]; 9], Vec3::Z), [1.0; 3]);
+    }
     use super::*;
     use crate::colour::luminance_bt709;
     use crate::light::samples::{from_cube, from_equirect};

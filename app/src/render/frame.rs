@@ -113,14 +113,19 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
 
 /// The `Light` uniform of a frame's lighting: the sky's SH9 coefficients and the sun's colour
 /// (alpha 0 and 1), tan of the sun's angular radius, the ground square of the sky-visibility
-/// map under the model (world min, max) and how dark the sky's occlusion makes the ground.
+/// map under the model (world min, max), how dark the sky's occlusion makes the ground and the
+/// colour of the sky's light on the ground (luminance 1), which the ground pass's coloured
+/// shadow needs.
 pub fn light_uniforms(l: &Lighting, (min, max): (Vec2, Vec2)) -> LightUniforms {
     let [r, g, b] = l.sun_colour;
     LightUniforms {
         sh: l.sky_sh.map(|[r, g, b]| [r, g, b, 0.0]),
         sun: [r, g, b, l.sun_angular_radius.tan()],
         ground_square: [min.x, min.y, max.x, max.y],
-        ground_sky: [l.sky_occlusion, 0.0, 0.0, 0.0],
+        ground_sky: {
+            let [r, g, b] = crate::light::sh9::irradiance_colour(&l.sky_sh, Vec3::Z);
+            [l.sky_occlusion, r, g, b]
+        },
     }
 }
 
@@ -315,7 +320,15 @@ mod tests {
         lighting.sky_occlusion = 0.4;
         let l = light_uniforms(&lighting, (Vec2::new(-1.0, -2.0), Vec2::new(3.0, 4.0)));
         assert_eq!(l.ground_square, [-1.0, -2.0, 3.0, 4.0]);
-        assert_eq!(l.ground_sky, [0.4, 0.0, 0.0, 0.0]);
+        assert_eq!(l.ground_sky[0], 0.4);
+        // The sky's colour on the ground: the SH9 sum facing up (sh[0], sh[2], sh[6] only).
+        let up = crate::light::sh9::basis(Vec3::Z);
+        let e: [f32; 3] = std::array::from_fn(|k| [0, 2, 6].iter().map(|&i| lighting.sky_sh[i][k] * up[i]).sum::<f32>().max(0.0));
+        let lum = crate::colour::luminance_bt709(e);
+        for k in 0..3 {
+            let want = if lum > 0.0 { e[k] / lum } else { 1.0 };
+            assert!((l.ground_sky[1 + k] - want).abs() < 1e-5, "{:?}", l.ground_sky);
+        }
         assert_eq!(l.sh[3], [3.0, 0.5, 0.25, 0.0]);
         // tan(0.01) = 0.010000333 (series x + x³/3).
         assert_eq!(&l.sun[..3], &[1.2, 0.9, 0.7]);

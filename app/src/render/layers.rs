@@ -3,14 +3,15 @@
 //! frame and resolved), read back in linear light:
 //!
 //! - background: the background pass alone;
-//! - shadow matte: the ground pass over white — what the ground leaves of the background,
-//!   1 = no darkening, 0 = black (the ground blends black with alpha = darkening);
+//! - shadow matte: the ground pass over white — what the ground leaves of the background per
+//!   channel, 1 = no darkening, 0 = black (the ground multiplies the background by it: a shadow
+//!   keeps the colour of the light left in it);
 //! - model: the model pass alone over transparent black — premultiplied RGBA, alpha = coverage;
 //! - depth: the model's distance from the camera centre in metres (single-sampled, the model
 //!   pass's own vertex stage), `+inf` where the model does not cover the pixel;
 //!
 //! and the beauty composed from them as the frame composes them (the ground darkens the
-//! background, the model blends over it premultiplied): `beauty = model + (1 − α)·background·matte`.
+//! background, the model blends over it premultiplied): `beauty = model + (1 − α)·background·matte` per channel.
 //! Targets and pipelines exist only once layers are asked for.
 
 use super::passes::{background, ground, model};
@@ -28,8 +29,23 @@ pub const EXR_FILE: &str = "layers.exr";
 
 /// The EXR channel names, in the order of [`LayerImages::channels`]: the beauty as the file's
 /// default layer (`R`, `G`, `B`, `A`, what any viewer shows), then `layer.channel`.
-pub const CHANNELS: [&str; 13] =
-    ["R", "G", "B", "A", "model.R", "model.G", "model.B", "model.A", "shadow.Y", "background.R", "background.G", "background.B", "depth.Z"];
+pub const CHANNELS: [&str; 15] = [
+    "R",
+    "G",
+    "B",
+    "A",
+    "model.R",
+    "model.G",
+    "model.B",
+    "model.A",
+    "shadow.R",
+    "shadow.G",
+    "shadow.B",
+    "background.R",
+    "background.G",
+    "background.B",
+    "depth.Z",
+];
 
 /// The float twins of the background, ground and model pipelines, and the model's depth-only
 /// pipeline: built on the first layers render, shared by every compositor on the device.
@@ -204,7 +220,7 @@ impl LayerTargets {
                 .collect())
         };
         let background = rgba(&self.background)?;
-        let matte: Vec<f32> = rgba(&self.matte)?.iter().map(|p| p[0]).collect();
+        let matte: Vec<[f32; 3]> = rgba(&self.matte)?.iter().map(|p| [p[0], p[1], p[2]]).collect();
         let model = rgba(&self.model)?;
         let inverse = view_proj.inverse();
         let depth = self
@@ -231,7 +247,7 @@ pub struct LayerImages {
     /// Premultiplied RGBA, alpha = coverage.
     pub model: Vec<[f32; 4]>,
     /// 1 = the ground leaves the background as it is, 0 = black.
-    pub matte: Vec<f32>,
+    pub matte: Vec<[f32; 3]>,
     pub background: Vec<[f32; 4]>,
     /// Camera distance in metres; `+inf` where the model does not cover the pixel centre.
     pub depth: Vec<f32>,
@@ -250,7 +266,9 @@ impl LayerImages {
             plane(&self.model, 1),
             plane(&self.model, 2),
             plane(&self.model, 3),
-            self.matte.clone(),
+            self.matte.iter().map(|p| p[0]).collect(),
+            self.matte.iter().map(|p| p[1]).collect(),
+            self.matte.iter().map(|p| p[2]).collect(),
             plane(&self.background, 0),
             plane(&self.background, 1),
             plane(&self.background, 2),
@@ -262,8 +280,8 @@ impl LayerImages {
 
 /// The frame's composition of one pixel: the ground darkens the background (`matte`), the
 /// premultiplied model goes over it (Porter–Duff "over": `model + (1 − α)·under`). Alpha likewise.
-pub fn compose(model: [f32; 4], background: [f32; 4], matte: f32) -> [f32; 4] {
-    let under = [background[0] * matte, background[1] * matte, background[2] * matte, background[3]];
+pub fn compose(model: [f32; 4], background: [f32; 4], matte: [f32; 3]) -> [f32; 4] {
+    let under = [background[0] * matte[0], background[1] * matte[1], background[2] * matte[2], background[3]];
     std::array::from_fn(|c| model[c] + (1.0 - model[3]) * under[c])
 }
 
@@ -287,10 +305,12 @@ mod tests {
     fn compose_is_premultiplied_over_the_darkened_background() {
         // Uncovered: the background times the matte. Half-covered by premultiplied (0.4, 0, 0,
         // 0.5): 0.4 + 0.5 × 0.8 × 0.5 = 0.6 in red, 0.5 × 0.6 × 0.5 = 0.15 in green.
-        assert_eq!(compose([0.0; 4], [0.8, 0.6, 0.2, 1.0], 0.5), [0.4, 0.3, 0.1, 1.0]);
-        assert_eq!(compose([0.4, 0.0, 0.0, 0.5], [0.8, 0.6, 0.2, 1.0], 0.5), [0.6, 0.15, 0.05, 1.0]);
+        assert_eq!(compose([0.0; 4], [0.8, 0.6, 0.2, 1.0], [0.5; 3]), [0.4, 0.3, 0.1, 1.0]);
+        assert_eq!(compose([0.4, 0.0, 0.0, 0.5], [0.8, 0.6, 0.2, 1.0], [0.5; 3]), [0.6, 0.15, 0.05, 1.0]);
+        // A coloured matte darkens each channel by its own factor.
+        assert_eq!(compose([0.0; 4], [0.8, 0.6, 0.2, 1.0], [0.5, 1.0, 0.25]), [0.4, 0.6, 0.05, 1.0]);
         // Fully covered: the model alone, whatever lies under it.
-        assert_eq!(compose([0.1, 0.2, 0.3, 1.0], [9.0, 9.0, 9.0, 1.0], 0.0), [0.1, 0.2, 0.3, 1.0]);
+        assert_eq!(compose([0.1, 0.2, 0.3, 1.0], [9.0, 9.0, 9.0, 1.0], [0.0; 3]), [0.1, 0.2, 0.3, 1.0]);
     }
 
     #[test]
@@ -319,12 +339,12 @@ mod tests {
             height: 1,
             beauty: vec![[1.0, 2.0, 3.0, 4.0]],
             model: vec![[5.0, 6.0, 7.0, 8.0]],
-            matte: vec![9.0],
-            background: vec![[10.0, 11.0, 12.0, 1.0]],
-            depth: vec![13.0],
+            matte: vec![[9.0, 10.0, 11.0]],
+            background: vec![[12.0, 13.0, 14.0, 1.0]],
+            depth: vec![15.0],
         };
         let channels = images.channels();
         assert_eq!(channels.iter().map(|c| c.0).collect::<Vec<_>>(), CHANNELS);
-        assert_eq!(channels.iter().map(|c| c.1[0]).collect::<Vec<_>>(), (1..=13).map(|v| v as f32).collect::<Vec<_>>());
+        assert_eq!(channels.iter().map(|c| c.1[0]).collect::<Vec<_>>(), (1..=15).map(|v| v as f32).collect::<Vec<_>>());
     }
 }

@@ -12,7 +12,8 @@ use crate::scene::occlusion::{self, GroundSky};
 use anyhow::{Result, bail};
 use wgpu::ShaderStages;
 
-/// The ground pipeline: six vertices from the vertex index, alpha-blended over the background.
+/// The ground pipeline: six vertices from the vertex index; the background is multiplied by one
+/// minus the shader's output per channel ([`DARKEN`]).
 pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
@@ -41,8 +42,23 @@ pub fn pipeline_for(
     format: wgpu::TextureFormat,
     samples: u32,
 ) -> wgpu::RenderPipeline {
-    screen_pipeline(device, (Technique::Ground, layout), (format, samples), Some(wgpu::BlendState::ALPHA_BLENDING))
+    screen_pipeline(device, (Technique::Ground, layout), (format, samples), Some(DARKEN))
 }
+
+/// The ground's blend: `dst · (1 − src)` per colour channel (src = what the ground loses there,
+/// shaders/ground.wgsl `ground_loss`), the target's alpha kept.
+pub const DARKEN: wgpu::BlendState = wgpu::BlendState {
+    color: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::Zero,
+        dst_factor: wgpu::BlendFactor::OneMinusSrc,
+        operation: wgpu::BlendOperation::Add,
+    },
+    alpha: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::Zero,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    },
+};
 
 pub struct GroundPass {
     pipeline: wgpu::RenderPipeline,

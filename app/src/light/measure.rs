@@ -90,21 +90,23 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
             sun_dir: None,
             sun_irradiance: [0.0; 3],
             sun_angular_radius: SUN_ANGULAR_RADIUS,
-            sky: Sh9::project(samples),
+            sky: Sh9::project(&bounded_ground(samples.to_vec(), [0.0; 3])),
             source: SunSource::None,
             found,
         };
     };
-    let sky = Sh9::project(&sun_finder::without_sun(samples, &sun));
+    let sky_samples = sun_finder::without_sun(samples, &sun);
+    let sky = Sh9::project(&sky_samples);
     let radius = sun.angular_radius().max(SUN_ANGULAR_RADIUS);
     // An unclipped sun is measured; a clipped one, unless asked to restore it, is taken as it
     // is: what energy the map holds, white.
     if !sun.saturated || !options.restore_clipped {
+        let on_ground = sun.irradiance.map(|e| e * sun.dir.z.max(0.0));
         return MeasuredLight {
             sun_dir: Some(sun.dir),
             sun_irradiance: sun.irradiance,
             sun_angular_radius: radius,
-            sky,
+            sky: Sh9::project(&bounded_ground(sky_samples, on_ground)),
             source: SunSource::Measured,
             found,
         };
@@ -112,6 +114,8 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     let elevation = options.solar_elevation.unwrap_or_else(|| sun_finder::azimuth_elevation(sun.dir).1);
     let sun_irradiance = restore_sun(&sky, elevation, sun.sky_radiance);
     let source = if luminance_bt709(sun_irradiance) > 0.0 { SunSource::Restored } else { SunSource::None };
+    let on_ground = sun_irradiance.map(|e| e * sun.dir.z.max(0.0));
+    let sky = Sh9::project(&bounded_ground(sky_samples, on_ground));
     MeasuredLight {
         sun_dir: (source == SunSource::Restored).then_some(sun.dir),
         sun_irradiance,
@@ -120,6 +124,51 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
         source,
         found,
     }
+}
+
+/// The highest albedo a natural ground has: fresh snow reflects 0.8–0.95 of the light (the same
+/// bound tests/reference/render_reference.py puts on its ground plane).
+pub const MAX_GROUND_ALBEDO: f32 = 0.95;
+
+/// The sky samples with the lower hemisphere bounded by energy: the ground a model stands on
+/// reflects at most [`MAX_GROUND_ALBEDO`] of the light it receives, so the mean radiance below
+/// the horizon is at most MAX_GROUND_ALBEDO · E_up / π per channel, E_up being the irradiance
+/// the upper hemisphere (these samples' sky plus `sun_on_ground`, the sun's irradiance on a
+/// horizontal surface) gives the ground. A lower hemisphere brighter than that (a sunlit patch
+/// of floor under a sky whose sun the map does not hold, courtyard.exr: red 1.27 × what its sky
+/// can light) is scaled down to it; a darker one is kept as it is.
+pub fn bounded_ground(mut samples: Vec<DirSample>, sun_on_ground: [f32; 3]) -> Vec<DirSample> {
+    let mut e_up = sun_on_ground.map(f64::from);
+    let (mut l_down, mut w_down) = ([0f64; 3], 0f64);
+    for s in &samples {
+        let w = f64::from(s.solid_angle);
+        if s.dir.z > 0.0 {
+            for c in 0..3 {
+                e_up[c] += f64::from(s.radiance[c]) * f64::from(s.dir.z) * w;
+            }
+        } else {
+            w_down += w;
+            for c in 0..3 {
+                l_down[c] += f64::from(s.radiance[c]) * w;
+            }
+        }
+    }
+    if w_down <= 0.0 {
+        return samples;
+    }
+    let scale: [f32; 3] = std::array::from_fn(|c| {
+        let mean = l_down[c] / w_down;
+        let most = f64::from(MAX_GROUND_ALBEDO) * e_up[c] / std::f64::consts::PI;
+        if mean > most { (most / mean) as f32 } else { 1.0 }
+    });
+    if scale != [1.0; 3] {
+        for s in samples.iter_mut().filter(|s| s.dir.z <= 0.0) {
+            for c in 0..3 {
+                s.radiance[c] *= scale[c];
+            }
+        }
+    }
+    samples
 }
 
 /// The sun a clipped map should hold: the clear-sky model's direct-normal to diffuse-horizontal
@@ -147,6 +196,31 @@ mod tests {
 
     fn data(rel: &str) -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(rel)
+    }
+
+    #[test]
+    fn a_ground_brighter_than_its_sky_can_light_is_bounded() {
+        // A uniform sky of radiance 1 gives a horizontal ground E_up = π; a ground of radiance 2
+        // would need albedo 2: it is bounded to 0.95 · π / π = 0.95. A sun of irradiance 1 on the
+        // ground adds 0.95/π. A dark ground (0.3) is kept.
+        let (w, h) = (64u32, 32u32);
+        let map = |ground: f32| {
+            let pixels: Vec<[f32; 3]> = (0..w * h).map(|i| if (i / w) < h / 2 { [1.0; 3] } else { [ground, 0.3, ground] }).collect();
+            from_equirect(&Equirect::new(w, h, pixels).unwrap(), 0.0)
+        };
+        let mean_down = |s: &[DirSample]| {
+            let (sum, n) = s
+                .iter()
+                .filter(|s| s.dir.z <= 0.0)
+                .fold(([0f32; 3], 0f32), |(a, n), s| (std::array::from_fn(|c| a[c] + s.radiance[c] * s.solid_angle), n + s.solid_angle));
+            sum.map(|v| v / n)
+        };
+        let bounded = mean_down(&bounded_ground(map(2.0), [0.0; 3]));
+        assert!((bounded[0] - 0.95).abs() < 0.01 && (bounded[1] - 0.3).abs() < 1e-5, "{bounded:?}");
+        let with_sun = mean_down(&bounded_ground(map(2.0), [1.0; 3]));
+        let want = 0.95 * (std::f32::consts::PI + 1.0) / std::f32::consts::PI;
+        assert!((with_sun[0] - want).abs() < 0.01, "{with_sun:?} vs {want}");
+        assert_eq!(mean_down(&bounded_ground(map(0.3), [0.0; 3])), mean_down(&map(0.3)));
     }
 
     #[test]

@@ -190,6 +190,7 @@ fn light_json(
         "used_to_spa_deg": angle(Some(l.sun_dir), spa),
         "map_sun": format!("{:?}", measured.source).to_lowercase(),
         "map_sun_irradiance": measured.sun_irradiance,
+        "map_sun_turbidity": measured.turbidity,
         "sunlight": l.sunlight,
         "daylight": l.daylight,
         "shadow_opacity": l.shadow_opacity,

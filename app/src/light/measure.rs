@@ -165,13 +165,13 @@ pub fn bounded_ground(mut samples: Vec<DirSample>, sun_on_ground: [f32; 3]) -> V
     for s in &samples {
         let w = f64::from(s.solid_angle);
         if s.dir.z > 0.0 {
-            for c in 0..3 {
-                e_up[c] += f64::from(s.radiance[c]) * f64::from(s.dir.z) * w;
+            for (e, r) in e_up.iter_mut().zip(s.radiance) {
+                *e += f64::from(r) * f64::from(s.dir.z) * w;
             }
         } else {
             w_down += w;
-            for c in 0..3 {
-                l_down[c] += f64::from(s.radiance[c]) * w;
+            for (l, r) in l_down.iter_mut().zip(s.radiance) {
+                *l += f64::from(r) * w;
             }
         }
     }
@@ -185,8 +185,8 @@ pub fn bounded_ground(mut samples: Vec<DirSample>, sun_on_ground: [f32; 3]) -> V
     });
     if scale != [1.0; 3] {
         for s in samples.iter_mut().filter(|s| s.dir.z <= 0.0) {
-            for c in 0..3 {
-                s.radiance[c] *= scale[c];
+            for (r, k) in s.radiance.iter_mut().zip(scale) {
+                *r *= k;
             }
         }
     }

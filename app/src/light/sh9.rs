@@ -125,8 +125,8 @@ mod tests {
                 let l = if z > 0.0 { [0.2, 0.4, 1.0] } else { [1.0, 0.5, 0.25] };
                 let w = 4.0 * std::f32::consts::PI / (2 * n * n) as f32;
                 for (k, y) in basis(d).iter().enumerate() {
-                    for c in 0..3 {
-                        sky.coeffs[k][c] += w * l[c] * y;
+                    for (coeff, lc) in sky.coeffs[k].iter_mut().zip(l) {
+                        *coeff += w * lc * y;
                     }
                 }
             }

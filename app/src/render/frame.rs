@@ -325,9 +325,9 @@ mod tests {
         let up = crate::light::sh9::basis(Vec3::Z);
         let e: [f32; 3] = std::array::from_fn(|k| [0, 2, 6].iter().map(|&i| lighting.sky_sh[i][k] * up[i]).sum::<f32>().max(0.0));
         let lum = crate::colour::luminance_bt709(e);
-        for k in 0..3 {
-            let want = if lum > 0.0 { e[k] / lum } else { 1.0 };
-            assert!((l.ground_sky[1 + k] - want).abs() < 1e-5, "{:?}", l.ground_sky);
+        for (got, ek) in l.ground_sky[1..].iter().zip(e) {
+            let want = if lum > 0.0 { ek / lum } else { 1.0 };
+            assert!((got - want).abs() < 1e-5, "{:?}", l.ground_sky);
         }
         assert_eq!(l.sh[3], [3.0, 0.5, 0.25, 0.0]);
         // tan(0.01) = 0.010000333 (series x + x³/3).

@@ -12,6 +12,8 @@
 // per placement from scene::occlusion::ground_sky).
 @group(0) @binding(5) var ground_sky: texture_2d<f32>;
 @group(0) @binding(6) var ground_sky_smp: sampler;
+// The shadow map's depths without comparison, nearest texel (the soft shadow's blocker search).
+@group(0) @binding(7) var shadow_gather_smp: sampler;
 
 struct GroundOut {
     @builtin(position) clip: vec4<f32>,
@@ -42,7 +44,7 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     // share (measured from the environment by setup::light), none when there is no sunlight.
     var sun_lost = 0.0;
     if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
-        let visibility = sun_visibility_soft(shadow_map, shadow_smp, frame, in.world, light.sun.w);
+        let visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
         sun_lost = frame.shadow_opacity * (1.0 - visibility);
     }
     // The model hides part of the sky: the sky's share of the ground's light times the share of

@@ -17,6 +17,8 @@ override METHOD: u32;
 @group(0) @binding(7) var shadow_smp: sampler_comparison;
 // Colour correction of the model's albedo towards the environment (colour_correct.wgsl).
 @group(0) @binding(8) var<uniform> colour_cc: ColourCorrection;
+// The shadow map's depths without comparison, nearest texel (the soft shadow's blocker search).
+@group(0) @binding(12) var shadow_gather_smp: sampler;
 
 struct Material {
     // rgb: diffuse colour (linear); a: 1 when the diffuse texture is used

@@ -77,35 +77,79 @@ fn the_dragon_chain_reaches_a_few_thousand_triangles() {
 /// The shadow and ground passes run only when they have something to do: with the sun up and
 /// the model in view both run; with no measured sun or the sun below the horizon the ground
 /// pass is skipped (the model still samples the map) unless the sky's occlusion darkens the
-/// ground; looking away, neither.
+/// ground; looking away, neither. The map is drawn again only when its shadow changed (here:
+/// the sun's direction).
 #[test]
 fn shadow_and_ground_passes_run_only_when_needed() {
+    use previz::render::PassesRun;
     let s = scene("width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n");
     let i = inputs(&s);
     let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
     let run = |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| {
         c.render(gpu(), p, Layer::Composite).unwrap();
-        (c.passes_run(),)
+        c.passes_run()
     };
+    let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, ground };
     let mut up = p;
     up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
     up.lighting.sunlight = 1.0;
     up.lighting.shadow_opacity = 0.6;
     // The sky's occlusion off: the ground pass is the sun's shadow alone.
     up.lighting.sky_occlusion = 0.0;
-    assert_eq!(run(&mut c, &up).0, previz::render::PassesRun { shadow: true, ground: true });
+    assert_eq!(run(&mut c, &up), passes(true, true, true));
+    // The same sun: the map drawn for the last frame serves.
     let mut overcast = up;
     overcast.lighting.sunlight = 0.0;
-    assert_eq!(run(&mut c, &overcast).0, previz::render::PassesRun { shadow: true, ground: false });
+    assert_eq!(run(&mut c, &overcast), passes(true, false, false));
     // Under an overcast sky the ground still darkens where the model hides the sky.
     overcast.lighting.sky_occlusion = 1.0;
-    assert_eq!(run(&mut c, &overcast).0, previz::render::PassesRun { shadow: true, ground: true });
+    assert_eq!(run(&mut c, &overcast), passes(true, false, true));
     let mut down = up;
     down.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, -0.2);
-    assert_eq!(run(&mut c, &down).0, previz::render::PassesRun { shadow: true, ground: false });
+    assert_eq!(run(&mut c, &down), passes(true, true, false));
     let mut away = up;
     away.camera.pose *= glam::Quat::from_rotation_y(std::f32::consts::PI);
-    assert_eq!(run(&mut c, &away).0, previz::render::PassesRun { shadow: false, ground: false });
+    assert_eq!(run(&mut c, &away), passes(false, false, false));
+    assert_eq!(run(&mut c, &up), passes(true, true, true));
+}
+
+/// A frame that keeps the shadow map drawn for an earlier frame looks like one that draws it:
+/// the same frame again is the same image byte for byte; the sun turned by 1/1000° keeps the
+/// map and stays within a mean FLIP of 1e-4 of a fresh compositor's frame; turned by 2° the map
+/// is drawn again.
+#[test]
+fn a_kept_shadow_map_gives_the_frame_a_fresh_one_gives() {
+    let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.5\n");
+    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
+    let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
+    let sun = |az: f32| {
+        let (el, az) = (35f32.to_radians(), az.to_radians());
+        glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
+    };
+    p.lighting.sun_dir = sun(225.0);
+    p.lighting.sunlight = 1.0;
+    p.lighting.shadow_opacity = 0.8;
+    let frame =
+        |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| rgb(&c.render(gpu(), p, Layer::Composite).unwrap().rgba);
+    let first = frame(&mut c, &p);
+    assert!(c.passes_run().shadow_drawn);
+    assert_eq!(frame(&mut c, &p), first, "the same frame with the kept map");
+    assert!(!c.passes_run().shadow_drawn);
+    let mut nudged = p;
+    nudged.lighting.sun_dir = sun(225.001);
+    let kept = frame(&mut c, &nudged);
+    assert!(!c.passes_run().shadow_drawn, "1/1000 of a degree keeps the map");
+    let (mut fresh, _) = prepare(gpu(), &s, &i).unwrap();
+    let drawn = frame(&mut fresh, &nudged);
+    assert!(fresh.passes_run().shadow_drawn);
+    let flip = previz::capture::replay::mean_flip(&drawn, &kept, 320, 240).unwrap();
+    eprintln!("kept map vs drawn map: mean FLIP {flip}");
+    assert!(flip <= 1e-4, "kept map vs drawn map: mean FLIP {flip}");
+    let mut turned = p;
+    turned.lighting.sun_dir = sun(227.0);
+    let moved = frame(&mut c, &turned);
+    assert!(c.passes_run().shadow_drawn, "2 degrees draw the map again");
+    assert!(previz::capture::replay::mean_flip(&moved, &first, 320, 240).unwrap() > 10.0 * flip.max(1e-6));
 }
 
 /// A unit cube standing on its base (y up in model space), flat-shaded: 12 triangles, below the

@@ -25,8 +25,12 @@ pub struct FrameRow {
     pub cpu_encode_ms: f64,
     /// GPU time from the first pass to the last (timestamp queries), ms; NaN if unsupported.
     pub gpu_ms: f64,
-    /// GPU time of the shadow pass alone, ms (NaN when it did not run).
+    /// GPU time of the shadow pass alone, ms: median over the measured frames that drew the
+    /// map (NaN when none did).
     pub shadow_gpu_ms: f64,
+    /// Share of the measured frames whose shadow pass drew the map (the others kept the map an
+    /// earlier frame drew: same model and level, the sun moved less than an eighth of a texel).
+    pub shadow_drawn: f64,
     /// Wall time of the whole frame including submit, GPU and readback, ms.
     pub wall_ms: f64,
     /// gpu_ms / floor gpu_ms.
@@ -50,6 +54,7 @@ pub const REFERENCE: &str = "full detail + full shadow";
 pub const NO_GROUND: &str = "default without the ground pass";
 pub const QUARTER: &str = "quarter fill";
 pub const QUARTER_REFERENCE: &str = "quarter fill, full detail + full shadow";
+pub const SUN_MOVING: &str = "default, sun turning 0.5° a frame";
 
 /// One path: which compositor draws which layer with which parameters.
 struct PathSpec {
@@ -63,11 +68,14 @@ struct PathSpec {
     reference: Option<usize>,
     /// Score the silhouette against the supersampled render.
     edges: bool,
+    /// Turn the sun 0.5° about the vertical each frame, so the shadow map is drawn every frame.
+    sun_turns: bool,
 }
 
 /// Render `warmup` + `frames` frames of each path, interleaved frame by frame, and report
-/// medians, ratios to the floor and FLIP. The camera turns slightly each frame so nothing can be
-/// cached between frames.
+/// medians, ratios to the floor and FLIP. The camera turns slightly each frame, so no frame's
+/// image can be reused; the shadow map, which does not depend on the camera, is kept while the
+/// sun and model stay put (as in the product), and drawn every frame on the sun-turning path.
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
@@ -88,6 +96,7 @@ pub fn run(
         full,
         reference: None,
         edges: false,
+        sun_turns: false,
     };
     let mut paths = vec![
         path(FLOOR, 0, Layer::Background, base, false),
@@ -95,6 +104,9 @@ pub fn run(
         path(REFERENCE, 0, Layer::Composite, base, true),
     ];
     paths[1].reference = Some(2);
+    // The default frame whose shadow map cannot be kept (a sun or a model that moves): the map
+    // is drawn every frame.
+    paths.push(PathSpec { sun_turns: true, ..path(SUN_MOVING, 0, Layer::Composite, base, false) });
     // Profiling: the default frame without its ground pass (what the shadow catcher costs).
     let mut no_ground = base;
     no_ground.lighting.shadow_opacity = 0.0;
@@ -137,12 +149,16 @@ pub fn run(
     // change) lands on every path alike instead of on whichever path was running.
     let mut samples = vec![(Vec::new(), Vec::new(), Vec::new(), Vec::new()); paths.len()];
     let mut last: Vec<Vec<u8>> = vec![Vec::new(); paths.len()];
+    let mut drawn = vec![0usize; paths.len()];
     let turn = |i: usize| glam::Quat::from_rotation_y(1e-4 * i as f32);
     for i in 0..frames + warmup {
         progress.set_message(if i < warmup { "warm-up" } else { "measuring" });
         for (k, spec) in paths.iter().enumerate() {
             let mut p = spec.params;
             p.camera.pose *= turn(i);
+            if spec.sun_turns {
+                p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir;
+            }
             let c = &mut compositors[spec.compositor];
             c.set_full_detail(spec.full);
             c.set_full_shadow(spec.full);
@@ -154,6 +170,7 @@ pub fn run(
                 samples[k].1.push(r.timings.gpu_ms.unwrap_or(f64::NAN));
                 samples[k].2.push(total);
                 samples[k].3.push(r.timings.shadow_gpu_ms.unwrap_or(f64::NAN));
+                drawn[k] += usize::from(c.passes_run().shadow_drawn);
             }
             last[k] = rgb(&r.rgba);
             progress.inc(1);
@@ -176,7 +193,7 @@ pub fn run(
         }))
     };
     let mut rows = Vec::new();
-    for (k, (spec, (cpu, gpu_t, wall, shadow))) in paths.iter().zip(samples).enumerate() {
+    for (k, ((spec, (cpu, gpu_t, wall, shadow)), drawn)) in paths.iter().zip(samples).zip(drawn).enumerate() {
         let reference_flip = match spec.reference {
             Some(r) => flip(&last[r], &last[k], None)?,
             None => f64::NAN,
@@ -187,7 +204,11 @@ pub fn run(
             frames,
             cpu_encode_ms: median(&cpu),
             gpu_ms: median(&gpu_t),
-            shadow_gpu_ms: if shadow.iter().any(|v| v.is_nan()) { f64::NAN } else { median(&shadow) },
+            shadow_gpu_ms: {
+                let ran: Vec<f64> = shadow.into_iter().filter(|v| !v.is_nan()).collect();
+                if ran.is_empty() { f64::NAN } else { median(&ran) }
+            },
+            shadow_drawn: drawn as f64 / frames.max(1) as f64,
             wall_ms: median(&wall),
             gpu_ratio: 0.0,
             wall_ratio: 0.0,
@@ -258,18 +279,109 @@ pub fn goals(rows: &[FrameRow]) -> Vec<(String, String, bool)> {
     out
 }
 
+/// Prefix of the rows that draw the default scene with one lighting method ("method sh9-ggx").
+pub const METHOD_ROW: &str = "method ";
+
+/// One lighting method's frame cost, measured by [`run`] in the same run as the floor: what the
+/// accuracy-versus-cost chart (bench::accuracy) puts on its cost axis.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MethodCost {
+    /// `LightingMethod::name`.
+    pub method: String,
+    /// Median GPU ms of the default frame drawn with the method.
+    pub gpu_ms: f64,
+    /// That over the background-only floor of the same run.
+    pub floor_ratio: f64,
+}
+
+/// Every method's cost, read off the "method …" rows (in their order).
+pub fn method_costs(rows: &[FrameRow]) -> Vec<MethodCost> {
+    rows.iter()
+        .filter_map(|r| {
+            let method = r.path.strip_prefix(METHOD_ROW)?;
+            Some(MethodCost { method: method.into(), gpu_ms: r.gpu_ms, floor_ratio: r.gpu_ratio })
+        })
+        .collect()
+}
+
+/// The CSV columns of [`csv`], in order.
+const CSV_HEADER: &str = "path,frames,cpu_encode_ms,gpu_ms,shadow_gpu_ms,shadow_drawn,wall_ms,gpu_ratio,wall_ratio,flip,edge_flip";
+
+/// The rows as CSV (`previz bench frame --csv`; docs/bench_frame_goals.csv). The path is
+/// quoted (some hold commas).
+pub fn csv(rows: &[FrameRow]) -> String {
+    let mut s = format!("{CSV_HEADER}\n");
+    for r in rows {
+        s += &format!(
+            "\"{}\",{},{},{},{},{},{},{},{},{},{}\n",
+            r.path.replace('"', "'"),
+            r.frames,
+            r.cpu_encode_ms,
+            r.gpu_ms,
+            r.shadow_gpu_ms,
+            r.shadow_drawn,
+            r.wall_ms,
+            r.gpu_ratio,
+            r.wall_ratio,
+            r.flip,
+            r.edge_flip
+        );
+    }
+    s
+}
+
+/// Rows back from [`csv`]'s text (e.g. docs/bench_frame_goals.csv, for the accuracy chart's
+/// cost axis: `method_costs(&read_csv(text)?)`). Errors name the line and what is wrong.
+pub fn read_csv(text: &str) -> Result<Vec<FrameRow>> {
+    let mut lines = text.lines();
+    match lines.next() {
+        Some(h) if h.trim() == CSV_HEADER => {}
+        other => return Err(anyhow!("bench frame CSV: header {other:?}, expected {CSV_HEADER:?}")),
+    }
+    lines
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, line)| {
+            // "path",numbers...
+            let (path, rest) = line
+                .strip_prefix('"')
+                .and_then(|l| l.split_once("\","))
+                .ok_or_else(|| anyhow!("bench frame CSV line {}: no quoted path first", i + 2))?;
+            let f: Vec<&str> = std::iter::once(path).chain(rest.split(',')).collect();
+            if f.len() != 11 {
+                return Err(anyhow!("bench frame CSV line {}: {} fields, expected 11", i + 2, f.len()));
+            }
+            let num = |k: usize| f[k].trim().parse::<f64>().map_err(|e| anyhow!("bench frame CSV line {}, field {}: {e}", i + 2, k + 1));
+            Ok(FrameRow {
+                path: f[0].into(),
+                frames: f[1].trim().parse().map_err(|e| anyhow!("bench frame CSV line {}, frames: {e}", i + 2))?,
+                cpu_encode_ms: num(2)?,
+                gpu_ms: num(3)?,
+                shadow_gpu_ms: num(4)?,
+                shadow_drawn: num(5)?,
+                wall_ms: num(6)?,
+                gpu_ratio: num(7)?,
+                wall_ratio: num(8)?,
+                flip: num(9)?,
+                edge_flip: num(10)?,
+            })
+        })
+        .collect()
+}
+
 /// The rows as a markdown table, then the goals.
 pub fn markdown(rows: &[FrameRow]) -> String {
     let mut s = String::from(
-        "| path | CPU encode ms | GPU ms | of which shadow pass | × floor (GPU) | wall ms | × floor (wall) | mean FLIP vs reference | edge FLIP vs 16 spp |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| path | CPU encode ms | GPU ms | shadow map drawn | of which shadow pass | × floor (GPU) | wall ms | × floor (wall) | mean FLIP vs reference | edge FLIP vs 16 spp |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let num = |v: f64| if v.is_nan() { String::new() } else { format!("{v:.4}") };
     for r in rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {} | {:.2} | {:.2} | {:.2} | {} | {} |\n",
+            "| {} | {:.3} | {:.3} | {:.0} % | {} | {:.2} | {:.2} | {:.2} | {} | {} |\n",
             r.path,
             r.cpu_encode_ms,
             r.gpu_ms,
+            100.0 * r.shadow_drawn,
             num(r.shadow_gpu_ms),
             r.gpu_ratio,
             r.wall_ms,
@@ -305,6 +417,38 @@ mod tests {
     }
 
     #[test]
+    fn method_costs_round_trip_through_the_csv() {
+        let row = |path: &str, gpu_ms: f64| FrameRow {
+            path: path.into(),
+            frames: 3,
+            cpu_encode_ms: 0.1,
+            gpu_ms,
+            shadow_gpu_ms: f64::NAN,
+            shadow_drawn: 0.5,
+            wall_ms: gpu_ms + 1.0,
+            gpu_ratio: gpu_ms / 8.0,
+            wall_ratio: 1.0,
+            flip: f64::NAN,
+            edge_flip: f64::NAN,
+        };
+        let rows = [row(FLOOR, 8.0), row(QUARTER_REFERENCE, 40.0), row("method hemisphere", 24.0), row("method sh9-ggx", 32.0)];
+        let back = read_csv(&csv(&rows)).unwrap();
+        assert_eq!(back.len(), 4);
+        assert_eq!(back[1].path, QUARTER_REFERENCE, "a path with a comma");
+        assert!(back[0].shadow_gpu_ms.is_nan() && back[3].shadow_drawn == 0.5);
+        // Floor 8 ms: hemisphere 24 ms is 3x, sh9-ggx 32 ms 4x; other rows are not methods.
+        let costs = method_costs(&back);
+        let expect = |m: &str, ms: f64, ratio: f64| MethodCost { method: m.into(), gpu_ms: ms, floor_ratio: ratio };
+        assert_eq!(costs, vec![expect("hemisphere", 24.0, 3.0), expect("sh9-ggx", 32.0, 4.0)]);
+        // A file of another shape is an error naming the problem.
+        let err = read_csv("path,gpu_ms\nx,1\n").unwrap_err().to_string();
+        assert!(err.contains("header"), "{err}");
+        let bad = csv(&rows).replace("24,", "x,");
+        let err = read_csv(&bad).unwrap_err().to_string();
+        assert!(err.contains("line 4"), "{err}");
+    }
+
+    #[test]
     fn goals_are_ratios_to_the_floor() {
         let row = |path: &str, gpu_ms: f64, flip: f64| FrameRow {
             path: path.into(),
@@ -312,6 +456,7 @@ mod tests {
             cpu_encode_ms: 0.0,
             gpu_ms,
             shadow_gpu_ms: f64::NAN,
+            shadow_drawn: 0.0,
             wall_ms: gpu_ms,
             gpu_ratio: gpu_ms / 10.0,
             wall_ratio: gpu_ms / 10.0,

@@ -170,14 +170,7 @@ fn run_frame(a: FrameArgs) -> Result<()> {
     let rows = frame::run(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     if let Some(path) = &a.csv {
-        let mut s = String::from("path,frames,cpu_encode_ms,gpu_ms,shadow_gpu_ms,wall_ms,gpu_ratio,wall_ratio,flip,edge_flip\n");
-        for r in &rows {
-            s += &format!(
-                "{},{},{},{},{},{},{},{},{},{}\n",
-                r.path, r.frames, r.cpu_encode_ms, r.gpu_ms, r.shadow_gpu_ms, r.wall_ms, r.gpu_ratio, r.wall_ratio, r.flip, r.edge_flip
-            );
-        }
-        crate::output::write_atomic(path, s.as_bytes())?;
+        crate::output::write_atomic(path, frame::csv(&rows).as_bytes())?;
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);

@@ -15,6 +15,7 @@ use super::passes::ground::GroundPass;
 use super::passes::model::{ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::pipelines::Pipelines;
+use super::shadow_fit::{self, ShadowDrawn};
 use super::targets::Targets;
 use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use crate::gpu::{Gpu, GpuTimer, build};
@@ -86,6 +87,9 @@ pub struct Compositor {
     shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
+    /// What each shadow map holds (in the order of `ShadowPass::sizes`; None: nothing yet): a
+    /// frame whose shadow would come out the same keeps the map instead of drawing it again.
+    shadow_held: Vec<Option<ShadowDrawn>>,
     /// The ground's sky visibility the ground pass holds (from the model cache, for the model
     /// matrix without its translation), and how many times one has been uploaded: once per turn
     /// or scale of the model, not per frame.
@@ -96,7 +100,12 @@ pub struct Compositor {
 /// Which of the optional passes a frame ran.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PassesRun {
+    /// The frame samples a shadow map (the model or its shadow is on screen).
     pub shadow: bool,
+    /// The shadow pass drew that map this frame: false when the map already held the same
+    /// shadow (`shadow_fit::map_still_valid`: same model, transform and level, the sun moved
+    /// less than an eighth of a texel).
+    pub shadow_drawn: bool,
     pub ground: bool,
 }
 
@@ -125,6 +134,7 @@ impl Compositor {
         let background = BackgroundPass::new(device, &pipelines, (width, height));
         let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
+        let shadow_held = vec![None; shadow.sizes().len()];
         Ok(Compositor {
             width,
             height,
@@ -148,6 +158,7 @@ impl Compositor {
             level: 0,
             shadow_index: 0,
             passes_run: PassesRun::default(),
+            shadow_held,
             ground_sky_uploaded: None,
             ground_sky_updates: 0,
         })
@@ -198,6 +209,7 @@ impl Compositor {
         let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
         self.ground_sky_uploaded = None;
+        self.shadow_held.fill(None);
         Ok(())
     }
 
@@ -298,19 +310,29 @@ impl Compositor {
 
     /// Render one image of `layer` and read it back.
     pub fn render(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<Rendered> {
-        gpu.checked("the frame", || self.render_unchecked(gpu, p, layer))
+        let r = gpu.checked("the frame", || self.render_unchecked(gpu, p, layer));
+        self.forget_shadows_on_error(r)
+    }
+
+    /// After a failed frame no shadow map is known to hold what was noted.
+    fn forget_shadows_on_error<T>(&mut self, r: Result<T>) -> Result<T> {
+        if r.is_err() {
+            self.shadow_held.fill(None);
+        }
+        r
     }
 
     /// Render one image of `layer` into [`Compositor::target_view`] without reading it back:
     /// the live view samples it in its UI pass. Returns the CPU encode time in ms.
     pub fn draw(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<f64> {
-        gpu.checked("the frame", || {
+        let r = gpu.checked("the frame", || {
             let t0 = Instant::now();
             let encoder = self.prepare_frame(gpu, p, layer)?;
             let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
             gpu.queue.submit([encoder.finish()]);
             Ok(encode_ms)
-        })
+        });
+        self.forget_shadows_on_error(r)
     }
 
     /// The rendered frame (the output size) as an `Rgba8Unorm` view of its sRGB-encoded bytes:
@@ -333,7 +355,7 @@ impl Compositor {
         let (gpu_ms, shadow_gpu_ms) = match &self.timer {
             Some(timer) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
-                let shadow = self.passes_run.shadow.then_some(ms[SHADOW_SLOT as usize]);
+                let shadow = self.passes_run.shadow_drawn.then_some(ms[SHADOW_SLOT as usize]);
                 (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow)
             }
             None => (None, None),
@@ -347,7 +369,7 @@ impl Compositor {
     /// depth, and the beauty composed from them) and read them back. The layer targets and
     /// pipelines are made on the first call; the 8-bit frame's are not touched.
     pub fn render_layers(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<LayerImages> {
-        gpu.checked("the layers", || {
+        let r = gpu.checked("the layers", || {
             let pipelines = LayerPipelines::shared(gpu, &self.pipelines)?;
             if self.layer_targets.is_none() {
                 self.layer_targets = Some(LayerTargets::new(&gpu.device, (self.width, self.height))?);
@@ -359,7 +381,8 @@ impl Compositor {
             targets.copy_for_readback(&mut encoder);
             gpu.queue.submit([encoder.finish()]);
             targets.read(gpu, glam::Mat4::from_cols_array_2d(&data.frame.view_proj), Vec3::from(data.frame.camera_pos))
-        })
+        });
+        self.forget_shadows_on_error(r)
     }
 
     /// Write the frame's uniforms and encode its passes.
@@ -372,12 +395,29 @@ impl Compositor {
 
     /// Write the frame's uniforms; note its level of detail and the passes it runs.
     fn write_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<FrameData> {
-        let data = self.frame_uniforms(p)?;
+        let mut data = self.frame_uniforms(p)?;
         let composite = layer == Layer::Composite;
         if composite && data.ground_pass && p.lighting.sky_occlusion > 0.0 {
             self.update_ground_sky(gpu, p)?;
         }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let shadow_index = self.shadow.index_of(data.shadow_map_size);
+        let shadow = layer != Layer::Background && data.shadow_pass;
+        // Keep the map (and the sun camera it was drawn with, so lookups match it) when this
+        // frame's shadow would come out the same.
+        let now = ShadowDrawn {
+            light_view_proj: glam::Mat4::from_cols_array_2d(&data.frame.light_view_proj),
+            model: glam::Mat4::from_cols_array_2d(&data.instance.model),
+            level: data.level,
+        };
+        let corners = shadow_fit::box_corners(model.bounds(), now.model);
+        let size = self.shadow.sizes()[shadow_index];
+        let kept = self.shadow_held[shadow_index].filter(|held| shadow && shadow_fit::map_still_valid(held, &now, &corners, size));
+        match kept {
+            Some(held) => data.frame.light_view_proj = held.light_view_proj.to_cols_array_2d(),
+            None if shadow => self.shadow_held[shadow_index] = Some(now),
+            None => {}
+        }
         let queue = &gpu.queue;
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
@@ -385,9 +425,9 @@ impl Compositor {
         self.ground.write(queue, &data.ground);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
-        self.shadow_index = self.shadow.index_of(data.shadow_map_size);
+        self.shadow_index = shadow_index;
         self.passes_run =
-            PassesRun { shadow: layer != Layer::Background && data.shadow_pass, ground: composite && data.ground_pass && data.shadow_pass };
+            PassesRun { shadow, shadow_drawn: shadow && kept.is_none(), ground: composite && data.ground_pass && data.shadow_pass };
         Ok(data)
     }
 
@@ -431,13 +471,16 @@ impl Compositor {
         if layer != Layer::Model {
             in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
         }
-        // 4. Ground pass: the shadow catcher darkens the background under the model.
-        if self.passes_run.ground {
-            in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index));
-        }
         // 5. Model pass: shading, reflection/refraction and colour correction.
         if layer != Layer::Background {
             in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?;
+        }
+        // 4. Ground pass: the shadow catcher darkens the background under the model. Drawn after
+        // the model and depth-tested against it (no depth write), so the ground hidden behind
+        // the model is never shaded; the model is opaque, so the image is the same as drawing
+        // the ground first.
+        if self.passes_run.ground {
+            in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index));
         }
         drop(pass);
         // 5b. Post-process antialiasing into the frame.
@@ -453,7 +496,7 @@ impl Compositor {
     /// when there is no image. `timed`: the shadow pass is timed alone, and the environment view
     /// pass starts the rest of the frame.
     fn encode_shadow_and_env_view(&self, encoder: &mut wgpu::CommandEncoder, model: &ModelGpu, timed: bool) -> Result<()> {
-        let shadows = self.passes_run.shadow;
+        let shadows = self.passes_run.shadow_drawn;
         let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
         if shadows {
             let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(SHADOW_SLOT, true));

@@ -1,5 +1,7 @@
 //! The environment on the GPU: the cube map as half floats (linear light after exposure) and
-//! what the frame maths needs from it (hemisphere priors, colour statistics, heading).
+//! what the frame maths needs from it (hemisphere priors, colour statistics, heading). The CPU
+//! work on the map's content (the GGX-prefiltered levels, the colour priors at an exposure) is
+//! done once per content and device ([`EnvironmentCache`]), not once per compositor.
 
 use super::params::HemispherePriors;
 use crate::colour::stats::ColourStats;
@@ -8,6 +10,122 @@ use crate::light::ggx;
 use crate::priors;
 use crate::scene::{CubeMap, FACE_NAMES};
 use anyhow::{Context, Result, bail};
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex};
+
+/// Environments whose derived data a device keeps (the least recently used goes first).
+pub const ENV_CAPACITY: usize = 4;
+
+/// A cube map's content as a 64-bit hash (SipHash over its size and every texel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EnvKey(u64);
+
+impl EnvKey {
+    pub fn of(cube: &CubeMap) -> EnvKey {
+        let mut h = std::hash::DefaultHasher::new();
+        cube.size.hash(&mut h);
+        for face in &cube.faces {
+            face.len().hash(&mut h);
+            h.write(bytemuck::cast_slice(face));
+        }
+        EnvKey(h.finish())
+    }
+}
+
+/// How often the cache computed each kind of work (the rest of the asks were reused).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EnvCounts {
+    pub prefiltered: usize,
+    pub priors: usize,
+    pub reused: usize,
+}
+
+/// The GGX-prefiltered levels per environment content and the colour priors per content and
+/// exposure, for the [`ENV_CAPACITY`] used last, shared by every compositor on a device
+/// ([`EnvironmentCache::of`]). Only CPU results are kept; each compositor uploads its own
+/// textures.
+#[derive(Default)]
+pub struct EnvironmentCache {
+    state: Mutex<EnvState>,
+}
+
+type PriorsKey = (EnvKey, u32);
+
+#[derive(Default)]
+struct EnvState {
+    prefiltered: Vec<(EnvKey, Arc<Vec<CubeMap>>)>,
+    priors: Vec<(PriorsKey, priors::EnvironmentPriors)>,
+    counts: EnvCounts,
+}
+
+/// Look `key` up in `list` (most recent last), moving a hit to the end.
+fn recent<K: PartialEq, V: Clone>(list: &mut Vec<(K, V)>, key: &K) -> Option<V> {
+    let i = list.iter().position(|(k, _)| k == key)?;
+    let hit = list.remove(i);
+    let v = hit.1.clone();
+    list.push(hit);
+    Some(v)
+}
+
+/// Keep `value` under `key` as the most recent, the oldest going past [`ENV_CAPACITY`].
+fn keep<K, V>(list: &mut Vec<(K, V)>, key: K, value: V) {
+    if list.len() >= ENV_CAPACITY {
+        list.remove(0);
+    }
+    list.push((key, value));
+}
+
+impl EnvironmentCache {
+    /// The cache of `gpu`'s device.
+    pub fn of(gpu: &Gpu) -> Result<Arc<EnvironmentCache>> {
+        gpu.shared("the environment cache", |_| Ok(EnvironmentCache::default()))
+    }
+
+    /// `cube`'s GGX-prefiltered levels (light::ggx::prefilter), computed on the first ask for
+    /// its content (outside the lock).
+    pub fn prefiltered(&self, key: EnvKey, cube: &CubeMap) -> Arc<Vec<CubeMap>> {
+        {
+            let mut state = self.lock();
+            if let Some(hit) = recent(&mut state.prefiltered, &key) {
+                state.counts.reused += 1;
+                return hit;
+            }
+        }
+        let levels = Arc::new(ggx::prefilter(cube));
+        let mut state = self.lock();
+        state.prefiltered.retain(|(k, _)| *k != key);
+        keep(&mut state.prefiltered, key, levels.clone());
+        state.counts.prefiltered += 1;
+        levels
+    }
+
+    /// `cube`'s colour priors after `exposure` (priors::environment_priors_scaled), computed on
+    /// the first ask for its content at that exposure. Errors are not kept.
+    pub fn priors(&self, key: EnvKey, cube: &CubeMap, exposure: f32) -> Result<priors::EnvironmentPriors> {
+        let k = (key, exposure.to_bits());
+        {
+            let mut state = self.lock();
+            if let Some(hit) = recent(&mut state.priors, &k) {
+                state.counts.reused += 1;
+                return Ok(hit);
+            }
+        }
+        let p = priors::environment_priors_scaled(cube, exposure)?;
+        let mut state = self.lock();
+        state.priors.retain(|(q, _)| *q != k);
+        keep(&mut state.priors, k, p);
+        state.counts.priors += 1;
+        Ok(p)
+    }
+
+    pub fn counts(&self) -> EnvCounts {
+        self.lock().counts
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, EnvState> {
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
 
 /// What the frame needs from the environment besides its texture.
 pub struct Environment {
@@ -33,10 +151,9 @@ pub struct EnvironmentViews {
     pub specular: wgpu::TextureView,
 }
 
-/// Upload the GGX-prefiltered levels of `cube` (light::ggx::prefilter) as one cube texture with
-/// a mip level each.
-fn upload_prefiltered(gpu: &Gpu, cube: &CubeMap) -> wgpu::TextureView {
-    let levels = ggx::prefilter(cube);
+/// Upload GGX-prefiltered `levels` (light::ggx::prefilter) as one cube texture with a mip level
+/// each.
+fn upload_prefiltered(gpu: &Gpu, levels: &[CubeMap]) -> wgpu::TextureView {
     let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("prefiltered environment"),
         size: wgpu::Extent3d { width: ggx::PREFILTER_SIZE, height: ggx::PREFILTER_SIZE, depth_or_array_layers: 6 },
@@ -83,14 +200,56 @@ pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<
     for (layer, face) in cube.faces.iter().enumerate() {
         build::write_layer(&gpu.queue, &texture, layer as u32, bytemuck::cast_slice(&rgba16f_texels(face)));
     }
-    let env_priors = priors::environment_priors_scaled(cube, exposure).context("environment colour priors")?;
+    let cache = EnvironmentCache::of(gpu)?;
+    let key = EnvKey::of(cube);
+    let env_priors = cache.priors(key, cube, exposure).context("environment colour priors")?;
     let env = Environment { priors: HemispherePriors::from_environment(&env_priors), colour: env_priors.horizontal, exposure, heading };
-    Ok((EnvironmentViews { cube: build::cube_view(&texture), specular: upload_prefiltered(gpu, cube) }, env))
+    let specular = upload_prefiltered(gpu, &cache.prefiltered(key, cube));
+    Ok((EnvironmentViews { cube: build::cube_view(&texture), specular }, env))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 4-texel cube whose faces are grey levels 0.1 .. 0.6.
+    fn cube(bright: f32) -> CubeMap {
+        CubeMap { size: 4, faces: std::array::from_fn(|i| vec![[bright * (i + 1) as f32 / 10.0; 3]; 16]) }
+    }
+
+    #[test]
+    fn environment_work_is_done_once_per_content_and_exposure() {
+        let cache = EnvironmentCache::default();
+        let (a, b) = (cube(1.0), cube(2.0));
+        let (ka, kb) = (EnvKey::of(&a), EnvKey::of(&b));
+        assert_ne!(ka, kb);
+        assert_eq!(ka, EnvKey::of(&a.clone()), "the key is the content, not the value's address");
+        let first = cache.prefiltered(ka, &a);
+        assert!(Arc::ptr_eq(&first, &cache.prefiltered(ka, &a)));
+        assert_eq!(cache.counts(), EnvCounts { prefiltered: 1, priors: 0, reused: 1 });
+        // The cached levels are what the prefilter computes.
+        let direct = ggx::prefilter(&a);
+        assert_eq!(first.len(), direct.len());
+        assert!(first.iter().zip(&direct).all(|(x, y)| x.faces == y.faces));
+        cache.prefiltered(kb, &b);
+        assert_eq!(cache.counts().prefiltered, 2);
+        // Priors per exposure: the up face (+Y, level 0.3) scaled by 2 is 0.6.
+        let p1 = cache.priors(ka, &a, 1.0).unwrap();
+        let p2 = cache.priors(ka, &a, 2.0).unwrap();
+        assert_eq!(cache.priors(ka, &a, 1.0).unwrap(), p1);
+        assert!((p2.up_mean[0] - 2.0 * p1.up_mean[0]).abs() < 1e-6 && (p1.up_mean[0] - 0.3).abs() < 1e-6, "{p1:?} {p2:?}");
+        assert_eq!(cache.counts(), EnvCounts { prefiltered: 2, priors: 2, reused: 2 });
+        // A bad exposure is an error, and nothing is kept for it.
+        assert!(cache.priors(ka, &a, -1.0).is_err());
+        assert_eq!(cache.counts().priors, 2);
+        // Past the capacity the oldest content is computed again.
+        for k in 0..ENV_CAPACITY {
+            let c = cube(3.0 + k as f32);
+            cache.prefiltered(EnvKey::of(&c), &c);
+        }
+        cache.prefiltered(ka, &a);
+        assert_eq!(cache.counts().prefiltered, 3 + ENV_CAPACITY);
+    }
 
     #[test]
     fn texels_are_rgba_halves_with_negatives_clamped() {

@@ -112,6 +112,9 @@ pub struct Pipelines {
     pub linear_sampler: wgpu::Sampler,
     pub repeat_sampler: wgpu::Sampler,
     pub shadow_sampler: wgpu::Sampler,
+    /// Nearest texel, no comparison: the soft shadow's blocker search gathers the map's depths
+    /// with it (frame.wgsl `sun_visibility_soft`).
+    pub shadow_gather_sampler: wgpu::Sampler,
 }
 
 impl Pipelines {
@@ -151,6 +154,7 @@ impl Pipelines {
                 min_filter: wgpu::FilterMode::Linear,
                 ..Default::default()
             }),
+            shadow_gather_sampler: device.create_sampler(&wgpu::SamplerDescriptor { label: Some("shadow gather"), ..Default::default() }),
         }
     }
 }

@@ -151,6 +151,42 @@ pub fn shadow_needed(sun: Vec3, sunlight: f32, footprint_on_screen: bool) -> boo
     sun.z > 0.0 && sunlight > 0.0 && footprint_on_screen
 }
 
+/// What a shadow map holds: the sun camera, the model's transform and the level of detail it
+/// was drawn with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowDrawn {
+    pub light_view_proj: Mat4,
+    pub model: Mat4,
+    pub level: usize,
+}
+
+/// How far (shadow-map texels across the sun) the model's box may have moved in the map since
+/// it was drawn for the map to be kept: an eighth of a texel, below what the bilinear
+/// comparison taps resolve.
+pub const REUSE_TEXELS: f32 = 0.125;
+/// The same along the sun, in depth units (0..1 over the shadow camera's depth range): an eighth
+/// of the receivers' depth bias (frame.wgsl compares at depth − 0.002).
+pub const REUSE_DEPTH: f32 = 0.002 / 8.0;
+
+/// Whether a `size`² map drawn as `held` still serves a frame that would draw it as `now`: the
+/// same model transform and level of detail, and no corner of the model's box (`corners`,
+/// world) lands more than [`REUSE_TEXELS`] across or [`REUSE_DEPTH`] along the sun from where
+/// the held sun camera put it. A frame that keeps the map also keeps the held sun camera, so
+/// its lookups match the map exactly; the sun's slow motion (0.004° a second) redraws it every
+/// few minutes instead of every frame.
+pub fn map_still_valid(held: &ShadowDrawn, now: &ShadowDrawn, corners: &[Vec3; 8], size: u32) -> bool {
+    if held.model != now.model || held.level != now.level {
+        return false;
+    }
+    // NDC x and y span 2 across the map.
+    let texels = 0.5 * size as f32;
+    corners.iter().all(|&c| {
+        let (a, b) = (held.light_view_proj.project_point3(c), now.light_view_proj.project_point3(c));
+        let d = (a - b).abs();
+        d.x * texels <= REUSE_TEXELS && d.y * texels <= REUSE_TEXELS && d.z <= REUSE_DEPTH
+    })
+}
+
 /// Everything a frame needs to know about its shadow.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowFit {
@@ -282,6 +318,38 @@ mod tests {
         assert_eq!(shadow_map_size(960.0, &SHADOW_MAP_SIZES), 1024);
         assert_eq!(shadow_map_size(5000.0, &SHADOW_MAP_SIZES), 2048);
         assert_eq!(shadow_map_size(f32::NAN, &SHADOW_MAP_SIZES), 2048);
+    }
+
+    #[test]
+    fn a_held_map_serves_until_the_box_moves_an_eighth_of_a_texel() {
+        // The unit cube under a sun 40° up in the south-east, into a 1024² map.
+        let corners = cube();
+        let centre = Vec3::new(0.0, 0.0, 0.5);
+        let radius = 0.75f32.sqrt();
+        let sun = |az: f32| {
+            let (el, az) = (40f32.to_radians(), az.to_radians());
+            Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
+        };
+        let drawn = |az: f32, model: Mat4, level: usize| ShadowDrawn {
+            light_view_proj: light_view_proj(sun(az), &corners, centre, radius),
+            model,
+            level,
+        };
+        let held = drawn(135.0, Mat4::IDENTITY, 2);
+        assert!(map_still_valid(&held, &held, &corners, 1024));
+        // The map spans the cube across the sun (about 1.4 m), so a texel of 1024 is ~1.4 mm
+        // and an eighth of it ~0.17 mm; a corner ~0.7 m from the turning axis moves ~12 µm per
+        // 1/1000° of azimuth (4 minutes of the sun's motion: kept) and ~0.6 mm per 1/20° (drawn
+        // again).
+        assert!(map_still_valid(&held, &drawn(135.001, Mat4::IDENTITY, 2), &corners, 1024));
+        assert!(!map_still_valid(&held, &drawn(135.05, Mat4::IDENTITY, 2), &corners, 1024));
+        // A quarter of the resolution tolerates four times the motion: 1/30° (~0.37 mm) keeps a
+        // 256² map (an eighth of its texel ~0.7 mm) but not a 1024² one.
+        assert!(map_still_valid(&held, &drawn(135.03, Mat4::IDENTITY, 2), &corners, 256));
+        assert!(!map_still_valid(&held, &drawn(135.03, Mat4::IDENTITY, 2), &corners, 1024));
+        // Another level of detail or a moved model always draws again.
+        assert!(!map_still_valid(&held, &drawn(135.0, Mat4::IDENTITY, 3), &corners, 1024));
+        assert!(!map_still_valid(&held, &drawn(135.0, Mat4::from_translation(Vec3::X * 1e-3), 2), &corners, 1024));
     }
 
     #[test]

@@ -28,6 +28,7 @@ pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
             build::uniform(4, fs),
             build::texture_entry(5, fs, wgpu::TextureViewDimension::D2, true),
             build::sampler_entry(6, fs, wgpu::SamplerBindingType::Filtering),
+            build::sampler_entry(7, fs, wgpu::SamplerBindingType::NonFiltering),
         ],
     );
     let pipeline = pipeline_for(device, &layout, COLOR_FORMAT, samples);
@@ -110,6 +111,7 @@ impl GroundPass {
                         light.as_entire_binding(),
                         wgpu::BindingResource::TextureView(&sky_view),
                         wgpu::BindingResource::Sampler(&pipelines.linear_sampler),
+                        wgpu::BindingResource::Sampler(&pipelines.shadow_gather_sampler),
                     ],
                 )
             })

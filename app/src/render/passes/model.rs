@@ -18,15 +18,16 @@ use crate::scene::lod::IndexRange;
 use anyhow::{Result, anyhow};
 use glam::Vec3;
 use std::sync::Arc;
-use wgpu::SamplerBindingType::{Comparison, Filtering};
+use wgpu::SamplerBindingType::{Comparison, Filtering, NonFiltering};
 use wgpu::ShaderStages;
 use wgpu::TextureViewDimension::{Cube, D2};
 use wgpu::util::DeviceExt;
 
 /// What the model pass's pipelines share.
 pub struct ModelPipelines {
-    /// Bind group 0: frame, instance, environment, background, shadow map, colour correction,
-    /// measured light, prefiltered environment, split-sum table.
+    /// Bind group 0: frame, instance, environment, background, shadow map (with a comparison
+    /// and a gather sampler), colour correction, measured light, prefiltered environment,
+    /// split-sum table.
     pub layout: wgpu::BindGroupLayout,
     /// Bind group 1: one per material.
     pub material_layout: wgpu::BindGroupLayout,
@@ -55,6 +56,7 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
             build::uniform(9, fs),
             build::texture_entry(10, fs, Cube, true),
             build::texture_entry(11, fs, D2, true),
+            build::sampler_entry(12, fs, NonFiltering),
         ],
     );
     let material_layout = build::layout(
@@ -207,6 +209,7 @@ pub struct ModelPass {
     linear_sampler: wgpu::Sampler,
     repeat_sampler: wgpu::Sampler,
     shadow_sampler: wgpu::Sampler,
+    shadow_gather_sampler: wgpu::Sampler,
     /// The colour correction (`ColourCorrection`).
     colour: wgpu::Buffer,
     /// The texture of untextured materials.
@@ -228,6 +231,7 @@ impl ModelPass {
             linear_sampler: pipelines.linear_sampler.clone(),
             repeat_sampler: pipelines.repeat_sampler.clone(),
             shadow_sampler: pipelines.shadow_sampler.clone(),
+            shadow_gather_sampler: pipelines.shadow_gather_sampler.clone(),
             colour: build::uniform_buffer::<ColourCorrection>(device, "colour correction"),
             white: build::sampled_texture(device, &gpu.queue, "white", (1, 1), COLOR_FORMAT, &[255; 4]),
             brdf_lut: build::sampled_texture(
@@ -271,6 +275,7 @@ impl ModelPass {
                 light.as_entire_binding(),
                 TextureView(&env.specular),
                 TextureView(&self.brdf_lut),
+                Sampler(&self.shadow_gather_sampler),
             ],
         )
     }

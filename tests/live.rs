@@ -234,3 +234,121 @@ fn a_map_that_is_not_a_capture_of_here_and_now_lights_with_its_own_sun() {
     }
     assert!(params.lighting.sunlight > 0.0);
 }
+
+/// A synthetic world for the folded environment: every direction East of the meridian plane
+/// (x > 0) red, West blue, both below 1 (an 8-bit map without a sun: ambient and reflections
+/// only).
+fn east_red_west_blue(size: u32) -> previz::scene::CubeMap {
+    use previz::scene::cubemap::face_uv_to_cube_dir;
+    let faces = std::array::from_fn(|layer| {
+        (0..size * size)
+            .map(|i| {
+                let (x, y) = ((i % size) as f32 + 0.5, (i / size) as f32 + 0.5);
+                let d = previz::scene::cube_to_enu(face_uv_to_cube_dir(layer, x / size as f32, y / size as f32));
+                if d.x > 0.0 { [0.8, 0.08, 0.08] } else { [0.08, 0.08, 0.8] }
+            })
+            .collect()
+    });
+    previz::scene::CubeMap { size, faces }
+}
+
+/// The camera's truth: heading 90° (East, at the model) for 3 s, a half turn to 270° in 1 s,
+/// West for 3 s; pitch −5°.
+fn east_then_west() -> previz::pose::trace::TruthTrace {
+    use previz::pose::frames::from_heading_pitch_roll;
+    let samples = (0..=700)
+        .map(|i| {
+            let t = i as f64 / 100.0;
+            let f = ((t - 3.0) / 1.0).clamp(0.0, 1.0);
+            let heading = 90.0 + 180.0 * f * f * (3.0 - 2.0 * f);
+            let q = from_heading_pitch_roll(heading.to_radians(), (-5f64).to_radians(), 0.0);
+            previz::pose::trace::TruthSample { t, q, tap: false }
+        })
+        .collect();
+    previz::pose::trace::TruthTrace::new(samples).unwrap()
+}
+
+/// Mean red and blue of the model layer where it covers the pixel (premultiplied: divided by
+/// the coverage), and the pixels covered.
+fn model_red_blue(session: &mut LiveSession) -> (f64, f64, usize) {
+    let m = session.render_layer(gpu(), Layer::Model).unwrap();
+    let (mut r, mut b, mut n) = (0.0, 0.0, 0usize);
+    for p in m.rgba.chunks_exact(4).filter(|p| p[3] == 255) {
+        r += f64::from(p[0]);
+        b += f64::from(p[2]);
+        n += 1;
+    }
+    (r / n.max(1) as f64, b / n.max(1) as f64, n)
+}
+
+/// Before any capture the app lights the model with the camera frame folded into a cube map on
+/// the GPU (seed 004): the model's reflections and ambient follow what the camera sees, refreshed
+/// as it turns, where the map lights the model's camera-facing side from behind the camera; the
+/// refreshes allocate nothing; a capture replaces the fold.
+#[test]
+fn the_folded_camera_frame_lights_the_model_and_follows_the_camera() {
+    let toml = "width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nmethod = \"sh9-ggx\"\n\
+                [camera]\nheading = 90.0\npitch = -5.0\n[material]\nspecular = 1.0\n";
+    let s = scene(toml);
+    let model = load_inputs(&s, false).unwrap().model;
+    let env = Arc::new(east_red_west_blue(32));
+    let mut cfg = config("2026-06-21T12:00:00Z", NoiseLevel::None);
+    cfg.frame_hz = 15.0;
+    cfg.duration_s = 7.0;
+    let session_with = |fold: bool| {
+        let sources = previz::live::Sources::simulated_along(env.clone(), &s, 1.0, &cfg, east_then_west()).unwrap();
+        let mut session = LiveSession::new(gpu(), &env, &model, &s, cfg.clone(), sources).unwrap();
+        if fold {
+            session.fold_camera_into_environment();
+        }
+        session
+    };
+    // Runs the session through the path: the model's colour looking East at 2.9 s, and looking
+    // West at the end with the model dragged in front of the camera (half a turn about the
+    // camera's vertical).
+    let run = |session: &mut LiveSession| {
+        let mut east = None;
+        let mut refreshes = Vec::new();
+        while let Some(f) = session.advance(gpu()).unwrap() {
+            refreshes.push((f.t, session.fold_refreshes().map(|r| r.0)));
+            if east.is_none() && f.t >= 2.9 {
+                east = Some(model_red_blue(session));
+            }
+        }
+        let p = &mut session.params_mut().placement;
+        let camera = session_camera(&s);
+        p.position = glam::Vec3::new(2.0 * camera.x - p.position.x, 2.0 * camera.y - p.position.y, p.position.z);
+        (east.unwrap(), model_red_blue(session), refreshes)
+    };
+    fn session_camera(s: &previz::setup::scene_file::Scene) -> glam::Vec3 {
+        glam::Vec3::new(0.0, 0.0, s.camera.height as f32)
+    }
+
+    let mut folded = session_with(true);
+    let ((er, eb, en), (wr, wb, wn), refreshes) = run(&mut folded);
+    assert!(en > 300 && wn > 300, "the model covers {en} / {wn} pixels");
+    // Looking East the camera sees only red: the fold lights the model red; West: blue.
+    assert!(er > 2.0 * eb, "looking East (red) the folded frame lights the model red: r {er:.1} b {eb:.1}");
+    assert!(wb > 2.0 * wr, "looking West (blue) the folded frame lights the model blue: r {wr:.1} b {wb:.1}");
+    // Folded at the first pose, then as the camera turned (10° steps through the half turn) and
+    // every 2 s while it held still; never per frame while it held still.
+    let count = |from: f64, to: f64| {
+        let at = |t: f64| refreshes.iter().rfind(|(ft, _)| *ft <= t).and_then(|r| r.1).unwrap_or(0);
+        at(to) - at(from)
+    };
+    assert!(count(3.0, 4.1) >= 8, "the half turn refreshed the fold {} times", count(3.0, 4.1));
+    assert!(count(4.5, 6.5) <= 2, "holding still refreshed the fold {} times in 2 s", count(4.5, 6.5));
+
+    // The map instead: its light on the model's camera-facing side comes from behind the
+    // camera (West when looking East), whatever the camera sees.
+    let mut mapped = session_with(false);
+    let ((mer, meb, _), (mwr, mwb, _), _) = run(&mut mapped);
+    assert!(meb > mer && mwr > mwb, "map-lit: East r {mer:.1} b {meb:.1}, West r {mwr:.1} b {mwb:.1}");
+
+    // A capture replaces the fold for good: the environment is the capture's from then on.
+    let grey = previz::scene::CubeMap { size: 32, faces: std::array::from_fn(|_| vec![[0.3; 3]; 32 * 32]) };
+    folded.set_environment(gpu(), &grey, std::path::Path::new("capture"), 0.0).unwrap();
+    assert_eq!(folded.fold_refreshes(), None);
+    let (r, b, _) = model_red_blue(&mut folded);
+    assert!((r - b).abs() < 0.1 * r.max(b), "grey capture: r {r:.1} b {b:.1}");
+}

@@ -283,6 +283,32 @@ pub struct LiveSession {
     show_model: bool,
     /// The time of the previous frame (the simulated user's taps between two frames).
     last_t: Option<f64>,
+    /// The camera frame folded into the environment, until a capture replaces it (None: the
+    /// scene's map lights the model).
+    fold: Option<FoldedEnvironment>,
+}
+
+/// Face size (texels) of the environment folded from the camera frame.
+pub const FOLD_SIZE: u32 = 64;
+/// The folded environment is refreshed when the camera has turned this far since the last fold
+/// (degrees)...
+pub const FOLD_REFRESH_DEG: f64 = 10.0;
+/// ... or this long after it (seconds): the scene in front of the camera changes too.
+pub const FOLD_REFRESH_S: f64 = 2.0;
+
+/// The environment folded from the live camera frame before any capture exists (seed 004,
+/// `capture::frame_fold`): the fold runs on the GPU from the compositor's background (the camera
+/// image, whether it came as an image or as YUV converted on the GPU) into a cube texture made
+/// once; the 64-texel map is read back and written into the compositor's environment textures
+/// in place (`Compositor::set_environment` at the same face size allocates nothing), with its
+/// GGX-prefiltered levels, priors and the sky's SH9 computed on the CPU.
+struct FoldedEnvironment {
+    fold: Option<crate::capture::frame_fold::FrameFold>,
+    /// Estimated camera orientation and time of the last fold.
+    last: Option<(glam::Quat, f64)>,
+    refreshes: usize,
+    /// CPU milliseconds the last refresh took (fold, readback, prefilter, light).
+    last_ms: f64,
 }
 
 impl LiveSession {
@@ -319,6 +345,7 @@ impl LiveSession {
             suspended: false,
             show_model: true,
             last_t: None,
+            fold: None,
         })
     }
 
@@ -400,6 +427,9 @@ impl LiveSession {
         (l.shadow_opacity, l.sky_occlusion) =
             crate::setup::light::ground_strengths(l.sunlight, l.sun_dir, daylight * unit.ground_sky, multiplier);
         self.layer = if pose.is_some() && self.show_model { Layer::Composite } else { Layer::Background };
+        if pose.is_some() {
+            self.refresh_fold(gpu, t)?;
+        }
         let user_tapped = match &self.sources.truth {
             Some(truth) => truth.samples().iter().any(|s| s.tap && s.t <= t && previous.is_none_or(|p| s.t > p)),
             None => false,
@@ -547,6 +577,8 @@ impl LiveSession {
         scene.env.exposure = None;
         let exposure = exposure(&scene, env);
         self.compositor.set_environment(gpu, env, exposure, (heading_deg as f32).to_radians())?;
+        // The capture replaces the environment folded from the camera frame for good.
+        self.fold = None;
         let priors = self.compositor.priors().context("environment priors")?;
         let (unit, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians());
         let light = crate::setup::lighting(&scene, &unit);
@@ -565,6 +597,65 @@ impl LiveSession {
             c.daylight = light.daylight;
         }
         self.scene = scene;
+        Ok(())
+    }
+
+    /// Light the model with the live camera frame folded into a cube map (reflections, the sky's
+    /// SH9 ambient, priors) until a capture is set ([`LiveSession::set_environment`]): folded at
+    /// the next frame with a pose, then again whenever the camera has turned
+    /// [`FOLD_REFRESH_DEG`] or [`FOLD_REFRESH_S`] has passed. The sun (direction, intensity,
+    /// colour, shadows) and the ambient level (DL) stay the ones measured in the scene's map: a
+    /// camera frame rarely holds the sun, and then clipped. The fold pass is made at the first
+    /// fold, once.
+    pub fn fold_camera_into_environment(&mut self) {
+        if self.fold.is_none() {
+            self.fold = Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, last_ms: 0.0 });
+        }
+    }
+
+    /// How many times the camera frame has been folded into the environment, and the CPU
+    /// milliseconds of the last fold (None when the fold is off: before
+    /// [`LiveSession::fold_camera_into_environment`] or after a capture replaced it).
+    pub fn fold_refreshes(&self) -> Option<(usize, f64)> {
+        self.fold.as_ref().map(|f| (f.refreshes, f.last_ms))
+    }
+
+    /// Fold the current camera frame into the environment when it is due (see
+    /// [`LiveSession::fold_camera_into_environment`]).
+    fn refresh_fold(&mut self, gpu: &Gpu, t: f64) -> Result<()> {
+        let Some(state) = &mut self.fold else { return Ok(()) };
+        let pose = self.params.camera.pose;
+        let due = state.last.is_none_or(|(q, t0)| {
+            crate::pose::frames::angle_between_f32(q, pose).to_degrees() >= FOLD_REFRESH_DEG || t - t0 >= FOLD_REFRESH_S
+        });
+        if !due {
+            return Ok(());
+        }
+        let started = std::time::Instant::now();
+        let bounds = self.compositor.model_bounds().context("model bounds")?;
+        let (w, h) = self.compositor.size();
+        let c = &self.params.camera;
+        let view_proj = crate::render::view::projection(c.vfov, w as f32 / h as f32, 0.01, 1e4)
+            * crate::render::view::view_matrix(c.pose, c.position)
+            * crate::render::view::model_matrix(bounds, &self.params.placement);
+        let bbox = crate::capture::frame_fold::screen_bbox(view_proj, bounds);
+        let fold = match &mut state.fold {
+            Some(fold) => fold,
+            None => state.fold.insert(crate::capture::frame_fold::FrameFold::new(gpu, FOLD_SIZE)?),
+        };
+        fold.render_view(gpu, self.compositor.background_view(), pose, bbox)?;
+        let cube = fold.read_back(gpu)?;
+        // The folded frame is in the renderer's linear light already (the camera image is the
+        // background the model is drawn over): exposure 1, indexed by world directions.
+        self.compositor.set_environment(gpu, &cube, 1.0, 0.0)?;
+        let priors = self.compositor.priors().context("environment priors")?;
+        let (unit, _) = environment_light(&self.scene, &cube, &priors, 1.0, 0.0);
+        // The ambient's colour and direction from the fold; its level (DL) stays the map's.
+        self.params.lighting.sky_sh = unit.sky_sh;
+        self.unit_light.sky_sh = unit.sky_sh;
+        state.last = Some((pose, t));
+        state.refreshes += 1;
+        state.last_ms = started.elapsed().as_secs_f64() * 1e3;
         Ok(())
     }
 

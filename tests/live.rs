@@ -352,3 +352,55 @@ fn the_folded_camera_frame_lights_the_model_and_follows_the_camera() {
     let (r, b, _) = model_red_blue(&mut folded);
     assert!((r - b).abs() < 0.1 * r.max(b), "grey capture: r {r:.1} b {b:.1}");
 }
+
+/// The model stands in front of where the phone points when the session starts, not where the
+/// scene's camera heading (90°) would put it: the virtual phone held at two start headings.
+#[test]
+fn the_model_is_placed_where_the_phone_points_at_start() {
+    let s = scene(SCENE);
+    let inputs = load_inputs(&s, false).unwrap();
+    let env = Arc::new(inputs.env);
+    let mut cfg = config("2026-06-21T12:00:00Z", NoiseLevel::None);
+    cfg.duration_s = 2.0;
+    let scene_placement = previz::setup::camera_and_placement(&s, {
+        let (c, _) = previz::setup::compositor_for(gpu(), &s, &env, &inputs.model).unwrap();
+        c.model_bounds().unwrap()
+    })
+    .1;
+    let bearing = |p: glam::Vec3| f64::from(p.x.atan2(p.y).to_degrees()).rem_euclid(360.0);
+    assert!((bearing(scene_placement.position) - 90.0).abs() < 0.5, "the scene alone places it East");
+    for start_heading in [20.0, 215.0] {
+        let truth = look_around_path(start_heading, s.camera.pitch, cfg.duration_s, cfg.seed).unwrap();
+        let sources = previz::live::Sources::simulated_along(env.clone(), &s, exposure(&s, &env), &cfg, truth).unwrap();
+        let mut session = LiveSession::new(gpu(), &env, &inputs.model, &s, cfg.clone(), sources).unwrap();
+        assert!(!session.placed());
+        let first = loop {
+            let f = session.advance(gpu()).unwrap().expect("a frame");
+            if let Some(pose) = f.pose {
+                break pose;
+            }
+        };
+        assert!(session.placed());
+        let placed = session.params().placement;
+        // In front of the first pose's heading (the filter's first attitude, within a few
+        // degrees of the phone's), at the scene's distance and scale.
+        let heading = previz::pose::frames::heading_pitch_roll(first.q.as_dquat()).heading.to_degrees();
+        let off = (bearing(placed.position) - heading + 540.0).rem_euclid(360.0) - 180.0;
+        assert!(off.abs() < 1.0, "start {start_heading}°: model at bearing {:.1}°, pose heading {heading:.1}°", bearing(placed.position));
+        let off_start = (bearing(placed.position) - start_heading + 540.0).rem_euclid(360.0) - 180.0;
+        assert!(off_start.abs() < 5.0, "start {start_heading}°: model at bearing {:.1}°", bearing(placed.position));
+        let horizontal = |p: glam::Vec3| glam::Vec2::new(p.x, p.y).length();
+        assert!((horizontal(placed.position) - horizontal(scene_placement.position)).abs() < 0.05 * horizontal(scene_placement.position));
+        assert_eq!(placed.scale, scene_placement.scale);
+        // And it is on screen, near the middle: the model layer covers the centre column.
+        let m = session.render_layer(gpu(), Layer::Model).unwrap();
+        let (w, h) = (m.width as usize, m.height as usize);
+        let covered = (0..h).filter(|&y| m.rgba[4 * (y * w + w / 2) + 3] > 0).count();
+        assert!(covered > h / 10, "start {start_heading}°: the model covers {covered} rows of the centre column");
+        // Later poses do not move it.
+        for _ in 0..10 {
+            session.advance(gpu()).unwrap().expect("a frame");
+        }
+        assert_eq!(session.params().placement, placed);
+    }
+}

@@ -392,7 +392,12 @@ impl App {
             return Ok(true);
         }
         self.script_step(gpu)?;
+        let placed = self.session.placed();
         let Some(f) = self.session.advance(gpu)? else { return Ok(false) };
+        // The model was just placed in front of where the phone points: Reset goes back there.
+        if !placed && self.session.placed() {
+            self.initial.1 = self.session.params().placement;
+        }
         self.last = Some(f);
         self.capture_frame(gpu, &f)?;
         self.session.draw(gpu)?;

@@ -286,6 +286,9 @@ pub struct LiveSession {
     /// The camera frame folded into the environment, until a capture replaces it (None: the
     /// scene's map lights the model).
     fold: Option<FoldedEnvironment>,
+    /// The model is still where the scene's camera heading and pitch put it, to be placed in
+    /// front of where the phone points at its first pose (the scene gives no position).
+    place_at_first_pose: bool,
 }
 
 /// Face size (texels) of the environment folded from the camera frame.
@@ -346,6 +349,7 @@ impl LiveSession {
             show_model: true,
             last_t: None,
             fold: None,
+            place_at_first_pose: scene.placement.position.is_none(),
         })
     }
 
@@ -412,6 +416,9 @@ impl LiveSession {
         let sunlight = self.full_sunlight * crate::sun::twilight::sunlight_factor_toward(sun_dir);
         if let Some(p) = pose {
             self.params.camera.pose = p.q;
+            if std::mem::take(&mut self.place_at_first_pose) {
+                self.place_in_front(p.q)?;
+            }
         }
         self.params.lighting.sun_dir = sun_dir;
         self.params.lighting.sunlight = sunlight;
@@ -600,6 +607,23 @@ impl LiveSession {
         Ok(())
     }
 
+    /// Place the model as the scene's automatic placement does (`placement.size`, `.fill`), in
+    /// front of a camera with orientation `q` (camera → world) instead of the scene's camera
+    /// heading and pitch: where the phone points when the session starts. Turn and scale stay.
+    fn place_in_front(&mut self, q: glam::Quat) -> Result<()> {
+        let bounds = self.compositor.model_bounds().context("model bounds")?;
+        let (c, p) = (&self.params.camera, &self.scene.placement);
+        let auto = crate::render::view::auto_placement(bounds, q, c.position, c.vfov, p.size as f32, p.fill as f32);
+        self.params.placement.position = auto.position;
+        Ok(())
+    }
+
+    /// Whether the model has been placed in front of the first pose (or the scene placed it):
+    /// from then on its placement is the user's to change.
+    pub fn placed(&self) -> bool {
+        !self.place_at_first_pose
+    }
+
     /// Light the model with the live camera frame folded into a cube map (reflections, the sky's
     /// SH9 ambient, priors) until a capture is set ([`LiveSession::set_environment`]): folded at
     /// the next frame with a pose, then again whenever the camera has turned
@@ -659,14 +683,18 @@ impl LiveSession {
         Ok(())
     }
 
-    /// Replace the model (a bundled one or a file the user opened), placed as the scene places
-    /// a model of its size. On an error the current model stays.
+    /// Replace the model (a bundled one or a file the user opened), scaled as the scene scales a
+    /// model of its size, standing where the current one stands (once placed: before the first
+    /// pose it is placed then) with its turn. On an error the current model stays.
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model, path: Option<&std::path::Path>) -> Result<()> {
         self.compositor.set_model(gpu, model)?;
         let bounds = self.compositor.model_bounds().context("model bounds")?;
         self.scene.model = path.map(std::path::Path::to_path_buf);
         let mut placement = camera_and_placement(&self.scene, bounds).1;
         placement.rotation = self.params.placement.rotation;
+        if self.placed() {
+            placement.position = self.params.placement.position;
+        }
         self.params.placement = placement;
         Ok(())
     }

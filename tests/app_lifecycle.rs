@@ -6,8 +6,8 @@
 //!
 //! The camera and the sensors are test doubles that log every call, so a callback reaching them
 //! while the session is suspended shows in the log. The environment folded from the camera frame
-//! is refreshed without allocating either. What this does not cover: the window's
-//! surface being dropped and recreated (`live::window`, needs a display) — see docs/mobile.md.
+//! is refreshed without allocating either. The window's surface dropped and recreated through
+//! winit's events: tests/app_window.rs (under Xvfb).
 
 mod common;
 

@@ -162,24 +162,8 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
 /// and the exported files present. CI installs Xvfb (`.ci/run`).
 #[test]
 fn window_runs_a_scripted_capture_composite_export_session_under_xvfb() {
-    // -displayfd: Xvfb picks a free display and writes its number once it accepts connections,
-    // so the test waits for exactly that (a generous deadline guards against a hung server).
-    let mut xvfb = std::process::Command::new("Xvfb")
-        .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("Xvfb (apt-get install xvfb; .ci/run installs it)");
-    let stdout = xvfb.stdout.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line);
-        let _ = tx.send(line);
-    });
-    let number = rx.recv_timeout(std::time::Duration::from_secs(60)).expect("Xvfb did not report a display within 60 s");
-    let number: u32 = number.trim().parse().unwrap_or_else(|_| panic!("Xvfb exited before it was ready (it printed {number:?})"));
-    let display = format!(":{number}");
+    let xvfb = common::xvfb::Xvfb::start(640, 480);
+    let display = xvfb.display.clone();
     let env = data("cubemaps/humus_Park2_512");
     let model = data("meshes/stanford-bunny.obj");
     let dir = tempdir("live", "window");
@@ -191,8 +175,7 @@ fn window_runs_a_scripted_capture_composite_export_session_under_xvfb() {
         .args(["--script", "capture,composite,shutter,quit"])
         .output()
         .unwrap();
-    let _ = xvfb.kill();
-    let _ = xvfb.wait();
+    drop(xvfb);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "previz live failed under Xvfb: {stderr}");
     assert!(!stderr.contains("GPU error") && !stderr.contains("panicked"), "{stderr}");

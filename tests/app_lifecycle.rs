@@ -155,6 +155,7 @@ fn fold_refreshes_allocate_nothing(session: &mut LiveSession) {
     session.fold_camera_into_environment();
     let writes = session.compositor().environment_writes();
     session.advance(gpu()).unwrap().expect("a frame");
+    session.finish_fold(gpu()).unwrap();
     session.draw(gpu()).unwrap();
     assert_eq!(session.fold_refreshes().map(|r| r.0), Some(1), "folded at the first frame with a pose");
     assert_eq!(session.compositor().environment_writes(), writes + 1);
@@ -163,6 +164,7 @@ fn fold_refreshes_allocate_nothing(session: &mut LiveSession) {
     let frames = (2.0 * previz::live::FOLD_REFRESH_S * 30.0).ceil() as usize + 1;
     for _ in 0..frames {
         session.advance(gpu()).unwrap().expect("a frame");
+        session.finish_fold(gpu()).unwrap();
         session.draw(gpu()).unwrap();
     }
     assert_eq!(session.fold_refreshes().map(|r| r.0), Some(3), "refreshed every {} s", previz::live::FOLD_REFRESH_S);

@@ -293,6 +293,8 @@ fn the_folded_camera_frame_lights_the_model_and_follows_the_camera() {
         let mut east = None;
         let mut refreshes = Vec::new();
         while let Some(f) = session.advance(gpu()).unwrap() {
+            // Each due fold applied before the next frame (the app lets it finish on its own).
+            session.finish_fold(gpu()).unwrap();
             refreshes.push((f.t, session.fold_refreshes().map(|r| r.0)));
             if east.is_none() && f.t >= 2.9 {
                 east = Some(model_red_blue(session));

@@ -12,19 +12,21 @@ use std::sync::Arc;
 
 /// The stages, in the order of a frame, then the floor: the same frame's background alone
 /// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
-pub const STAGES: [&str; 7] = [
+pub const STAGES: [&str; 8] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
     "compositor (GPU)",
     "whole frame incl. readback (wall)",
     "floor: background only (GPU)",
-    "environment fold refresh (when due, in the whole frame)",
+    "environment fold: frame's thread (fold, readback, writes; when applied)",
+    "environment fold: its own thread (prefilter, priors, SH9)",
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
 pub const FLOOR: usize = 5;
 pub const FOLD: usize = 6;
+pub const FOLD_THREAD: usize = 7;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug)]
@@ -58,12 +60,12 @@ pub fn run(
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
     session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 7] = Default::default();
+    let mut samples: [Vec<f64>; 8] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let folds = session.fold_refreshes().map_or(0, |r| r.0);
         let f = session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
-        let fold_ms = session.fold_refreshes().filter(|r| r.0 > folds).map(|r| r.1);
+        let fold = session.fold_refreshes().filter(|r| r.0 > folds);
         let r = session.render(gpu)?;
         let wall = t.elapsed().as_secs_f64() * 1e3;
         let floor = session.render_layer(gpu, crate::render::Layer::Background)?;
@@ -72,7 +74,10 @@ pub fn run(
             for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), wall, gpu_ms(&floor)]) {
                 v.push(x);
             }
-            samples[FOLD].extend(fold_ms);
+            if let Some((_, frame_ms, cpu_ms)) = fold {
+                samples[FOLD].push(frame_ms);
+                samples[FOLD_THREAD].push(cpu_ms);
+            }
         }
         progress.inc(1);
     }

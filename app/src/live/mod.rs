@@ -302,16 +302,32 @@ pub const FOLD_REFRESH_S: f64 = 2.0;
 /// The environment folded from the live camera frame before any capture exists (seed 004,
 /// `capture::frame_fold`): the fold runs on the GPU from the compositor's background (the camera
 /// image, whether it came as an image or as YUV converted on the GPU) into a cube texture made
-/// once; the 64-texel map is read back and written into the compositor's environment textures
-/// in place (`Compositor::set_environment` at the same face size allocates nothing), with its
-/// GGX-prefiltered levels, priors and the sky's SH9 computed on the CPU.
+/// once; the 64-texel map is read back, its GGX-prefiltered levels, priors and the sky's SH9 are
+/// computed on a thread of their own, and a later frame writes them into the compositor's
+/// environment textures in place (`Compositor::set_prepared_environment` at the same face size
+/// allocates nothing).
 struct FoldedEnvironment {
     fold: Option<crate::capture::frame_fold::FrameFold>,
     /// Estimated camera orientation and time of the last fold.
     last: Option<(glam::Quat, f64)>,
+    /// Folds applied so far.
     refreshes: usize,
-    /// CPU milliseconds the last refresh took (fold, readback, prefilter, light).
-    last_ms: f64,
+    /// Milliseconds the last refresh took on the frame's thread (fold and readback, then the
+    /// texture writes) and on its own thread (prefilter, priors, light).
+    frame_ms: f64,
+    cpu_ms: f64,
+    /// The CPU half of the latest fold, running.
+    pending: Option<std::thread::JoinHandle<Result<PreparedFold>>>,
+}
+
+/// A folded map with what the frame needs from it, computed off the frame's thread.
+struct PreparedFold {
+    cube: CubeMap,
+    prepared: crate::render::environment::Prepared,
+    sky_sh: [[f32; 3]; 9],
+    cpu_ms: f64,
+    /// Milliseconds the fold and its readback took on the frame's thread.
+    fold_ms: f64,
 }
 
 impl LiveSession {
@@ -633,26 +649,53 @@ impl LiveSession {
     /// fold, once.
     pub fn fold_camera_into_environment(&mut self) {
         if self.fold.is_none() {
-            self.fold = Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, last_ms: 0.0 });
+            self.fold = Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, frame_ms: 0.0, cpu_ms: 0.0, pending: None });
         }
     }
 
-    /// How many times the camera frame has been folded into the environment, and the CPU
-    /// milliseconds of the last fold (None when the fold is off: before
-    /// [`LiveSession::fold_camera_into_environment`] or after a capture replaced it).
-    pub fn fold_refreshes(&self) -> Option<(usize, f64)> {
-        self.fold.as_ref().map(|f| (f.refreshes, f.last_ms))
+    /// How many folds of the camera frame have been applied to the environment, and the
+    /// milliseconds the last one took on the frame's thread (fold, readback, texture writes) and
+    /// on its own (prefilter, priors, light). None when the fold is off: before
+    /// [`LiveSession::fold_camera_into_environment`] or after a capture replaced it.
+    pub fn fold_refreshes(&self) -> Option<(usize, f64, f64)> {
+        self.fold.as_ref().map(|f| (f.refreshes, f.frame_ms, f.cpu_ms))
     }
 
-    /// Fold the current camera frame into the environment when it is due (see
-    /// [`LiveSession::fold_camera_into_environment`]).
+    /// Wait for a fold whose CPU half is still running and apply it now (tests and benchmarks
+    /// that want each due fold applied before the next frame; the app lets it finish on its own).
+    pub fn finish_fold(&mut self, gpu: &Gpu) -> Result<()> {
+        self.apply_fold(gpu, true)
+    }
+
+    /// Apply the pending fold if its CPU half is done (`wait`: wait for it).
+    fn apply_fold(&mut self, gpu: &Gpu, wait: bool) -> Result<()> {
+        let Some(state) = &mut self.fold else { return Ok(()) };
+        if !state.pending.as_ref().is_some_and(|h| wait || h.is_finished()) {
+            return Ok(());
+        }
+        let Some(handle) = state.pending.take() else { return Ok(()) };
+        let done = handle.join().map_err(|_| anyhow::anyhow!("the folded environment's thread panicked"))??;
+        let started = std::time::Instant::now();
+        self.compositor.set_prepared_environment(gpu, &done.cube, done.prepared)?;
+        // The ambient's colour and direction from the fold; its level (DL) stays the map's.
+        self.params.lighting.sky_sh = done.sky_sh;
+        self.unit_light.sky_sh = done.sky_sh;
+        state.refreshes += 1;
+        state.frame_ms = done.fold_ms + started.elapsed().as_secs_f64() * 1e3;
+        state.cpu_ms = done.cpu_ms;
+        Ok(())
+    }
+
+    /// Apply a finished fold; fold the current camera frame when one is due (see
+    /// [`LiveSession::fold_camera_into_environment`]) and none is running.
     fn refresh_fold(&mut self, gpu: &Gpu, t: f64) -> Result<()> {
+        self.apply_fold(gpu, false)?;
         let Some(state) = &mut self.fold else { return Ok(()) };
         let pose = self.params.camera.pose;
         let due = state.last.is_none_or(|(q, t0)| {
             crate::pose::frames::angle_between_f32(q, pose).to_degrees() >= FOLD_REFRESH_DEG || t - t0 >= FOLD_REFRESH_S
         });
-        if !due {
+        if !due || state.pending.is_some() {
             return Ok(());
         }
         let started = std::time::Instant::now();
@@ -669,17 +712,17 @@ impl LiveSession {
         };
         fold.render_view(gpu, self.compositor.background_view(), pose, bbox)?;
         let cube = fold.read_back(gpu)?;
+        let fold_ms = started.elapsed().as_secs_f64() * 1e3;
+        state.last = Some((pose, t));
         // The folded frame is in the renderer's linear light already (the camera image is the
         // background the model is drawn over): exposure 1, indexed by world directions.
-        self.compositor.set_environment(gpu, &cube, 1.0, 0.0)?;
-        let priors = self.compositor.priors().context("environment priors")?;
-        let (unit, _) = environment_light(&self.scene, &cube, &priors, 1.0, 0.0);
-        // The ambient's colour and direction from the fold; its level (DL) stays the map's.
-        self.params.lighting.sky_sh = unit.sky_sh;
-        self.unit_light.sky_sh = unit.sky_sh;
-        state.last = Some((pose, t));
-        state.refreshes += 1;
-        state.last_ms = started.elapsed().as_secs_f64() * 1e3;
+        let scene = self.scene.clone();
+        state.pending = Some(std::thread::spawn(move || {
+            let started = std::time::Instant::now();
+            let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;
+            let (unit, _) = environment_light(&scene, &cube, &prepared.env.priors, 1.0, 0.0);
+            Ok(PreparedFold { cube, prepared, sky_sh: unit.sky_sh, cpu_ms: started.elapsed().as_secs_f64() * 1e3, fold_ms })
+        }));
         Ok(())
     }
 

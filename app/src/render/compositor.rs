@@ -176,16 +176,23 @@ impl Compositor {
     /// the live camera frame folded into the environment. On an error the current environment
     /// stays.
     pub fn set_environment(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
-        let env = environment::measure(cube, exposure, heading)?;
+        let prepared = environment::prepare(cube, exposure, heading)?;
+        self.set_prepared_environment(gpu, cube, prepared)
+    }
+
+    /// [`Compositor::set_environment`] with the CPU work already done ([`environment::prepare`]
+    /// of the same `cube`, e.g. on another thread).
+    pub fn set_prepared_environment(&mut self, gpu: &Gpu, cube: &CubeMap, prepared: environment::Prepared) -> Result<()> {
+        let environment::Prepared { levels, env } = prepared;
         if let Some(textures) = self.env_textures.as_ref().filter(|t| t.size() == cube.size) {
-            gpu.checked("the environment cube map", || textures.write(gpu, cube))?;
+            gpu.checked("the environment cube map", || textures.write(gpu, cube, &levels))?;
             self.env = Some(env);
             self.environment_writes += 1;
             return Ok(());
         }
         let (textures, env_view_bg, model_bg) = gpu.checked("the environment cube map", || {
             let textures = EnvironmentTextures::new(gpu, cube.size);
-            textures.write(gpu, cube)?;
+            textures.write(gpu, cube, &levels)?;
             let views = &textures.views;
             let env_view_bg = BackgroundPass::env_view_bind_group(&gpu.device, &self.pipelines, &self.frame_buf, &views.cube);
             let model_bg = (self.shadow.maps().iter())

@@ -67,16 +67,19 @@ impl EnvironmentTextures {
         self.cube.width()
     }
 
-    /// Write `cube` (of this size) and its GGX-prefiltered levels (light::ggx::prefilter) into
-    /// the textures.
-    pub fn write(&self, gpu: &Gpu, cube: &CubeMap) -> Result<()> {
+    /// Write `cube` (of this size) and its GGX-prefiltered `levels` ([`prepare`]) into the
+    /// textures.
+    pub fn write(&self, gpu: &Gpu, cube: &CubeMap, levels: &[CubeMap]) -> Result<()> {
         if cube.size != self.size() {
             bail!("environment of {}-texel faces written into textures of {}", cube.size, self.size());
         }
         for (layer, face) in cube.faces.iter().enumerate() {
             build::write_layer(&gpu.queue, &self.cube, layer as u32, bytemuck::cast_slice(&rgba16f_texels(face)));
         }
-        for (mip, level) in ggx::prefilter(cube).iter().enumerate() {
+        if levels.len() != ggx::PREFILTER_LEVELS as usize {
+            bail!("{} prefiltered environment levels, expected {}", levels.len(), ggx::PREFILTER_LEVELS);
+        }
+        for (mip, level) in levels.iter().enumerate() {
             for (layer, face) in level.faces.iter().enumerate() {
                 gpu.queue.write_texture(
                     wgpu::TexelCopyTextureInfo {
@@ -93,6 +96,20 @@ impl EnvironmentTextures {
         }
         Ok(())
     }
+}
+
+/// What the GPU and the frame need from a map besides its texels, computed on the CPU (on any
+/// thread: the live view prepares its folded camera frame off the frame's thread).
+pub struct Prepared {
+    /// The map convolved with the GGX lobe, one level per roughness (light::ggx::prefilter).
+    pub levels: Vec<CubeMap>,
+    pub env: Environment,
+}
+
+/// Check `cube`, `exposure` and `heading`; prefilter the map and compute its priors.
+pub fn prepare(cube: &CubeMap, exposure: f32, heading: f32) -> Result<Prepared> {
+    let env = measure(cube, exposure, heading)?;
+    Ok(Prepared { levels: ggx::prefilter(cube), env })
 }
 
 /// Check `cube`, `exposure` and `heading`, and compute what the frame needs from the map (its

@@ -181,9 +181,7 @@ impl App {
     /// `export_dir`.
     pub fn new(mut session: LiveSession, export_dir: PathBuf) -> App {
         // Until a capture exists the camera frame, folded into a cube map, lights the model.
-        if !session.scene().env.captured_here {
-            session.fold_camera_into_environment();
-        }
+        session.fold_camera_into_environment();
         let controls = Controls::from_params(session.params());
         session.set_controls(controls);
         let placement = session.params().placement;

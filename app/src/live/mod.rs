@@ -646,9 +646,10 @@ impl LiveSession {
     /// [`FOLD_REFRESH_DEG`] or [`FOLD_REFRESH_S`] has passed. The sun (direction, intensity,
     /// colour, shadows) and the ambient level (DL) stay the ones measured in the scene's map: a
     /// camera frame rarely holds the sun, and then clipped. The fold pass is made at the first
-    /// fold, once.
+    /// fold, once. Nothing changes when the scene's environment is already a capture of here
+    /// and now (`env.captured_here`).
     pub fn fold_camera_into_environment(&mut self) {
-        if self.fold.is_none() {
+        if self.fold.is_none() && !self.scene.env.captured_here {
             self.fold = Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, frame_ms: 0.0, cpu_ms: 0.0, pending: None });
         }
     }

@@ -5,8 +5,9 @@
 //! binary: the counters are per device and other tests would allocate.
 //!
 //! The camera and the sensors are test doubles that log every call, so a callback reaching them
-//! while the session is suspended shows in the log. What this does not cover: the window's
-//! surface being dropped and recreated (`live::window`, needs a display) — see docs/mobile.md.
+//! while the session is suspended shows in the log. The environment folded from the camera frame
+//! is refreshed without allocating either. The window's surface dropped and recreated through
+//! winit's events: tests/app_window.rs (under Xvfb).
 
 mod common;
 
@@ -143,4 +144,31 @@ fn suspend_resume_cycles_stop_camera_and_sensors_keep_the_scene_and_allocate_not
 
     let after = settled_counters();
     assert_unchanged(&before, &after, &FRAME_RESOURCES, "suspend/resume cycles");
+    fold_refreshes_allocate_nothing(&mut session);
+}
+
+/// Called from the one test (the counters are per device): the camera frame folded into the
+/// environment (what the app does before a capture) is refreshed into the fold's cube texture
+/// and the compositor's environment textures made at the first fold: later refreshes allocate
+/// nothing.
+fn fold_refreshes_allocate_nothing(session: &mut LiveSession) {
+    session.fold_camera_into_environment();
+    let writes = session.compositor().environment_writes();
+    session.advance(gpu()).unwrap().expect("a frame");
+    session.finish_fold(gpu()).unwrap();
+    session.draw(gpu()).unwrap();
+    assert_eq!(session.fold_refreshes().map(|r| r.0), Some(1), "folded at the first frame with a pose");
+    assert_eq!(session.compositor().environment_writes(), writes + 1);
+    let before = settled_counters();
+    // The camera double holds still: the fold is refreshed every FOLD_REFRESH_S of its 30 Hz frames.
+    let frames = (2.0 * previz::live::FOLD_REFRESH_S * 30.0).ceil() as usize + 1;
+    for _ in 0..frames {
+        session.advance(gpu()).unwrap().expect("a frame");
+        session.finish_fold(gpu()).unwrap();
+        session.draw(gpu()).unwrap();
+    }
+    assert_eq!(session.fold_refreshes().map(|r| r.0), Some(3), "refreshed every {} s", previz::live::FOLD_REFRESH_S);
+    assert_eq!(session.compositor().environment_writes(), writes + 3);
+    let after = settled_counters();
+    assert_unchanged(&before, &after, &FRAME_RESOURCES, "fold refreshes");
 }

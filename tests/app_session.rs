@@ -143,6 +143,11 @@ fn capture_then_composite_with_it_then_export() {
         if !progress && g.faces_done == 3 {
             progress = true;
             common::assert_golden("app_capture_progress", &screen(&mut app, &mut ui));
+            // Every face some shot has seen shows a thumbnail, and no other (the golden shows
+            // them; stitch mode sees faces through its extra views before their centres).
+            let seen = g.face_progress.map(|p| p > 0.0);
+            assert_eq!(app.capture_thumbnails(), seen, "thumbnails for the faces seen ({:?})", g.face_progress);
+            assert!(seen.iter().filter(|s| **s).count() >= 4, "{:?}", g.face_progress);
         }
     }
     assert!(waiting && progress);

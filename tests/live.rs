@@ -162,24 +162,8 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
 /// and the exported files present. CI installs Xvfb (`.ci/run`).
 #[test]
 fn window_runs_a_scripted_capture_composite_export_session_under_xvfb() {
-    // -displayfd: Xvfb picks a free display and writes its number once it accepts connections,
-    // so the test waits for exactly that (a generous deadline guards against a hung server).
-    let mut xvfb = std::process::Command::new("Xvfb")
-        .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .expect("Xvfb (apt-get install xvfb; .ci/run installs it)");
-    let stdout = xvfb.stdout.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line);
-        let _ = tx.send(line);
-    });
-    let number = rx.recv_timeout(std::time::Duration::from_secs(60)).expect("Xvfb did not report a display within 60 s");
-    let number: u32 = number.trim().parse().unwrap_or_else(|_| panic!("Xvfb exited before it was ready (it printed {number:?})"));
-    let display = format!(":{number}");
+    let xvfb = common::xvfb::Xvfb::start(640, 480);
+    let display = xvfb.display.clone();
     let env = data("cubemaps/humus_Park2_512");
     let model = data("meshes/stanford-bunny.obj");
     let dir = tempdir("live", "window");
@@ -191,8 +175,7 @@ fn window_runs_a_scripted_capture_composite_export_session_under_xvfb() {
         .args(["--script", "capture,composite,shutter,quit"])
         .output()
         .unwrap();
-    let _ = xvfb.kill();
-    let _ = xvfb.wait();
+    drop(xvfb);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "previz live failed under Xvfb: {stderr}");
     assert!(!stderr.contains("GPU error") && !stderr.contains("panicked"), "{stderr}");
@@ -233,4 +216,176 @@ fn a_map_that_is_not_a_capture_of_here_and_now_lights_with_its_own_sun() {
         }
     }
     assert!(params.lighting.sunlight > 0.0);
+}
+
+/// A synthetic world for the folded environment: every direction East of the meridian plane
+/// (x > 0) red, West blue, both below 1 (an 8-bit map without a sun: ambient and reflections
+/// only).
+fn east_red_west_blue(size: u32) -> previz::scene::CubeMap {
+    use previz::scene::cubemap::face_uv_to_cube_dir;
+    let faces = std::array::from_fn(|layer| {
+        (0..size * size)
+            .map(|i| {
+                let (x, y) = ((i % size) as f32 + 0.5, (i / size) as f32 + 0.5);
+                let d = previz::scene::cube_to_enu(face_uv_to_cube_dir(layer, x / size as f32, y / size as f32));
+                if d.x > 0.0 { [0.8, 0.08, 0.08] } else { [0.08, 0.08, 0.8] }
+            })
+            .collect()
+    });
+    previz::scene::CubeMap { size, faces }
+}
+
+/// The camera's truth: heading 90° (East, at the model) for 3 s, a half turn to 270° in 1 s,
+/// West for 3 s; pitch −5°.
+fn east_then_west() -> previz::pose::trace::TruthTrace {
+    use previz::pose::frames::from_heading_pitch_roll;
+    let samples = (0..=700)
+        .map(|i| {
+            let t = i as f64 / 100.0;
+            let f = ((t - 3.0) / 1.0).clamp(0.0, 1.0);
+            let heading = 90.0 + 180.0 * f * f * (3.0 - 2.0 * f);
+            let q = from_heading_pitch_roll(heading.to_radians(), (-5f64).to_radians(), 0.0);
+            previz::pose::trace::TruthSample { t, q, tap: false }
+        })
+        .collect();
+    previz::pose::trace::TruthTrace::new(samples).unwrap()
+}
+
+/// Mean red and blue of the model layer where it covers the pixel (premultiplied: divided by
+/// the coverage), and the pixels covered.
+fn model_red_blue(session: &mut LiveSession) -> (f64, f64, usize) {
+    let m = session.render_layer(gpu(), Layer::Model).unwrap();
+    let (mut r, mut b, mut n) = (0.0, 0.0, 0usize);
+    for p in m.rgba.chunks_exact(4).filter(|p| p[3] == 255) {
+        r += f64::from(p[0]);
+        b += f64::from(p[2]);
+        n += 1;
+    }
+    (r / n.max(1) as f64, b / n.max(1) as f64, n)
+}
+
+/// Before any capture the app lights the model with the camera frame folded into a cube map on
+/// the GPU (seed 004): the model's reflections and ambient follow what the camera sees, refreshed
+/// as it turns, where the map lights the model's camera-facing side from behind the camera; the
+/// refreshes allocate nothing; a capture replaces the fold.
+#[test]
+fn the_folded_camera_frame_lights_the_model_and_follows_the_camera() {
+    let toml = "width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nmethod = \"sh9-ggx\"\n\
+                [camera]\nheading = 90.0\npitch = -5.0\n[material]\nspecular = 1.0\n";
+    let s = scene(toml);
+    let model = load_inputs(&s, false).unwrap().model;
+    let env = Arc::new(east_red_west_blue(32));
+    let mut cfg = config("2026-06-21T12:00:00Z", NoiseLevel::None);
+    cfg.frame_hz = 15.0;
+    cfg.duration_s = 7.0;
+    let session_with = |fold: bool| {
+        let sources = previz::live::Sources::simulated_along(env.clone(), &s, 1.0, &cfg, east_then_west()).unwrap();
+        let mut session = LiveSession::new(gpu(), &env, &model, &s, cfg.clone(), sources).unwrap();
+        if fold {
+            session.fold_camera_into_environment();
+        }
+        session
+    };
+    // Runs the session through the path: the model's colour looking East at 2.9 s, and looking
+    // West at the end with the model dragged in front of the camera (half a turn about the
+    // camera's vertical).
+    let run = |session: &mut LiveSession| {
+        let mut east = None;
+        let mut refreshes = Vec::new();
+        while let Some(f) = session.advance(gpu()).unwrap() {
+            // Each due fold applied before the next frame (the app lets it finish on its own).
+            session.finish_fold(gpu()).unwrap();
+            refreshes.push((f.t, session.fold_refreshes().map(|r| r.0)));
+            if east.is_none() && f.t >= 2.9 {
+                east = Some(model_red_blue(session));
+            }
+        }
+        let p = &mut session.params_mut().placement;
+        let camera = session_camera(&s);
+        p.position = glam::Vec3::new(2.0 * camera.x - p.position.x, 2.0 * camera.y - p.position.y, p.position.z);
+        (east.unwrap(), model_red_blue(session), refreshes)
+    };
+    fn session_camera(s: &previz::setup::scene_file::Scene) -> glam::Vec3 {
+        glam::Vec3::new(0.0, 0.0, s.camera.height as f32)
+    }
+
+    let mut folded = session_with(true);
+    let ((er, eb, en), (wr, wb, wn), refreshes) = run(&mut folded);
+    assert!(en > 300 && wn > 300, "the model covers {en} / {wn} pixels");
+    // Looking East the camera sees only red: the fold lights the model red; West: blue.
+    assert!(er > 2.0 * eb, "looking East (red) the folded frame lights the model red: r {er:.1} b {eb:.1}");
+    assert!(wb > 2.0 * wr, "looking West (blue) the folded frame lights the model blue: r {wr:.1} b {wb:.1}");
+    // Folded at the first pose, then as the camera turned (10° steps through the half turn) and
+    // every 2 s while it held still; never per frame while it held still.
+    let count = |from: f64, to: f64| {
+        let at = |t: f64| refreshes.iter().rfind(|(ft, _)| *ft <= t).and_then(|r| r.1).unwrap_or(0);
+        at(to) - at(from)
+    };
+    assert!(count(3.0, 4.1) >= 8, "the half turn refreshed the fold {} times", count(3.0, 4.1));
+    assert!(count(4.5, 6.5) <= 2, "holding still refreshed the fold {} times in 2 s", count(4.5, 6.5));
+
+    // The map instead: its light on the model's camera-facing side comes from behind the
+    // camera (West when looking East), whatever the camera sees.
+    let mut mapped = session_with(false);
+    let ((mer, meb, _), (mwr, mwb, _), _) = run(&mut mapped);
+    assert!(meb > mer && mwr > mwb, "map-lit: East r {mer:.1} b {meb:.1}, West r {mwr:.1} b {mwb:.1}");
+
+    // A capture replaces the fold for good: the environment is the capture's from then on.
+    let grey = previz::scene::CubeMap { size: 32, faces: std::array::from_fn(|_| vec![[0.3; 3]; 32 * 32]) };
+    folded.set_environment(gpu(), &grey, std::path::Path::new("capture"), 0.0).unwrap();
+    assert_eq!(folded.fold_refreshes(), None);
+    let (r, b, _) = model_red_blue(&mut folded);
+    assert!((r - b).abs() < 0.1 * r.max(b), "grey capture: r {r:.1} b {b:.1}");
+}
+
+/// The model stands in front of where the phone points when the session starts, not where the
+/// scene's camera heading (90°) would put it: the virtual phone held at two start headings.
+#[test]
+fn the_model_is_placed_where_the_phone_points_at_start() {
+    let s = scene(SCENE);
+    let inputs = load_inputs(&s, false).unwrap();
+    let env = Arc::new(inputs.env);
+    let mut cfg = config("2026-06-21T12:00:00Z", NoiseLevel::None);
+    cfg.duration_s = 2.0;
+    let scene_placement = previz::setup::camera_and_placement(&s, {
+        let (c, _) = previz::setup::compositor_for(gpu(), &s, &env, &inputs.model).unwrap();
+        c.model_bounds().unwrap()
+    })
+    .1;
+    let bearing = |p: glam::Vec3| f64::from(p.x.atan2(p.y).to_degrees()).rem_euclid(360.0);
+    assert!((bearing(scene_placement.position) - 90.0).abs() < 0.5, "the scene alone places it East");
+    for start_heading in [20.0, 215.0] {
+        let truth = look_around_path(start_heading, s.camera.pitch, cfg.duration_s, cfg.seed).unwrap();
+        let sources = previz::live::Sources::simulated_along(env.clone(), &s, exposure(&s, &env), &cfg, truth).unwrap();
+        let mut session = LiveSession::new(gpu(), &env, &inputs.model, &s, cfg.clone(), sources).unwrap();
+        assert!(!session.placed());
+        let first = loop {
+            let f = session.advance(gpu()).unwrap().expect("a frame");
+            if let Some(pose) = f.pose {
+                break pose;
+            }
+        };
+        assert!(session.placed());
+        let placed = session.params().placement;
+        // In front of the first pose's heading (the filter's first attitude, within a few
+        // degrees of the phone's), at the scene's distance and scale.
+        let heading = previz::pose::frames::heading_pitch_roll(first.q.as_dquat()).heading.to_degrees();
+        let off = (bearing(placed.position) - heading + 540.0).rem_euclid(360.0) - 180.0;
+        assert!(off.abs() < 1.0, "start {start_heading}°: model at bearing {:.1}°, pose heading {heading:.1}°", bearing(placed.position));
+        let off_start = (bearing(placed.position) - start_heading + 540.0).rem_euclid(360.0) - 180.0;
+        assert!(off_start.abs() < 5.0, "start {start_heading}°: model at bearing {:.1}°", bearing(placed.position));
+        let horizontal = |p: glam::Vec3| glam::Vec2::new(p.x, p.y).length();
+        assert!((horizontal(placed.position) - horizontal(scene_placement.position)).abs() < 0.05 * horizontal(scene_placement.position));
+        assert_eq!(placed.scale, scene_placement.scale);
+        // And it is on screen, near the middle: the model layer covers the centre column.
+        let m = session.render_layer(gpu(), Layer::Model).unwrap();
+        let (w, h) = (m.width as usize, m.height as usize);
+        let covered = (0..h).filter(|&y| m.rgba[4 * (y * w + w / 2) + 3] > 0).count();
+        assert!(covered > h / 10, "start {start_heading}°: the model covers {covered} rows of the centre column");
+        // Later poses do not move it.
+        for _ in 0..10 {
+            session.advance(gpu()).unwrap().expect("a frame");
+        }
+        assert_eq!(session.params().placement, placed);
+    }
 }

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod xvfb;
 
 use previz::gpu::Gpu;
 use previz::render::{Layer, Rendered};

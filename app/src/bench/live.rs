@@ -12,17 +12,21 @@ use std::sync::Arc;
 
 /// The stages, in the order of a frame, then the floor: the same frame's background alone
 /// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
-pub const STAGES: [&str; 6] = [
+pub const STAGES: [&str; 8] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
     "compositor (GPU)",
     "whole frame incl. readback (wall)",
     "floor: background only (GPU)",
+    "environment fold: frame's thread (fold, readback, writes; when applied)",
+    "environment fold: its own thread (prefilter, priors, SH9)",
 ];
-/// Index of the compositor's row in [`STAGES`], and of the floor's.
+/// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
 pub const FLOOR: usize = 5;
+pub const FOLD: usize = 6;
+pub const FOLD_THREAD: usize = 7;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug)]
@@ -33,7 +37,9 @@ pub struct StageRow {
 }
 
 /// Run `warmup` + `frames` frames of a simulated session (Bristol, 2026-06-21 15:00 +01:00,
-/// 30 frames per second) and time each stage of the measured ones.
+/// 30 frames per second) and time each stage of the measured ones. The session folds the camera
+/// frame into its environment as the app does before a capture; the fold's row is over the
+/// frames that refreshed it (`live::FOLD_REFRESH_DEG`, `live::FOLD_REFRESH_S`).
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
@@ -52,11 +58,14 @@ pub fn run(
         seed: 1,
     };
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
+    session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 6] = Default::default();
+    let mut samples: [Vec<f64>; 8] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
+        let folds = session.fold_refreshes().map_or(0, |r| r.0);
         let f = session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
+        let fold = session.fold_refreshes().filter(|r| r.0 > folds);
         let r = session.render(gpu)?;
         let wall = t.elapsed().as_secs_f64() * 1e3;
         let floor = session.render_layer(gpu, crate::render::Layer::Background)?;
@@ -64,6 +73,10 @@ pub fn run(
             let gpu_ms = |r: &crate::render::Rendered| r.timings.gpu_ms.unwrap_or(f64::NAN);
             for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), wall, gpu_ms(&floor)]) {
                 v.push(x);
+            }
+            if let Some((_, frame_ms, cpu_ms)) = fold {
+                samples[FOLD].push(frame_ms);
+                samples[FOLD_THREAD].push(cpu_ms);
             }
         }
         progress.inc(1);

@@ -188,6 +188,8 @@ pub struct FrameFold {
     sampler: wgpu::Sampler,
     uniforms: wgpu::Buffer,
     frame: Option<(wgpu::Texture, wgpu::BindGroup)>,
+    /// A GPU image folded in place of `frame` ([`FrameFold::render_view`]) and its bind group.
+    source: Option<(wgpu::TextureView, wgpu::BindGroup)>,
     cube: wgpu::Texture,
     cube_view: wgpu::TextureView,
     layer_views: Vec<wgpu::TextureView>,
@@ -236,7 +238,7 @@ impl FrameFold {
                 })
                 .collect();
             let readback = Readback::for_texture(device, "frame fold readback", &cube)?;
-            Ok(FrameFold { pipeline, layout, sampler, uniforms, frame: None, cube, cube_view, layer_views, readback, size })
+            Ok(FrameFold { pipeline, layout, sampler, uniforms, frame: None, source: None, cube, cube_view, layer_views, readback, size })
         })
     }
 
@@ -284,10 +286,42 @@ impl FrameFold {
                 let bind = build::bind_group(device, "frame fold", &self.layout, &resources);
                 self.frame = Some((texture, bind));
             }
-            let Some((texture, bind)) = &self.frame else { bail!("frame-fold input texture missing") };
+            let Some((texture, _)) = &self.frame else { bail!("frame-fold input texture missing") };
             build::write_layer(&gpu.queue, texture, 0, &frame.pixels);
+            Ok(())
+        })?;
+        let Some((_, bind)) = &self.frame else { bail!("frame-fold input texture missing") };
+        self.draw(gpu, bind, pose, bbox)
+    }
+
+    /// Fold the image already on the GPU in `source` (an `Rgba8UnormSrgb` view: the
+    /// compositor's background, i.e. the camera frame whether it came as an image or as YUV
+    /// converted on the GPU), seen at `pose`, around `bbox`. The bind group is made when the
+    /// view differs from the last one given; otherwise nothing is allocated.
+    pub fn render_view(&mut self, gpu: &Gpu, source: &wgpu::TextureView, pose: Quat, bbox: ScreenBox) -> Result<()> {
+        if !pose.is_finite() || (pose.length() - 1.0).abs() > 1e-3 {
+            bail!("frame-fold pose {pose:?} is not a unit quaternion");
+        }
+        if self.source.as_ref().is_none_or(|(view, _)| view != source) {
+            let bind = gpu.checked("the frame fold", || {
+                let resources = [
+                    self.uniforms.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(source),
+                    wgpu::BindingResource::Sampler(&self.sampler),
+                ];
+                Ok(build::bind_group(&gpu.device, "frame fold source", &self.layout, &resources))
+            })?;
+            self.source = Some((source.clone(), bind));
+        }
+        let Some((_, bind)) = &self.source else { bail!("frame-fold source missing") };
+        self.draw(gpu, bind, pose, bbox)
+    }
+
+    /// Write the uniforms and draw the six faces from the image bound in `bind`.
+    fn draw(&self, gpu: &Gpu, bind: &wgpu::BindGroup, pose: Quat, bbox: ScreenBox) -> Result<()> {
+        gpu.checked("the frame fold", || {
             gpu.queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&FoldUniforms::new(pose.normalize(), bbox, self.size)));
-            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold") });
+            let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame fold") });
             for (layer, view) in self.layer_views.iter().enumerate() {
                 let mut pass = build::clear_pass(&mut encoder, "frame fold face", view, None);
                 pass.set_pipeline(&self.pipeline);

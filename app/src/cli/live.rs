@@ -107,6 +107,9 @@ fn headless(
 ) -> Result<()> {
     let gpu = Gpu::headless()?;
     let mut session = LiveSession::simulated(&gpu, env, model, scene, cfg)?;
+    // As the app: the folded camera frame lights the model until a capture exists; each due
+    // fold is applied before its frame is written, so the frames repeat run to run.
+    session.fold_camera_into_environment();
     let bar = indicatif::ProgressBar::new(n as u64).with_style(
         indicatif::ProgressStyle::with_template("live {bar:40} {pos}/{len} frames")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -114,6 +117,7 @@ fn headless(
     let mut written = 0;
     for i in 0..n {
         let Some(frame) = session.advance(&gpu)? else { break };
+        session.finish_fold(&gpu)?;
         let image = session.render(&gpu)?;
         let path = dir.join(format!("frame_{i:04}.png"));
         crate::output::write_png_rgba8(&path, image.width, image.height, &image.rgba)

@@ -79,9 +79,23 @@ pub const SHOT_FEEDBACK_S: f64 = 0.6;
 /// Side of the faces of a capture taken in the app (pixels).
 pub const CAPTURE_FACE_SIZE: u32 = 256;
 
+/// [`CaptureRun::thumb_sources`] of a thumbnail showing the assembled face.
+const ASSEMBLED: usize = usize::MAX;
+
+/// Of the shots taken (target index, camera → world orientation), the one whose view axis is
+/// closest to `centre` (a face's centre direction, world): the shot a face's thumbnail shows
+/// mid-capture. None when no shot is taken.
+fn thumbnail_shot(centre: glam::Vec3, taken: &[(usize, glam::Quat)]) -> Option<usize> {
+    let axis = |q: glam::Quat| (q * glam::Vec3::NEG_Z).dot(centre);
+    taken.iter().max_by(|a, b| axis(a.1).total_cmp(&axis(b.1))).map(|&(k, _)| k)
+}
+
 struct CaptureRun {
     assistant: Assistant,
     thumbs: [Option<egui::TextureHandle>; 6],
+    /// What each thumbnail shows: the index of a shot, [`ASSEMBLED`] (the assembled face), or
+    /// nothing yet.
+    thumb_sources: [Option<usize>; 6],
     /// The last shot's target name and camera time.
     last_shot: Option<(String, f64)>,
     /// The user tapped; used at the next frame with a pose.
@@ -166,6 +180,8 @@ impl App {
     /// The app over `session`, in composite mode; the shutter and captures save into
     /// `export_dir`.
     pub fn new(mut session: LiveSession, export_dir: PathBuf) -> App {
+        // Until a capture exists the camera frame, folded into a cube map, lights the model.
+        session.fold_camera_into_environment();
         let controls = Controls::from_params(session.params());
         session.set_controls(controls);
         let placement = session.params().placement;
@@ -272,6 +288,12 @@ impl App {
         self.captured.as_deref()
     }
 
+    /// Which faces (in `Face::ALL` order) the capture screen showed a thumbnail of at its last
+    /// UI pass (all false outside capture mode).
+    pub fn capture_thumbnails(&self) -> [bool; 6] {
+        self.capture.as_ref().map_or([false; 6], |run| run.thumbs.each_ref().map(Option::is_some))
+    }
+
     /// The capture assistant's guidance while capturing.
     pub fn guidance(&self) -> Option<crate::capture::assistant::Guidance> {
         self.capture.as_ref().map(|c| c.assistant.guidance())
@@ -289,8 +311,15 @@ impl App {
         let mut cfg = AssistantConfig::new(CaptureMode::Stitch, camera);
         cfg.face_size = CAPTURE_FACE_SIZE;
         let assistant = Assistant::new(cfg)?;
-        self.capture =
-            Some(CaptureRun { assistant, thumbs: Default::default(), last_shot: None, tap: false, saved: None, assembled: None });
+        self.capture = Some(CaptureRun {
+            assistant,
+            thumbs: Default::default(),
+            thumb_sources: [None; 6],
+            last_shot: None,
+            tap: false,
+            saved: None,
+            assembled: None,
+        });
         self.session.set_show_model(false);
         Ok(())
     }
@@ -361,7 +390,12 @@ impl App {
             return Ok(true);
         }
         self.script_step(gpu)?;
+        let placed = self.session.placed();
         let Some(f) = self.session.advance(gpu)? else { return Ok(false) };
+        // The model was just placed in front of where the phone points: Reset goes back there.
+        if !placed && self.session.placed() {
+            self.initial.1 = self.session.params().placement;
+        }
         self.last = Some(f);
         self.capture_frame(gpu, &f)?;
         self.session.draw(gpu)?;
@@ -444,6 +478,7 @@ impl App {
                 .collect(),
         );
         run.thumbs = Default::default();
+        run.thumb_sources = [None; 6];
         let env = capture.to_cube_map();
         self.session.set_environment(gpu, &env, &dir, capture.meta.reference_heading_deg)?;
         let daylight = self.session.params().lighting.daylight;
@@ -571,27 +606,34 @@ impl App {
     fn capture_ui(&mut self, ctx: &egui::Context) {
         let now = self.last.map_or(0.0, |f| f.t);
         let Some(run) = &mut self.capture else { return };
-        // Thumbnails (loaded once each): while capturing, a shot of each face (its primary
-        // target's, else the first taken of that face: stitch mode may never take a face's
-        // primary target); once finished, the assembled faces.
+        // Thumbnails: while capturing, every face some shot has seen shows the taken shot that
+        // looks closest to the face's centre (`thumbnail_shot`: stitch mode sees a face through
+        // the extra views long before its centre target, which it may never take), loaded again
+        // when a closer shot comes; once finished, the assembled faces.
+        let g = run.assistant.guidance();
         let targets = run.assistant.targets();
+        let taken: Vec<(usize, glam::Quat)> = (0..targets.len()).filter_map(|k| run.assistant.shot(k).map(|shot| (k, shot.pose))).collect();
         for (i, face) in Face::ALL.iter().enumerate() {
-            if run.thumbs[i].is_some() {
+            let source = match &run.assembled {
+                Some(_) => Some(ASSEMBLED),
+                None => {
+                    let seen = g.face_progress[i] > 0.0 || taken.iter().any(|&(k, _)| targets[k].face == *face);
+                    let centre = |href: f64| crate::capture::targets::Target::for_face(*face).direction(href).as_vec3();
+                    let centre = run.assistant.reference_heading_deg().map(centre);
+                    centre.filter(|_| seen).and_then(|c| thumbnail_shot(c, &taken))
+                }
+            };
+            if source == run.thumb_sources[i] {
                 continue;
             }
-            let image = match &run.assembled {
-                Some(faces) => faces.get(i),
-                None => {
-                    let of_face = |primary: bool| {
-                        (0..targets.len())
-                            .filter(|&k| targets[k].face == *face && (targets[k].primary || !primary))
-                            .find_map(|k| run.assistant.shot(k))
-                    };
-                    of_face(true).or_else(|| of_face(false)).map(|shot| shot.image.as_ref())
-                }
+            let image = match (source, &run.assembled) {
+                (Some(ASSEMBLED), Some(faces)) => faces.get(i),
+                (Some(k), _) => run.assistant.shot(k).map(|shot| shot.image.as_ref()),
+                (None, _) => None,
             };
             let Some(image) = image else { continue };
             run.thumbs[i] = Some(ctx.load_texture(face.name(), thumbnail(image, THUMB as usize), egui::TextureOptions::LINEAR));
+            run.thumb_sources[i] = source;
         }
         let g = run.assistant.guidance();
         if run.saved.is_some() {
@@ -831,5 +873,22 @@ mod tests {
         );
         let e = Step::parse_list("capture,jump").unwrap_err().to_string();
         assert!(e.contains("--script") && e.contains("jump"), "{e}");
+    }
+
+    #[test]
+    fn a_face_thumbnail_shows_the_shot_looking_closest_to_its_centre() {
+        use crate::pose::frames::from_heading_pitch_roll;
+        let look = |h: f64, p: f64| from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0).as_quat();
+        // Shots at headings 0 (North), 45 and 100 degrees, the last looking 30 degrees up.
+        let taken = [(0, look(0.0, 0.0)), (3, look(45.0, 0.0)), (7, look(100.0, 30.0))];
+        // East's centre (+x): the 100-degree shot is 31.5 deg off (cos 10 deg x cos 30 deg = 0.853),
+        // the 45-degree one 45 deg (0.707).
+        assert_eq!(thumbnail_shot(glam::Vec3::X, &taken), Some(7));
+        assert_eq!(thumbnail_shot(glam::Vec3::Y, &taken), Some(0));
+        // Straight up: the shot looking 30 degrees up.
+        assert_eq!(thumbnail_shot(glam::Vec3::Z, &taken), Some(7));
+        // North-east (45 deg): the 45-degree shot exactly.
+        assert_eq!(thumbnail_shot(glam::Vec3::new(1.0, 1.0, 0.0).normalize(), &taken), Some(3));
+        assert_eq!(thumbnail_shot(glam::Vec3::X, &[]), None);
     }
 }

@@ -283,6 +283,51 @@ pub struct LiveSession {
     show_model: bool,
     /// The time of the previous frame (the simulated user's taps between two frames).
     last_t: Option<f64>,
+    /// The camera frame folded into the environment, until a capture replaces it (None: the
+    /// scene's map lights the model).
+    fold: Option<FoldedEnvironment>,
+    /// The model is still where the scene's camera heading and pitch put it, to be placed in
+    /// front of where the phone points at its first pose (the scene gives no position).
+    place_at_first_pose: bool,
+}
+
+/// Face size (texels) of the environment folded from the camera frame.
+pub const FOLD_SIZE: u32 = 64;
+/// The folded environment is refreshed when the camera has turned this far since the last fold
+/// (degrees)...
+pub const FOLD_REFRESH_DEG: f64 = 10.0;
+/// ... or this long after it (seconds): the scene in front of the camera changes too.
+pub const FOLD_REFRESH_S: f64 = 2.0;
+
+/// The environment folded from the live camera frame before any capture exists (seed 004,
+/// `capture::frame_fold`): the fold runs on the GPU from the compositor's background (the camera
+/// image, whether it came as an image or as YUV converted on the GPU) into a cube texture made
+/// once; the 64-texel map is read back, its GGX-prefiltered levels, priors and the sky's SH9 are
+/// computed on a thread of their own, and a later frame writes them into the compositor's
+/// environment textures in place (`Compositor::set_prepared_environment` at the same face size
+/// allocates nothing).
+struct FoldedEnvironment {
+    fold: Option<crate::capture::frame_fold::FrameFold>,
+    /// Estimated camera orientation and time of the last fold.
+    last: Option<(glam::Quat, f64)>,
+    /// Folds applied so far.
+    refreshes: usize,
+    /// Milliseconds the last refresh took on the frame's thread (fold and readback, then the
+    /// texture writes) and on its own thread (prefilter, priors, light).
+    frame_ms: f64,
+    cpu_ms: f64,
+    /// The CPU half of the latest fold, running.
+    pending: Option<std::thread::JoinHandle<Result<PreparedFold>>>,
+}
+
+/// A folded map with what the frame needs from it, computed off the frame's thread.
+struct PreparedFold {
+    cube: CubeMap,
+    prepared: crate::render::environment::Prepared,
+    sky_sh: [[f32; 3]; 9],
+    cpu_ms: f64,
+    /// Milliseconds the fold and its readback took on the frame's thread.
+    fold_ms: f64,
 }
 
 impl LiveSession {
@@ -319,6 +364,8 @@ impl LiveSession {
             suspended: false,
             show_model: true,
             last_t: None,
+            fold: None,
+            place_at_first_pose: scene.placement.position.is_none(),
         })
     }
 
@@ -385,6 +432,9 @@ impl LiveSession {
         let sunlight = self.full_sunlight * crate::sun::twilight::sunlight_factor_toward(sun_dir);
         if let Some(p) = pose {
             self.params.camera.pose = p.q;
+            if std::mem::take(&mut self.place_at_first_pose) {
+                self.place_in_front(p.q)?;
+            }
         }
         self.params.lighting.sun_dir = sun_dir;
         self.params.lighting.sunlight = sunlight;
@@ -400,6 +450,9 @@ impl LiveSession {
         (l.shadow_opacity, l.sky_occlusion) =
             crate::setup::light::ground_strengths(l.sunlight, l.sun_dir, daylight * unit.ground_sky, multiplier);
         self.layer = if pose.is_some() && self.show_model { Layer::Composite } else { Layer::Background };
+        if pose.is_some() {
+            self.refresh_fold(gpu, t)?;
+        }
         let user_tapped = match &self.sources.truth {
             Some(truth) => truth.samples().iter().any(|s| s.tap && s.t <= t && previous.is_none_or(|p| s.t > p)),
             None => false,
@@ -547,6 +600,8 @@ impl LiveSession {
         scene.env.exposure = None;
         let exposure = exposure(&scene, env);
         self.compositor.set_environment(gpu, env, exposure, (heading_deg as f32).to_radians())?;
+        // The capture replaces the environment folded from the camera frame for good.
+        self.fold = None;
         let priors = self.compositor.priors().context("environment priors")?;
         let (unit, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians());
         let light = crate::setup::lighting(&scene, &unit);
@@ -568,14 +623,122 @@ impl LiveSession {
         Ok(())
     }
 
-    /// Replace the model (a bundled one or a file the user opened), placed as the scene places
-    /// a model of its size. On an error the current model stays.
+    /// Place the model as the scene's automatic placement does (`placement.size`, `.fill`), in
+    /// front of a camera with orientation `q` (camera → world) instead of the scene's camera
+    /// heading and pitch: where the phone points when the session starts. Turn and scale stay.
+    fn place_in_front(&mut self, q: glam::Quat) -> Result<()> {
+        let bounds = self.compositor.model_bounds().context("model bounds")?;
+        let (c, p) = (&self.params.camera, &self.scene.placement);
+        let auto = crate::render::view::auto_placement(bounds, q, c.position, c.vfov, p.size as f32, p.fill as f32);
+        self.params.placement.position = auto.position;
+        Ok(())
+    }
+
+    /// Whether the model has been placed in front of the first pose (or the scene placed it):
+    /// from then on its placement is the user's to change.
+    pub fn placed(&self) -> bool {
+        !self.place_at_first_pose
+    }
+
+    /// Light the model with the live camera frame folded into a cube map (reflections, the sky's
+    /// SH9 ambient, priors) until a capture is set ([`LiveSession::set_environment`]): folded at
+    /// the next frame with a pose, then again whenever the camera has turned
+    /// [`FOLD_REFRESH_DEG`] or [`FOLD_REFRESH_S`] has passed. The sun (direction, intensity,
+    /// colour, shadows) and the ambient level (DL) stay the ones measured in the scene's map: a
+    /// camera frame rarely holds the sun, and then clipped. The fold pass is made at the first
+    /// fold, once. Nothing changes when the scene's environment is already a capture of here
+    /// and now (`env.captured_here`).
+    pub fn fold_camera_into_environment(&mut self) {
+        if self.fold.is_none() && !self.scene.env.captured_here {
+            self.fold = Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, frame_ms: 0.0, cpu_ms: 0.0, pending: None });
+        }
+    }
+
+    /// How many folds of the camera frame have been applied to the environment, and the
+    /// milliseconds the last one took on the frame's thread (fold, readback, texture writes) and
+    /// on its own (prefilter, priors, light). None when the fold is off: before
+    /// [`LiveSession::fold_camera_into_environment`] or after a capture replaced it.
+    pub fn fold_refreshes(&self) -> Option<(usize, f64, f64)> {
+        self.fold.as_ref().map(|f| (f.refreshes, f.frame_ms, f.cpu_ms))
+    }
+
+    /// Wait for a fold whose CPU half is still running and apply it now (tests and benchmarks
+    /// that want each due fold applied before the next frame; the app lets it finish on its own).
+    pub fn finish_fold(&mut self, gpu: &Gpu) -> Result<()> {
+        self.apply_fold(gpu, true)
+    }
+
+    /// Apply the pending fold if its CPU half is done (`wait`: wait for it).
+    fn apply_fold(&mut self, gpu: &Gpu, wait: bool) -> Result<()> {
+        let Some(state) = &mut self.fold else { return Ok(()) };
+        if !state.pending.as_ref().is_some_and(|h| wait || h.is_finished()) {
+            return Ok(());
+        }
+        let Some(handle) = state.pending.take() else { return Ok(()) };
+        let done = handle.join().map_err(|_| anyhow::anyhow!("the folded environment's thread panicked"))??;
+        let started = std::time::Instant::now();
+        self.compositor.set_prepared_environment(gpu, &done.cube, done.prepared)?;
+        // The ambient's colour and direction from the fold; its level (DL) stays the map's.
+        self.params.lighting.sky_sh = done.sky_sh;
+        self.unit_light.sky_sh = done.sky_sh;
+        state.refreshes += 1;
+        state.frame_ms = done.fold_ms + started.elapsed().as_secs_f64() * 1e3;
+        state.cpu_ms = done.cpu_ms;
+        Ok(())
+    }
+
+    /// Apply a finished fold; fold the current camera frame when one is due (see
+    /// [`LiveSession::fold_camera_into_environment`]) and none is running.
+    fn refresh_fold(&mut self, gpu: &Gpu, t: f64) -> Result<()> {
+        self.apply_fold(gpu, false)?;
+        let Some(state) = &mut self.fold else { return Ok(()) };
+        let pose = self.params.camera.pose;
+        let due = state.last.is_none_or(|(q, t0)| {
+            crate::pose::frames::angle_between_f32(q, pose).to_degrees() >= FOLD_REFRESH_DEG || t - t0 >= FOLD_REFRESH_S
+        });
+        if !due || state.pending.is_some() {
+            return Ok(());
+        }
+        let started = std::time::Instant::now();
+        let bounds = self.compositor.model_bounds().context("model bounds")?;
+        let (w, h) = self.compositor.size();
+        let c = &self.params.camera;
+        let view_proj = crate::render::view::projection(c.vfov, w as f32 / h as f32, 0.01, 1e4)
+            * crate::render::view::view_matrix(c.pose, c.position)
+            * crate::render::view::model_matrix(bounds, &self.params.placement);
+        let bbox = crate::capture::frame_fold::screen_bbox(view_proj, bounds);
+        let fold = match &mut state.fold {
+            Some(fold) => fold,
+            None => state.fold.insert(crate::capture::frame_fold::FrameFold::new(gpu, FOLD_SIZE)?),
+        };
+        fold.render_view(gpu, self.compositor.background_view(), pose, bbox)?;
+        let cube = fold.read_back(gpu)?;
+        let fold_ms = started.elapsed().as_secs_f64() * 1e3;
+        state.last = Some((pose, t));
+        // The folded frame is in the renderer's linear light already (the camera image is the
+        // background the model is drawn over): exposure 1, indexed by world directions.
+        let scene = self.scene.clone();
+        state.pending = Some(std::thread::spawn(move || {
+            let started = std::time::Instant::now();
+            let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;
+            let (unit, _) = environment_light(&scene, &cube, &prepared.env.priors, 1.0, 0.0);
+            Ok(PreparedFold { cube, prepared, sky_sh: unit.sky_sh, cpu_ms: started.elapsed().as_secs_f64() * 1e3, fold_ms })
+        }));
+        Ok(())
+    }
+
+    /// Replace the model (a bundled one or a file the user opened), scaled as the scene scales a
+    /// model of its size, standing where the current one stands (once placed: before the first
+    /// pose it is placed then) with its turn. On an error the current model stays.
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model, path: Option<&std::path::Path>) -> Result<()> {
         self.compositor.set_model(gpu, model)?;
         let bounds = self.compositor.model_bounds().context("model bounds")?;
         self.scene.model = path.map(std::path::Path::to_path_buf);
         let mut placement = camera_and_placement(&self.scene, bounds).1;
         placement.rotation = self.params.placement.rotation;
+        if self.placed() {
+            placement.position = self.params.placement.position;
+        }
         self.params.placement = placement;
         Ok(())
     }

@@ -33,12 +33,15 @@ pub fn run(title: &str, size: (u32, u32), make: MakeApp) -> Result<()> {
 /// Run the app in a window of `event_loop` (the platform shells build their own loop: the
 /// Android one needs the `AndroidApp`).
 pub fn run_app_on(event_loop: EventLoop<()>, title: &str, size: (u32, u32), make: MakeApp) -> Result<()> {
-    let mut shell = Shell { title: title.to_string(), size, make: Some(make), state: None, error: None };
+    let mut shell = Shell::new(title, size, make);
     event_loop.run_app(&mut shell).context("the window's event loop failed")?;
-    shell.error.map_or(Ok(()), Err)
+    shell.finish()
 }
 
-struct Shell {
+/// The winit application: what the event loop calls ([`ApplicationHandler`]). Public so that a
+/// test can drive it inside its own handler (tests/app_window.rs sends it the `suspended` and
+/// `resumed` events a phone would, under Xvfb) and read what it did.
+pub struct Shell {
     title: String,
     size: (u32, u32),
     make: Option<MakeApp>,
@@ -57,10 +60,44 @@ struct State {
     renderer: egui_wgpu::Renderer,
     frame_texture: egui::TextureId,
     frame_times: std::collections::VecDeque<Instant>,
-    presented: bool,
+    /// Frames presented so far.
+    presented: usize,
 }
 
 impl Shell {
+    /// The shell of a window titled `title`, `size` pixels, whose app `make` builds once the
+    /// window and its GPU device exist (at the first `resumed`).
+    pub fn new(title: &str, size: (u32, u32), make: MakeApp) -> Shell {
+        Shell { title: title.to_string(), size, make: Some(make), state: None, error: None }
+    }
+
+    /// The first error that ended the event loop, if any.
+    pub fn finish(self) -> Result<()> {
+        self.error.map_or(Ok(()), Err)
+    }
+
+    /// The app, once the window exists.
+    pub fn app(&self) -> Option<&App> {
+        self.state.as_ref().map(|s| &s.app)
+    }
+
+    /// Whether the window has a GPU surface now (none while suspended).
+    pub fn has_surface(&self) -> bool {
+        self.state.as_ref().is_some_and(|s| s.surface.is_some())
+    }
+
+    /// How many frames have been presented to the window.
+    pub fn presented_frames(&self) -> usize {
+        self.state.as_ref().map_or(0, |s| s.presented)
+    }
+
+    /// Ask the window for a redraw (what the platform does when the window is exposed).
+    pub fn request_redraw(&self) {
+        if let Some(s) = &self.state {
+            s.window.request_redraw();
+        }
+    }
+
     fn init(&mut self, el: &ActiveEventLoop) -> Result<State> {
         let make = self.make.take().context("the window was already started")?;
         let attrs = Window::default_attributes()
@@ -106,7 +143,7 @@ impl Shell {
             renderer,
             frame_texture,
             frame_times: Default::default(),
-            presented: false,
+            presented: 0,
         })
     }
 }
@@ -234,9 +271,9 @@ impl State {
         crate::ui::paint::paint(&mut self.renderer, &self.gpu, &ctx, output, &view, size, clear).submit(&self.gpu, &mut self.renderer);
         self.window.pre_present_notify();
         self.gpu.queue.present(surface_texture);
-        if !self.presented {
+        self.presented += 1;
+        if self.presented == 1 {
             // The scripted sessions and tests wait for this line, not for a fixed time.
-            self.presented = true;
             eprintln!("previz live: first frame presented");
         }
         Ok(true)

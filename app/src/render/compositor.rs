@@ -5,7 +5,7 @@
 //! so per-frame work allocates no GPU resources.
 
 use super::antialiasing::{Antialiasing, FxaaPass};
-use super::environment::{self, Environment};
+use super::environment::{self, Environment, EnvironmentTextures};
 use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level, sky_square};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
 use super::model_cache::{ModelCache, PreparedModel};
@@ -74,6 +74,10 @@ pub struct Compositor {
     ground: GroundPass,
     model_pass: ModelPass,
     env: Option<Environment>,
+    /// The environment's textures (made for the first map of a face size, refreshed in place).
+    env_textures: Option<EnvironmentTextures>,
+    /// How many environments were set (the refreshes counted by the tests).
+    environment_writes: usize,
     model: Option<ModelGpu>,
     /// Slot 0: from the first pass's start to the composite pass's end.
     timer: Option<GpuTimer>,
@@ -150,6 +154,8 @@ impl Compositor {
             ground,
             model_pass,
             env: None,
+            env_textures: None,
+            environment_writes: 0,
             model: None,
             timer: GpuTimer::new(gpu, TIMER_SLOTS),
             pipelines,
@@ -176,23 +182,55 @@ impl Compositor {
     /// Upload the environment cube map, scaled by `exposure` (linear light), and its priors.
     /// `heading` (radians, clockwise from North) is the world direction of the map's front (+Z)
     /// face: 0 for maps already aligned with North, a capture's reference heading otherwise.
-    /// On an error the current environment stays.
+    /// A map of the face size already held is written into the textures made for it (the map
+    /// and its prefiltered levels; nothing allocated, the bind groups stay): the refresh path of
+    /// the live camera frame folded into the environment. On an error the current environment
+    /// stays.
     pub fn set_environment(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
-        let (env, env_view_bg, model_bg) = gpu.checked("the environment cube map", || {
-            let (views, env) = environment::upload(gpu, cube, exposure, heading)?;
+        let prepared = environment::prepare_cached(gpu, cube, exposure, heading)?;
+        self.set_prepared_environment(gpu, cube, prepared)
+    }
+
+    /// [`Compositor::set_environment`] with the CPU work already done ([`environment::prepare`]
+    /// of the same `cube`, e.g. on another thread).
+    pub fn set_prepared_environment(&mut self, gpu: &Gpu, cube: &CubeMap, prepared: environment::Prepared) -> Result<()> {
+        let environment::Prepared { levels, env } = prepared;
+        if let Some(textures) = self.env_textures.as_ref().filter(|t| t.size() == cube.size) {
+            gpu.checked("the environment cube map", || textures.write(gpu, cube, &levels))?;
+            self.env = Some(env);
+            self.environment_writes += 1;
+            return Ok(());
+        }
+        let (textures, env_view_bg, model_bg) = gpu.checked("the environment cube map", || {
+            let textures = EnvironmentTextures::new(gpu, cube.size);
+            textures.write(gpu, cube, &levels)?;
+            let views = &textures.views;
             let env_view_bg = BackgroundPass::env_view_bind_group(&gpu.device, &self.pipelines, &self.frame_buf, &views.cube);
             let model_bg = (self.shadow.maps().iter())
                 .map(|map| {
                     let buffers = (&self.frame_buf, &self.instance_buf, &self.light_buf);
-                    self.model_pass.bind_group(&gpu.device, buffers, &views, self.background.view(), map)
+                    self.model_pass.bind_group(&gpu.device, buffers, views, self.background.view(), map)
                 })
                 .collect();
-            Ok((env, env_view_bg, model_bg))
+            Ok((textures, env_view_bg, model_bg))
         })?;
         self.background.set_env_view_bind_group(env_view_bg);
         self.model_pass.set_bind_groups(model_bg);
+        self.env_textures = Some(textures);
         self.env = Some(env);
+        self.environment_writes += 1;
         Ok(())
+    }
+
+    /// How many environments have been set (made or refreshed in place) on this compositor.
+    pub fn environment_writes(&self) -> usize {
+        self.environment_writes
+    }
+
+    /// The camera image the frames draw over (the output size, `Rgba8UnormSrgb`): what the live
+    /// view folds into its environment before a capture exists (capture::frame_fold).
+    pub fn background_view(&self) -> &wgpu::TextureView {
+        self.background.view()
     }
 
     /// The environment's hemisphere priors after exposure (None before `set_environment`).

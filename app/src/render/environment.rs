@@ -151,40 +151,103 @@ pub struct EnvironmentViews {
     pub specular: wgpu::TextureView,
 }
 
-/// Upload GGX-prefiltered `levels` (light::ggx::prefilter) as one cube texture with a mip level
-/// each.
-fn upload_prefiltered(gpu: &Gpu, levels: &[CubeMap]) -> wgpu::TextureView {
-    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("prefiltered environment"),
-        size: wgpu::Extent3d { width: ggx::PREFILTER_SIZE, height: ggx::PREFILTER_SIZE, depth_or_array_layers: 6 },
-        mip_level_count: ggx::PREFILTER_LEVELS,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba16Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    for (mip, level) in levels.iter().enumerate() {
-        for (layer, face) in level.faces.iter().enumerate() {
-            gpu.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &texture,
-                    mip_level: mip as u32,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                bytemuck::cast_slice(&rgba16f_texels(face)),
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(8 * level.size), rows_per_image: None },
-                wgpu::Extent3d { width: level.size, height: level.size, depth_or_array_layers: 1 },
-            );
-        }
-    }
-    build::cube_view(&texture)
+/// The environment's textures, made once per face size: the map and its GGX-prefiltered levels.
+/// [`EnvironmentTextures::write`] refreshes them in place (write_texture only), so a new map of
+/// the same size — a refreshed fold of the camera frame, a capture — allocates nothing and keeps
+/// every bind group that holds the views.
+pub struct EnvironmentTextures {
+    cube: wgpu::Texture,
+    specular: wgpu::Texture,
+    pub views: EnvironmentViews,
 }
 
-/// Upload `cube` (the shader scales it by `exposure`) and its GGX-prefiltered levels, and compute
-/// its priors. Returns the views and the environment; changes nothing else.
-pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<(EnvironmentViews, Environment)> {
+impl EnvironmentTextures {
+    /// Textures for maps of `size`×`size` faces.
+    pub fn new(gpu: &Gpu, size: u32) -> EnvironmentTextures {
+        let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+        let cube = build::texture(&gpu.device, "environment", (size, size, 6), wgpu::TextureFormat::Rgba16Float, 1, usage);
+        let specular = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("prefiltered environment"),
+            size: wgpu::Extent3d { width: ggx::PREFILTER_SIZE, height: ggx::PREFILTER_SIZE, depth_or_array_layers: 6 },
+            mip_level_count: ggx::PREFILTER_LEVELS,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba16Float,
+            usage,
+            view_formats: &[],
+        });
+        let views = EnvironmentViews { cube: build::cube_view(&cube), specular: build::cube_view(&specular) };
+        EnvironmentTextures { cube, specular, views }
+    }
+
+    /// Face size of the map these textures hold.
+    pub fn size(&self) -> u32 {
+        self.cube.width()
+    }
+
+    /// Write `cube` (of this size) and its GGX-prefiltered `levels` ([`prepare`]) into the
+    /// textures.
+    pub fn write(&self, gpu: &Gpu, cube: &CubeMap, levels: &[CubeMap]) -> Result<()> {
+        if cube.size != self.size() {
+            bail!("environment of {}-texel faces written into textures of {}", cube.size, self.size());
+        }
+        for (layer, face) in cube.faces.iter().enumerate() {
+            build::write_layer(&gpu.queue, &self.cube, layer as u32, bytemuck::cast_slice(&rgba16f_texels(face)));
+        }
+        if levels.len() != ggx::PREFILTER_LEVELS as usize {
+            bail!("{} prefiltered environment levels, expected {}", levels.len(), ggx::PREFILTER_LEVELS);
+        }
+        for (mip, level) in levels.iter().enumerate() {
+            for (layer, face) in level.faces.iter().enumerate() {
+                gpu.queue.write_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.specular,
+                        mip_level: mip as u32,
+                        origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    bytemuck::cast_slice(&rgba16f_texels(face)),
+                    wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(8 * level.size), rows_per_image: None },
+                    wgpu::Extent3d { width: level.size, height: level.size, depth_or_array_layers: 1 },
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the GPU and the frame need from a map besides its texels, computed on the CPU (on any
+/// thread: the live view prepares its folded camera frame off the frame's thread).
+pub struct Prepared {
+    /// The map convolved with the GGX lobe, one level per roughness (light::ggx::prefilter).
+    pub levels: Arc<Vec<CubeMap>>,
+    pub env: Environment,
+}
+
+/// Check `cube`, `exposure` and `heading`; prefilter the map and compute its priors. For a map
+/// that changes every time (the folded camera frame); [`prepare_cached`] for maps that return.
+pub fn prepare(cube: &CubeMap, exposure: f32, heading: f32) -> Result<Prepared> {
+    check(cube, exposure, heading)?;
+    let env_priors = priors::environment_priors_scaled(cube, exposure).context("environment colour priors")?;
+    Ok(Prepared { levels: Arc::new(ggx::prefilter(cube)), env: environment(&env_priors, exposure, heading) })
+}
+
+/// [`prepare`] through the device's [`EnvironmentCache`]: a content seen before (at the same
+/// exposure) is not prefiltered or measured again.
+pub fn prepare_cached(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<Prepared> {
+    check(cube, exposure, heading)?;
+    let cache = EnvironmentCache::of(gpu)?;
+    let key = EnvKey::of(cube);
+    let env_priors = cache.priors(key, cube, exposure).context("environment colour priors")?;
+    Ok(Prepared { levels: cache.prefiltered(key, cube), env: environment(&env_priors, exposure, heading) })
+}
+
+fn environment(env_priors: &priors::EnvironmentPriors, exposure: f32, heading: f32) -> Environment {
+    Environment { priors: HemispherePriors::from_environment(env_priors), colour: env_priors.horizontal, exposure, heading }
+}
+
+/// Reject a non-positive exposure, a non-finite heading and faces of the wrong size.
+fn check(cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
     if !(exposure.is_finite() && exposure > 0.0) {
         bail!("environment exposure must be a positive number, got {exposure}");
     }
@@ -195,17 +258,7 @@ pub fn upload(gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<
     if let Some(layer) = cube.faces.iter().position(|face| face.len() != (size * size) as usize) {
         bail!("cube-map face {} has {} pixels, expected {size}x{size}", FACE_NAMES[layer], cube.faces[layer].len());
     }
-    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
-    let texture = build::texture(&gpu.device, "environment", (size, size, 6), wgpu::TextureFormat::Rgba16Float, 1, usage);
-    for (layer, face) in cube.faces.iter().enumerate() {
-        build::write_layer(&gpu.queue, &texture, layer as u32, bytemuck::cast_slice(&rgba16f_texels(face)));
-    }
-    let cache = EnvironmentCache::of(gpu)?;
-    let key = EnvKey::of(cube);
-    let env_priors = cache.priors(key, cube, exposure).context("environment colour priors")?;
-    let env = Environment { priors: HemispherePriors::from_environment(&env_priors), colour: env_priors.horizontal, exposure, heading };
-    let specular = upload_prefiltered(gpu, &cache.prefiltered(key, cube));
-    Ok((EnvironmentViews { cube: build::cube_view(&texture), specular }, env))
+    Ok(())
 }
 
 #[cfg(test)]

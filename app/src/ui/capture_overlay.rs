@@ -59,7 +59,8 @@ fn banner(painter: &egui::Painter, centre: Pos2, text: &str, size: f32, fg: Colo
 }
 
 /// Draw the guidance over the whole screen. `thumbs` are in [`Face::ALL`] order (front, up,
-/// down, right, back, left); `None` for faces not taken yet.
+/// down, right, back, left): a face with content shows while it fills in, framed green once it is
+/// done; `None` for faces no shot has seen yet.
 pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<egui::TextureHandle>; 6]) {
     let screen = ctx.content_rect();
     let painter = ctx.layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("capture-overlay")));
@@ -154,12 +155,18 @@ pub fn draw_capture_overlay(ctx: &egui::Context, g: &Guidance, thumbs: &[Option<
     let y = screen.bottom() - THUMB - 28.0;
     for (i, face) in Face::ALL.iter().enumerate() {
         let rect = Rect::from_min_size(Pos2::new(screen.left() + 14.0 + i as f32 * (THUMB + gap), y), Vec2::splat(THUMB));
+        let done = g.face_done[i] || g.phase == Phase::Complete;
         match &thumbs[i] {
-            Some(t) if g.face_done[i] || g.phase == Phase::Complete => {
+            // A face with content shows it; the green frame once the face is done.
+            Some(t) => {
                 painter.image(t.id(), rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
-                painter.rect_stroke(rect, 0.0, Stroke::new(2.0, Color32::from_rgb(60, 220, 90)), StrokeKind::Outside);
+                if done {
+                    painter.rect_stroke(rect, 0.0, Stroke::new(2.0, Color32::from_rgb(60, 220, 90)), StrokeKind::Outside);
+                } else {
+                    painter.rect_stroke(rect, 0.0, Stroke::new(1.5, Color32::from_white_alpha(160)), StrokeKind::Inside);
+                }
             }
-            _ => {
+            None => {
                 painter.rect_filled(rect, 0.0, shade);
                 painter.rect_stroke(rect, 0.0, Stroke::new(1.5, Color32::from_white_alpha(160)), StrokeKind::Inside);
             }

@@ -157,6 +157,9 @@ pub struct ReplayResult {
     pub taken: Vec<bool>,
     /// Per target: when its shot was taken (s, the trace's clock).
     pub shot_t: Vec<Option<f64>>,
+    /// Repair targets the assistant added for holes in the coverage and that were not taken
+    /// (the guidance then points at them).
+    pub repairs: Vec<Target>,
     /// The assistant's reference heading (degrees), once the front was taken.
     pub reference_heading_deg: Option<f64>,
     /// The reference heading minus the front shot's true heading (degrees, −180..180), once
@@ -223,6 +226,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         bail!("frame rate must be a positive number, got {}", cfg.frame_hz);
     }
     let mut assistant = Assistant::new(cfg.assistant()?)?;
+    let planned = assistant.targets().len();
     let mut phone = VirtualPhone::new(
         env.clone(),
         &SimSettings { width: cfg.width, height: cfg.height, vfov_deg: cfg.vfov_deg, exposure: ExposureMode::Fixed(1.0) },
@@ -342,6 +346,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let shot_t: Vec<Option<f64>> = (0..targets).map(|i| assistant.shot(i).map(|s| s.t)).collect();
     let taken: Vec<bool> = shot_t.iter().map(Option::is_some).collect();
     let shots = taken.iter().filter(|t| **t).count();
+    let repairs = assistant.targets().into_iter().zip(&taken).skip(planned).filter(|(_, taken)| !**taken).map(|(t, _)| t.clone()).collect();
     let started = Instant::now();
     let finished = assistant.finish();
     let assembly_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -360,6 +365,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         track,
         taken,
         shot_t,
+        repairs,
         reference_heading_deg: assistant.reference_heading_deg(),
         reference_heading_error_deg: tapped
             .zip(assistant.reference_heading_deg())
@@ -484,7 +490,10 @@ pub fn replay_guided(
     params: &UserPathParams,
     max_attempts: usize,
 ) -> Result<GuidedRun> {
-    let targets: Vec<Target> = Assistant::new(cfg.assistant()?)?.targets().into_iter().cloned().collect();
+    let planned: Vec<Target> = Assistant::new(cfg.assistant()?)?.targets().into_iter().cloned().collect();
+    // The planned tour, then the repair targets earlier passes left untaken (a user follows the
+    // guidance to them at the end). Indices below planned.len() are the assistant's too.
+    let mut targets = planned.clone();
     let mut shifts = vec![AimShift::default(); targets.len()];
     let mut attempts = 0;
     loop {
@@ -493,7 +502,7 @@ pub fn replay_guided(
         let result = replay(env, &TruthTrace::new(path.samples.clone())?, cfg)?;
         if result.capture.is_some() {
             // The same user, moving on as soon as the screen shows each shot taken.
-            for (i, hold) in reactive_holds(&path, &result) {
+            for (i, hold) in reactive_holds(&path, &result).into_iter().filter(|(i, _)| *i < planned.len()) {
                 shifts[i].hold_s = Some(hold);
             }
             let quick = simulate_guided_path(path_seed, &targets, params, &shifts)?;
@@ -510,7 +519,8 @@ pub fn replay_guided(
             // No tap: guidance cannot help.
             return Ok(GuidedRun { result, path, attempts });
         };
-        for v in path.visits.iter().filter(|v| v.target != 0 && !result.taken.get(v.target).copied().unwrap_or(true)) {
+        let untaken = |i: usize| i >= planned.len() || !result.taken.get(i).copied().unwrap_or(true);
+        for v in path.visits.iter().filter(|v| v.target != 0 && untaken(v.target)) {
             let target = &targets[v.target];
             // Where the screen showed the target relative to the view during the hold.
             let errors: Vec<AimError> = result
@@ -529,8 +539,19 @@ pub fn replay_guided(
             }
             shift.pitch_deg -= errors.iter().map(|e| e.pitch_deg).sum::<f64>() / n;
         }
+        // New holes the guidance pointed at: visited at the end of the next pass.
+        for r in &result.repairs {
+            let dir = r.direction(0.0);
+            if !targets[planned.len()..].iter().any(|e| e.direction(0.0).angle_between(dir) < REPAIR_SAME_RAD) {
+                targets.push(r.clone());
+                shifts.push(AimShift::default());
+            }
+        }
     }
 }
+
+/// Repair targets closer than this (radians, 5°) are the same hole seen by another pass.
+const REPAIR_SAME_RAD: f64 = 0.087;
 
 /// True heading (degrees) of the camera at time `t` of `trace`.
 fn front_true_heading_deg(trace: &TruthTrace, t: f64) -> f64 {

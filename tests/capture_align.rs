@@ -187,7 +187,9 @@ fn detail(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> String {
         }
     }
     format!(
-        "drift max {:.1} at {:.1}s [{}] end {}",
+        "fixes {}/{} drift max {:.1} at {:.1}s [{}] end {}",
+        r.drift_fixes,
+        r.shots,
         worst.0,
         worst.1,
         series.trim(),

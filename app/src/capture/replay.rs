@@ -157,6 +157,8 @@ pub struct ReplayResult {
     pub taken: Vec<bool>,
     /// Per target: when its shot was taken (s, the trace's clock).
     pub shot_t: Vec<Option<f64>>,
+    /// Shots whose image matched an earlier shot's and corrected the guidance's heading drift.
+    pub drift_fixes: usize,
     /// Repair targets the assistant added for holes in the coverage and that were not taken
     /// (the guidance then points at them).
     pub repairs: Vec<Target>,
@@ -253,6 +255,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     // The shots at the guidance's poses, each turned by its image match against the earlier
     // ones ([`align::turn_against`]): the measured drift of the held heading.
     let mut aim_shots: Vec<Shot> = Vec::new();
+    let mut drift_fixes = 0;
     let camera = cfg.camera()?;
     // The sun measurement of the shot with the sun nearest its centre: (off-axis angle, the
     // heading error of the shot's sensor pose, the shot's time).
@@ -322,6 +325,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
                 Some(held) => {
                     let shot = Shot { target: i, t, pose: aim_pose.q, image: frame.clone() };
                     if let Some(turn) = turn_against(&camera, &aim_shots, &shot) {
+                        drift_fixes += 1;
                         held.heading_fix(t, turn.to_radians(), IMAGE_TURN_SIGMA_DEG.to_radians());
                         aim_shots.push(Shot { pose: (Quat::from_rotation_z((turn as f32).to_radians()) * shot.pose).normalize(), ..shot });
                     } else {
@@ -366,6 +370,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         taken,
         shot_t,
         repairs,
+        drift_fixes,
         reference_heading_deg: assistant.reference_heading_deg(),
         reference_heading_error_deg: tapped
             .zip(assistant.reference_heading_deg())

@@ -63,7 +63,10 @@ pub struct ReplayConfig {
     pub score: bool,
     /// Threads the virtual phone renders with (1 when many replays run in parallel).
     pub render_threads: usize,
-    /// Stitch mode: align the shots from their overlaps ([`super::align`]).
+    /// Use the shots' images for their poses: while capturing, each shot's match against the
+    /// earlier ones corrects the guidance's held heading and shots are placed at it; in stitch
+    /// mode the shots are aligned jointly before assembly ([`super::align`]). Off: shots at the
+    /// compass-corrected pose, no matching.
     pub align: bool,
     /// The simulated clock (UTC) of the capture: with it and the GPS fix, SPA's sun calibrates
     /// the capture's north ([`CubeCapture::calibrate_north_with_sun`]). None: the wall clock is

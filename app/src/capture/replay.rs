@@ -14,12 +14,11 @@
 //! curve.
 
 use super::Mode;
-use super::align::turn_against;
+use super::aim_heading::AimHeading;
 use super::assistant::{Assistant, AssistantConfig, Phase};
 use super::folder::{CubeCapture, Location};
 use super::guided_path::{AimShift, CapturePath, simulate_guided_path};
 use super::projection::{Pinhole, face_pixel_dir_local, local_to_world};
-use super::reproject::Shot;
 use super::targets::Face;
 use super::targets::{AimError, Target};
 use crate::camera::exposure::{AutoExposure, ExposureMode, ToneLut};
@@ -37,10 +36,6 @@ use anyhow::{Context, Result, bail};
 use glam::{DQuat, Quat};
 use std::sync::Arc;
 use std::time::Instant;
-
-/// 1σ (degrees) of a heading drift measured by matching a shot against the earlier ones (the
-/// match's fine search steps 0.1° and fits a parabola; a few texels of the small study frames).
-const IMAGE_TURN_SIGMA_DEG: f64 = 0.3;
 
 /// Settings of a replay.
 #[derive(Clone, Debug)]
@@ -254,12 +249,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let (mut frames, mut gyro_only) = (0usize, 0usize);
     let mut complete_t = None;
     let mut track = Vec::new();
-    let mut aim_filter: Option<OrientationFilter> = None;
-    // The shots at the guidance's poses, each turned by its image match against the earlier
-    // ones ([`align::turn_against`]): the measured drift of the held heading.
-    let mut aim_shots: Vec<Shot> = Vec::new();
-    let mut drift_fixes = 0;
-    let camera = cfg.camera()?;
+    let mut aim = AimHeading::new(cfg.camera()?, cfg.align);
     // The sun measurement of the shot with the sun nearest its centre: (off-axis angle, the
     // heading error of the shot's sensor pose, the shot's time).
     let mut sun_fix: Option<(f32, HeadingMeasurement, f64)> = None;
@@ -270,18 +260,13 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         sensors.poll(t, &mut readings)?;
         for r in &readings {
             filter.update(r)?;
-            if let Some(f) = aim_filter.as_mut() {
-                f.update(r)?;
-            }
+            aim.update(r)?;
             if let Reading::Gps(f) = r {
                 location = Some(Location { lat_deg: f.lat_deg, lon_deg: f.lon_deg, alt_m: f.alt_m });
             }
         }
         let Some(pose) = filter.pose(rotation) else { continue };
-        // The held orientation with the compass-corrected filter's accuracy: the held filter's
-        // own 1σ assumes an unlearnt gyroscope bias (0.5°/s) and would widen the aim boxes to
-        // ±14° within seconds, so far that neighbouring shots leave gaps.
-        let aim_pose = aim_filter.as_ref().and_then(|f| f.pose(rotation)).map_or(pose, |held| Pose { q: held.q, ..pose });
+        let aim_pose = aim.aim_pose(pose, rotation);
         frames += 1;
         if pose.heading_source == HeadingSource::GyroOnly {
             gyro_only += 1;
@@ -304,40 +289,16 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
                 sun_fix,
                 measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
             );
-            // From the tap on, the guidance judges aims with a copy of the filter whose heading
-            // is held (pose::fusion): the heading relative to the front then comes from the
-            // gyroscope, while the compass's error changes with heading by several degrees
-            // within a capture. Each shot then measures the held heading's drift (the
-            // gyroscope's bias about the vertical, which nothing else observes) against the
-            // earlier shots, and is placed at the corrected pose.
-            let mut held = filter.clone();
-            held.hold_heading(t, true);
-            aim_filter = Some(held);
-            aim_shots.push(Shot { target: 0, t, pose: pose.q, image: frame });
+            // From the tap on, the guidance judges aims with the heading held from here and
+            // corrected by the shots' images (capture::aim_heading).
+            aim.tap(&filter, t, &pose, frame);
             tapped = Some(t);
             locked = Some(exposure);
             continue;
         }
         if let Some(i) = assistant.observe(t, &aim_pose)? {
             let frame = Arc::new(phone.render_with_exposure(truth, exposure)?);
-            // With the images: the shot at the guidance's pose; its match against the earlier
-            // shots measures the held heading's drift, which is taken off for the shots to come
-            // (the shot's own pose is left to the joint alignment at the end, which weighs all
-            // its overlaps). Without: the compass-corrected pose.
-            let shot_pose = match aim_filter.as_mut().filter(|_| cfg.align) {
-                Some(held) => {
-                    let shot = Shot { target: i, t, pose: aim_pose.q, image: frame.clone() };
-                    if let Some(turn) = turn_against(&camera, &aim_shots, &shot) {
-                        drift_fixes += 1;
-                        held.heading_fix(t, turn.to_radians(), IMAGE_TURN_SIGMA_DEG.to_radians());
-                        aim_shots.push(Shot { pose: (Quat::from_rotation_z((turn as f32).to_radians()) * shot.pose).normalize(), ..shot });
-                    } else {
-                        aim_shots.push(shot);
-                    }
-                    aim_pose
-                }
-                None => pose,
-            };
+            let shot_pose = aim.shot(i, t, aim_pose, pose, frame.clone());
             assistant.capture(i, t, &shot_pose, frame)?;
             sun_fix = nearer_centre(
                 sun_fix,
@@ -373,7 +334,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         taken,
         shot_t,
         repairs,
-        drift_fixes,
+        drift_fixes: aim.drift_fixes(),
         reference_heading_deg: assistant.reference_heading_deg(),
         reference_heading_error_deg: tapped
             .zip(assistant.reference_heading_deg())

@@ -166,6 +166,22 @@ pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> 
     (delta.abs() < f64::from(SEARCH_DEG)).then_some((delta, dirs.len()))
 }
 
+/// The turn about the world vertical (degrees) that best aligns a new shot with the earlier
+/// shots: matched against each earlier shot whose view overlaps it ([`match_pair`]), the match
+/// with the largest overlap. `None` when no earlier shot overlaps it enough or every overlap
+/// is featureless. While capturing, this measures the drift of the heading the guidance uses
+/// (the gyroscope's, whose bias about the vertical is not observable by the accelerometer).
+pub fn turn_against(camera: &Pinhole, earlier: &[Shot], new: &Shot) -> Option<f64> {
+    let diag = (camera.tan_half_h.hypot(camera.tan_half_v)).atan() * 2.0;
+    let axis = new.pose * Vec3::NEG_Z;
+    earlier
+        .iter()
+        .filter(|s| (s.pose * Vec3::NEG_Z).angle_between(axis) < diag)
+        .filter_map(|s| match_pair(camera, s, new))
+        .max_by_key(|(_, samples)| *samples)
+        .map(|(delta, _)| delta)
+}
+
 /// Solve `min Σ w (h_j − h_i − δ)² + PRIOR_WEIGHT Σ h²` with `h[fixed] = 0` (dense normal
 /// equations; n is a few dozen at most).
 fn solve(n: usize, fixed: usize, pairs: &[PairMatch]) -> Vec<f64> {
@@ -334,6 +350,26 @@ mod tests {
         let (same, report) = align_shots(&cam, &flat_shots, 0);
         assert!(report.pairs.is_empty());
         assert!(same.iter().zip(&flat_shots).all(|(a, b)| a.pose == b.pose));
+    }
+
+    #[test]
+    fn a_new_shot_is_turned_by_its_heading_drift_against_the_earlier_shots() {
+        let cam = Pinhole::from_vfov(160, 120, 50.0).unwrap();
+        let shot = |i: usize, h: f64, p: f64, drift: f32| {
+            let truth = from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0).as_quat();
+            // The guidance's pose: heading drifted clockwise by `drift` (a turn by −drift).
+            let estimate = (Quat::from_rotation_z(-drift.to_radians()) * truth).normalize();
+            Shot { target: i, t: i as f64, pose: estimate, image: Arc::new(render(&cam, truth)) }
+        };
+        let earlier = [shot(0, 0.0, 0.0, 0.0), shot(1, 120.0, 0.0, 0.0)];
+        // 30° to the right of the front, 2.5° of drift: the turn that takes it off is +2.5°,
+        // found against the front (the shot 120° away does not overlap).
+        let turn = turn_against(&cam, &earlier, &shot(2, 30.0, 0.0, 2.5)).unwrap();
+        assert!((turn - 2.5).abs() < 0.1, "{turn}");
+        let turn = turn_against(&cam, &earlier, &shot(2, 95.0, 5.0, -4.0)).unwrap();
+        assert!((turn + 4.0).abs() < 0.1, "{turn}");
+        // Nothing overlaps the back: no measurement.
+        assert_eq!(turn_against(&cam, &earlier, &shot(2, 240.0, 0.0, 1.0)), None);
     }
 
     #[test]

@@ -22,6 +22,7 @@
 //! local frame, which is ENU turned so that the reference heading points North. So +Z (posz)
 //! is the front, +X (posx) the right (reference + 90°), −Z back, −X left, +Y up, −Y down.
 
+pub mod aim_heading;
 pub mod align;
 pub mod assistant;
 pub mod folder;

@@ -14,6 +14,7 @@
 //! curve.
 
 use super::Mode;
+use super::aim_heading::AimHeading;
 use super::assistant::{Assistant, AssistantConfig, Phase};
 use super::folder::{CubeCapture, Location};
 use super::guided_path::{AimShift, CapturePath, simulate_guided_path};
@@ -57,7 +58,10 @@ pub struct ReplayConfig {
     pub score: bool,
     /// Threads the virtual phone renders with (1 when many replays run in parallel).
     pub render_threads: usize,
-    /// Stitch mode: align the shots from their overlaps ([`super::align`]).
+    /// Use the shots' images for their poses: while capturing, each shot's match against the
+    /// earlier ones corrects the guidance's held heading and shots are placed at it; in stitch
+    /// mode the shots are aligned jointly before assembly ([`super::align`]). Off: shots at the
+    /// compass-corrected pose, no matching.
     pub align: bool,
     /// The simulated clock (UTC) of the capture: with it and the GPS fix, SPA's sun calibrates
     /// the capture's north ([`CubeCapture::calibrate_north_with_sun`]). None: the wall clock is
@@ -151,6 +155,11 @@ pub struct ReplayResult {
     pub taken: Vec<bool>,
     /// Per target: when its shot was taken (s, the trace's clock).
     pub shot_t: Vec<Option<f64>>,
+    /// Shots whose image matched an earlier shot's and corrected the guidance's heading drift.
+    pub drift_fixes: usize,
+    /// Repair targets the assistant added for holes in the coverage and that were not taken
+    /// (the guidance then points at them).
+    pub repairs: Vec<Target>,
     /// The assistant's reference heading (degrees), once the front was taken.
     pub reference_heading_deg: Option<f64>,
     /// The reference heading minus the front shot's true heading (degrees, −180..180), once
@@ -217,6 +226,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         bail!("frame rate must be a positive number, got {}", cfg.frame_hz);
     }
     let mut assistant = Assistant::new(cfg.assistant()?)?;
+    let planned = assistant.targets().len();
     let mut phone = VirtualPhone::new(
         env.clone(),
         &SimSettings { width: cfg.width, height: cfg.height, vfov_deg: cfg.vfov_deg, exposure: ExposureMode::Fixed(1.0) },
@@ -239,7 +249,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let (mut frames, mut gyro_only) = (0usize, 0usize);
     let mut complete_t = None;
     let mut track = Vec::new();
-    let mut aim_filter: Option<OrientationFilter> = None;
+    let mut aim = AimHeading::new(cfg.camera()?, cfg.align);
     // The sun measurement of the shot with the sun nearest its centre: (off-axis angle, the
     // heading error of the shot's sensor pose, the shot's time).
     let mut sun_fix: Option<(f32, HeadingMeasurement, f64)> = None;
@@ -250,18 +260,13 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         sensors.poll(t, &mut readings)?;
         for r in &readings {
             filter.update(r)?;
-            if let Some(f) = aim_filter.as_mut() {
-                f.update(r)?;
-            }
+            aim.update(r)?;
             if let Reading::Gps(f) = r {
                 location = Some(Location { lat_deg: f.lat_deg, lon_deg: f.lon_deg, alt_m: f.alt_m });
             }
         }
         let Some(pose) = filter.pose(rotation) else { continue };
-        // The held orientation with the compass-corrected filter's accuracy: the held filter's
-        // own 1σ assumes an unlearnt gyroscope bias (0.5°/s) and would widen the aim boxes to
-        // ±14° within seconds, so far that neighbouring shots leave gaps.
-        let aim_pose = aim_filter.as_ref().and_then(|f| f.pose(rotation)).map_or(pose, |held| Pose { q: held.q, ..pose });
+        let aim_pose = aim.aim_pose(pose, rotation);
         frames += 1;
         if pose.heading_source == HeadingSource::GyroOnly {
             gyro_only += 1;
@@ -278,29 +283,26 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
             }
         };
         if tapped.is_none() && tap_t.is_some_and(|tt| t >= tt) {
-            let frame = phone.render_with_exposure(truth, exposure)?;
-            assistant.tap(t, &pose, Arc::new(frame))?;
+            let frame = Arc::new(phone.render_with_exposure(truth, exposure)?);
+            assistant.tap(t, &pose, frame.clone())?;
             sun_fix = nearer_centre(
                 sun_fix,
                 measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
             );
-            // From the tap on, the guidance judges aims with a copy of the filter whose heading
-            // is held (pose::fusion): the heading relative to the front then comes from the
-            // gyroscope, while the compass's error changes with heading by several degrees
-            // within a capture. The shots keep the compass-corrected pose.
-            let mut held = filter.clone();
-            held.hold_heading(t, true);
-            aim_filter = Some(held);
+            // From the tap on, the guidance judges aims with the heading held from here and
+            // corrected by the shots' images (capture::aim_heading).
+            aim.tap(&filter, t, &pose, frame);
             tapped = Some(t);
             locked = Some(exposure);
             continue;
         }
         if let Some(i) = assistant.observe(t, &aim_pose)? {
-            let frame = phone.render_with_exposure(truth, exposure)?;
-            assistant.capture(i, t, &pose, Arc::new(frame))?;
+            let frame = Arc::new(phone.render_with_exposure(truth, exposure)?);
+            let shot_pose = aim.shot(i, t, aim_pose, pose, frame.clone());
+            assistant.capture(i, t, &shot_pose, frame)?;
             sun_fix = nearer_centre(
                 sun_fix,
-                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
+                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &shot_pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
             );
             if assistant.phase() == Phase::Complete {
                 complete_t = Some(t);
@@ -312,6 +314,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let shot_t: Vec<Option<f64>> = (0..targets).map(|i| assistant.shot(i).map(|s| s.t)).collect();
     let taken: Vec<bool> = shot_t.iter().map(Option::is_some).collect();
     let shots = taken.iter().filter(|t| **t).count();
+    let repairs = assistant.targets().into_iter().zip(&taken).skip(planned).filter(|(_, taken)| !**taken).map(|(t, _)| t.clone()).collect();
     let started = Instant::now();
     let finished = assistant.finish();
     let assembly_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -330,6 +333,8 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         track,
         taken,
         shot_t,
+        repairs,
+        drift_fixes: aim.drift_fixes(),
         reference_heading_deg: assistant.reference_heading_deg(),
         reference_heading_error_deg: tapped
             .zip(assistant.reference_heading_deg())
@@ -454,7 +459,10 @@ pub fn replay_guided(
     params: &UserPathParams,
     max_attempts: usize,
 ) -> Result<GuidedRun> {
-    let targets: Vec<Target> = Assistant::new(cfg.assistant()?)?.targets().into_iter().cloned().collect();
+    let planned: Vec<Target> = Assistant::new(cfg.assistant()?)?.targets().into_iter().cloned().collect();
+    // The planned tour, then the repair targets earlier passes left untaken (a user follows the
+    // guidance to them at the end). Indices below planned.len() are the assistant's too.
+    let mut targets = planned.clone();
     let mut shifts = vec![AimShift::default(); targets.len()];
     let mut attempts = 0;
     loop {
@@ -463,7 +471,7 @@ pub fn replay_guided(
         let result = replay(env, &TruthTrace::new(path.samples.clone())?, cfg)?;
         if result.capture.is_some() {
             // The same user, moving on as soon as the screen shows each shot taken.
-            for (i, hold) in reactive_holds(&path, &result) {
+            for (i, hold) in reactive_holds(&path, &result).into_iter().filter(|(i, _)| *i < planned.len()) {
                 shifts[i].hold_s = Some(hold);
             }
             let quick = simulate_guided_path(path_seed, &targets, params, &shifts)?;
@@ -480,7 +488,8 @@ pub fn replay_guided(
             // No tap: guidance cannot help.
             return Ok(GuidedRun { result, path, attempts });
         };
-        for v in path.visits.iter().filter(|v| v.target != 0 && !result.taken.get(v.target).copied().unwrap_or(true)) {
+        let untaken = |i: usize| i >= planned.len() || !result.taken.get(i).copied().unwrap_or(true);
+        for v in path.visits.iter().filter(|v| v.target != 0 && untaken(v.target)) {
             let target = &targets[v.target];
             // Where the screen showed the target relative to the view during the hold.
             let errors: Vec<AimError> = result
@@ -499,8 +508,19 @@ pub fn replay_guided(
             }
             shift.pitch_deg -= errors.iter().map(|e| e.pitch_deg).sum::<f64>() / n;
         }
+        // New holes the guidance pointed at: visited at the end of the next pass.
+        for r in &result.repairs {
+            let dir = r.direction(0.0);
+            if !targets[planned.len()..].iter().any(|e| e.direction(0.0).angle_between(dir) < REPAIR_SAME_RAD) {
+                targets.push(r.clone());
+                shifts.push(AimShift::default());
+            }
+        }
     }
 }
+
+/// Repair targets closer than this (radians, 5°) are the same hole seen by another pass.
+const REPAIR_SAME_RAD: f64 = 0.087;
 
 /// True heading (degrees) of the camera at time `t` of `trace`.
 fn front_true_heading_deg(trace: &TruthTrace, t: f64) -> f64 {

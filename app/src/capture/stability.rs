@@ -137,6 +137,11 @@ pub struct RunRow {
     pub assembly_ms: f64,
     /// Missing faces (incomplete runs).
     pub missing: String,
+    /// Why, in the assistant's words: per missing face, what is unseen and why each of its
+    /// targets was not taken (incomplete runs).
+    pub why: String,
+    /// Shots whose image match corrected the guidance's heading drift.
+    pub drift_fixes: usize,
     /// Passes the guided user needed (see [`replay_guided`]).
     pub attempts: usize,
 }
@@ -244,6 +249,8 @@ fn row(job: Job, href: f64, r: &ReplayResult) -> RunRow {
         min_coverage: r.faces.iter().map(|f| f64::from(f.coverage)).reduce(f64::min),
         gyro_only_fraction: r.gyro_only_fraction,
         assembly_ms: r.assembly_ms,
+        why: r.incomplete.as_deref().map(|s| s.lines().skip(1).map(str::trim).collect::<Vec<_>>().join(" | ")).unwrap_or_default(),
+        drift_fixes: r.drift_fixes,
         missing: r
             .incomplete
             .as_deref()
@@ -397,7 +404,7 @@ pub fn rows_csv(rows: &[RunRow]) -> String {
     let mut s = String::from(
         "case,noise,mode,seed,reference_heading_deg,completed,time_to_complete_s,shots,targets,mean_orientation_error_deg,\
 max_orientation_error_deg,psnr_front_db,psnr_up_db,psnr_down_db,psnr_right_db,psnr_back_db,psnr_left_db,mean_psnr_db,mean_flip,\
-stitch_psnr_db,stitch_flip,reference_heading_error_deg,min_coverage,gyro_only_fraction,assembly_ms,guided_passes,missing\n",
+stitch_psnr_db,stitch_flip,reference_heading_error_deg,min_coverage,gyro_only_fraction,assembly_ms,guided_passes,drift_fixes,missing,why\n",
     );
     for r in rows {
         let _ = writeln!(
@@ -418,7 +425,7 @@ stitch_psnr_db,stitch_flip,reference_heading_error_deg,min_coverage,gyro_only_fr
             opt(r.mean_psnr(), 3),
             opt(r.mean_flip, 5),
             format_args!(
-                "{},{},{},{},{:.4},{:.2},{},{}",
+                "{},{},{},{},{:.4},{:.2},{},{},{},\"{}\"",
                 opt(r.stitch_psnr_db, 3),
                 opt(r.stitch_flip, 5),
                 opt(r.reference_heading_error_deg, 3),
@@ -426,7 +433,9 @@ stitch_psnr_db,stitch_flip,reference_heading_error_deg,min_coverage,gyro_only_fr
                 r.gyro_only_fraction,
                 r.assembly_ms,
                 r.attempts,
-                r.missing
+                r.drift_fixes,
+                r.missing,
+                r.why.replace('"', "\"\"")
             ),
         );
     }

@@ -82,8 +82,9 @@ pub struct RunArgs {
     /// stretch: one shot per face stretched over it (seed 000); stitch: extra shots, full coverage
     #[arg(long, value_enum, default_value = "stitch")]
     pub mode: Mode,
-    /// Stitch mode: do not correct the shots' headings from their overlaps before assembly
-    /// (the alignment is on by default, see docs/capture.md)
+    /// Do not use the shots' images for their poses: no correction of the guidance's heading
+    /// drift while capturing (shots at the compass-corrected pose) and, in stitch mode, no
+    /// alignment before assembly (both on by default, see docs/capture.md)
     #[arg(long = "no-align")]
     pub no_align: bool,
     /// Print per-face capture time, orientation error, coverage, PSNR and mean FLIP as JSON

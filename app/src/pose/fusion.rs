@@ -79,6 +79,10 @@ pub struct FusionConfig {
     pub k_mag: f64,
     /// Integral gain (1/s²) estimating the gyroscope bias; 0 disables bias estimation.
     pub k_bias: f64,
+    /// Integral gain (1/s²) of the accelerometer's share of the bias estimate while the phone
+    /// turns slower than `still_rate` (its readings are then gravity alone, without the
+    /// lever-arm acceleration of a turn); at least `k_bias`.
+    pub k_bias_still: f64,
     /// Accelerometer readings with |‖a‖ − g| above this fraction of g are ignored; below it
     /// their weight falls linearly from 1 (at ‖a‖ = g) to 0.
     pub accel_tolerance: f64,
@@ -122,6 +126,7 @@ impl Default for FusionConfig {
             k_acc: 0.5,
             k_mag: 0.2,
             k_bias: 0.01,
+            k_bias_still: 0.1,
             accel_tolerance: 0.15,
             startup_s: 3.0,
             startup_gain: 10.0,
@@ -274,26 +279,42 @@ impl OrientationFilter {
     /// P·(1 − K). Returns the correction (radians), or None when the filter has no heading yet
     /// or the measurement is not finite and positive.
     pub fn sun_heading(&mut self, t: f64, error: f64, sigma: f64) -> Option<f64> {
-        if !(self.initialised && self.heading_known && error.is_finite() && sigma.is_finite() && sigma > 0.0) {
-            return None;
-        }
-        self.t = self.t.max(t);
-        let p = self.heading_sigma().powi(2);
-        let r = sigma * sigma;
-        let k = p / (p + r);
-        // The part of an earlier correction not yet blended in is already known.
-        let innovation = angle_difference(error, self.pending_turn);
-        let correction = k * innovation;
-        self.pending_turn += correction;
+        let (correction, after) = self.yaw_update(t, error, sigma)?;
         // The compass's own error now: its recent disagreement with the estimate less the
         // estimate's measured error; the offset follows it (halfway per measurement).
         if let Some(lp) = self.compass_lp {
             let c = angle_difference(lp, error);
             self.compass_offset = if self.sun.is_none() { c } else { self.compass_offset + 0.5 * angle_difference(c, self.compass_offset) };
         }
-        let after = (p * (1.0 - k)).sqrt();
         self.sun = Some(SunFix { t, sigma: after, turned: 0.0 });
-        // A held or gyro-only heading restarts its drift from the calibrated value.
+        self.carried_heading_sigma = 0.0;
+        Some(correction)
+    }
+
+    /// Take a heading measurement of another kind than the sun (e.g. the images of a capture:
+    /// a new shot matched against an earlier one, [`crate::capture::align::turn_against`]):
+    /// the same Kalman update on yaw as [`OrientationFilter::sun_heading`] (gain P/(P + σ²),
+    /// blended in over [`SUN_BLEND_S`], a held or gyro-only heading restarting its drift from
+    /// the corrected value), but nothing is learnt about the compass. Returns the correction
+    /// (radians) or None (no heading yet, a non-finite error, σ not positive).
+    pub fn heading_fix(&mut self, t: f64, error: f64, sigma: f64) -> Option<f64> {
+        self.yaw_update(t, error, sigma).map(|(correction, _)| correction)
+    }
+
+    /// The Kalman update on yaw shared by [`OrientationFilter::sun_heading`] and
+    /// [`OrientationFilter::heading_fix`]: returns the correction and the heading 1σ after it.
+    fn yaw_update(&mut self, t: f64, error: f64, sigma: f64) -> Option<(f64, f64)> {
+        if !(self.initialised && self.heading_known && error.is_finite() && sigma.is_finite() && sigma > 0.0) {
+            return None;
+        }
+        self.t = self.t.max(t);
+        let p = self.heading_sigma().powi(2);
+        let k = p / (p + sigma * sigma);
+        // The part of an earlier correction not yet blended in is already known.
+        let correction = k * angle_difference(error, self.pending_turn);
+        self.pending_turn += correction;
+        let after = (p * (1.0 - k)).sqrt();
+        // A held or gyro-only heading restarts its drift from the corrected value.
         if self.hold.is_some() {
             self.hold = Some((t, after));
         }
@@ -301,8 +322,7 @@ impl OrientationFilter {
             self.gyro_only_since = Some(t);
             self.heading_sigma_at_loss = after;
         }
-        self.carried_heading_sigma = 0.0;
-        Some(correction)
+        Some((correction, after))
     }
 
     /// How far clockwise of the model's magnetic north the magnetometer sees the field, as
@@ -511,7 +531,9 @@ impl OrientationFilter {
 
         let scale = self.gain_scale();
         let mut correction = DVec3::ZERO;
+        // The compass's and the accelerometer's shares of the bias error.
         let mut bias_error = DVec3::ZERO;
+        let mut tilt_error = DVec3::ZERO;
         let innov_alpha = 1.0 - (-dt / INNOVATION_TAU_S).exp();
 
         if let Some((ta, a)) = self.accel
@@ -523,7 +545,7 @@ impl OrientationFilter {
             if w > 0.0 {
                 let e = (a / n).cross(self.up_in_device());
                 correction += self.cfg.k_acc * scale * w * e;
-                bias_error += w * e;
+                tilt_error += w * e;
                 self.carried_tilt_sigma *= (-self.cfg.k_acc * scale * w * dt).exp();
                 let angle = e.length().min(1.0).asin();
                 self.tilt_innov_var += innov_alpha * (angle * angle - self.tilt_innov_var);
@@ -565,7 +587,8 @@ impl OrientationFilter {
         }
 
         if integrate_bias && self.cfg.k_bias > 0.0 && !self.starting_up() {
-            self.bias -= self.cfg.k_bias * bias_error * dt;
+            let k_tilt = if self.rate < self.cfg.still_rate { self.cfg.k_bias.max(self.cfg.k_bias_still) } else { self.cfg.k_bias };
+            self.bias -= (self.cfg.k_bias * bias_error + k_tilt * tilt_error) * dt;
             self.bias = self.bias.clamp_length_max(MAX_BIAS);
         }
         self.q = (self.q * DQuat::from_scaled_axis(correction * dt)).normalize();
@@ -805,6 +828,37 @@ mod tests {
     }
 
     #[test]
+    fn a_still_phone_learns_the_tilt_axes_of_the_bias_within_seconds() {
+        // Heading held (no compass): only the accelerometer sees the bias, on the two axes
+        // perpendicular to the vertical. Still, its share of the bias is learnt at
+        // k_bias_still = 0.1/s² with k_acc = 0.5/s: a PI loop s² + 0.5 s + 0.1 whose slower root
+        // decays with ~4 s (0.01/s², the moving gain: ~48 s).
+        let truth = from_heading_pitch_roll(1.0, 0.2, 0.3);
+        let up = truth.inverse() * DVec3::Z;
+        let bias = DVec3::new(0.01, -0.02, 0.015);
+        let tilt_bias = bias - bias.dot(up) * up;
+        let learnt = |k_bias_still: f64| {
+            let mut f = OrientationFilter::new(FusionConfig { k_bias_still, ..FusionConfig::default() });
+            f.set_reference(reference());
+            let dt = 0.01;
+            for i in 0..2_300 {
+                let t = i as f64 * dt;
+                if i == 300 {
+                    f.hold_heading(t, true);
+                }
+                f.update(&Reading::Accel { t, v: truth.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+                f.update(&Reading::Mag { t, v: truth.inverse() * FIELD }).unwrap();
+                f.update(&Reading::Gyro { t, v: bias }).unwrap();
+            }
+            let b = f.gyro_bias();
+            (b - b.dot(up) * up - tilt_bias).length() / tilt_bias.length()
+        };
+        let (still, moving) = (learnt(0.1), learnt(0.01));
+        assert!(still < 0.05, "20 s still: {:.0}% of the tilt-axis bias left", 100.0 * still);
+        assert!(moving > 0.4, "at the moving gain: {:.0}% left", 100.0 * moving);
+    }
+
+    #[test]
     fn declination_from_reference_makes_true_heading() {
         // Field 10° east of north: a device facing magnetic north faces true heading 10°.
         let d = 10f64.to_radians();
@@ -952,6 +1006,32 @@ mod tests {
         assert_eq!(f.sun_heading(52.0, f64::NAN, sigma), None);
         assert_eq!(f.sun_heading(52.0, 0.01, 0.0), None);
         assert_eq!(OrientationFilter::new(FusionConfig::default()).sun_heading(0.0, 0.01, sigma), None);
+    }
+
+    #[test]
+    fn a_heading_fix_turns_a_held_heading_and_teaches_the_compass_nothing() {
+        let mut f = OrientationFilter::new(FusionConfig::default());
+        f.set_reference(reference());
+        let q = from_heading_pitch_roll(0.8, 0.1, 0.0);
+        let dev = crate::pose::frames::device_from_camera_pose(q, DisplayRotation::R0);
+        feed_rotation(&mut f, dev, DVec3::ZERO, 0.0, 5.0, FIELD);
+        f.hold_heading(5.0, true);
+        feed_rotation(&mut f, dev, DVec3::ZERO, 5.0, 4.0, FIELD);
+        let p = f64::from(f.pose(DisplayRotation::R0).unwrap().heading_accuracy_deg).to_radians().powi(2);
+        // The images say the held heading is 3° too far clockwise, with 1σ 0.3°.
+        let sigma = 0.3f64.to_radians();
+        let c = f.heading_fix(9.0, 3f64.to_radians(), sigma).unwrap();
+        let k = p / (p + sigma * sigma);
+        assert!((c / 3f64.to_radians() - k).abs() < 1e-5 && k > 0.9, "gain {} vs {k}", c / 3f64.to_radians());
+        let after = f64::from(f.pose(DisplayRotation::R0).unwrap().heading_accuracy_deg).to_radians();
+        assert!((after - (p * (1.0 - k)).sqrt()).abs() < 1e-4, "{after}");
+        // Blended in, and held there: the compass (still held off) does not pull it back.
+        feed_rotation(&mut f, dev, DVec3::ZERO, 9.0, 3.0, FIELD);
+        let moved = -heading_error(&f, dev);
+        assert!((moved - c).abs() < 0.01f64.to_radians(), "moved {}° of {}°", moved.to_degrees(), c.to_degrees());
+        assert_eq!(f.compass_offset(), 0.0);
+        assert_eq!(f.heading_fix(12.0, f64::NAN, sigma), None);
+        assert_eq!(f.heading_fix(12.0, 0.01, 0.0), None);
     }
 
     #[test]

@@ -183,3 +183,56 @@ fn an_hdr_capture_measures_the_sky_within_ten_percent() {
     assert!(f64::from(max) > 4.0 * clip_8bit, "{max} vs 8-bit clip {clip_8bit}");
     assert!(share >= 0.99, "{share}");
 }
+
+/// Irradiance (luminance) on a plane facing `s`, from every texel of a cube in its own frame.
+fn facing_irradiance(cube: &CubeMap, s: glam::Vec3, clip: Option<[f32; 3]>) -> f64 {
+    previz::light::samples::from_cube(cube)
+        .iter()
+        .map(|t| {
+            let l = clip.map_or(t.radiance, |c| [0, 1, 2].map(|k| t.radiance[k].min(c[k])));
+            f64::from(luminance_bt709(l) * t.dir.dot(s).max(0.0) * t.solid_angle)
+        })
+        .sum()
+}
+
+/// The HDR rows of docs/capture.md: `cargo test --test capture_hdr hdr_study -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn hdr_study() {
+    let env = quarry();
+    let sun = previz::light::sun_finder::find_sun(&previz::light::samples::from_cube(&env), &Default::default()).unwrap().dir;
+    println!(
+        "| noise | lens | seeds | texels within 10 % (mean, worst seed) | sun-facing irradiance, capture / source | same, source clipped where the brackets clip |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for noise in [NoiseLevel::None, NoiseLevel::Phone] {
+        for vfov in [100.0f32, 50.0] {
+            let seeds = [0u64, 1, 2, 3];
+            let (mut share, mut worst, mut ratio, mut ratio_clipped) = (0.0, 1f64, 0.0, 0.0);
+            for &seed in &seeds {
+                let mut cfg = ReplayConfig { hdr: true, noise, ..config(vfov, seed, (640, 480), 128) };
+                cfg.score = false;
+                let t = trace(&cfg, seed);
+                let r = replay(&env, &t, &cfg).unwrap();
+                assert!(r.incomplete.is_none(), "{:?}", r.incomplete);
+                let front = front_true_heading(&t, &r);
+                let (s, _) = hdr_within_10_percent(&env, &r, front);
+                let cap = r.capture.as_ref().unwrap();
+                let clip = cap.meta.hdr.as_ref().unwrap().clip_radiance;
+                let s_local = previz::capture::targets::world_to_local(front).as_quat() * sun;
+                let e_cap = facing_irradiance(&cap.to_cube_map(), s_local, None);
+                share += s / seeds.len() as f64;
+                worst = worst.min(s);
+                ratio += e_cap / facing_irradiance(&env, sun, None) / seeds.len() as f64;
+                ratio_clipped += e_cap / facing_irradiance(&env, sun, Some(clip)) / seeds.len() as f64;
+            }
+            println!(
+                "| {} | {vfov}° | {} | {:.2} % ({:.2} %) | {ratio:.3} | {ratio_clipped:.3} |",
+                noise.name(),
+                seeds.len(),
+                100.0 * share,
+                100.0 * worst
+            );
+        }
+    }
+}

@@ -9,7 +9,7 @@ use previz::capture::{Assistant, CubeCapture, Mode};
 use previz::light::sun_finder::azimuth_elevation;
 use previz::pose::HeadingSource;
 use previz::pose::hand_motion::UserPathParams;
-use previz::pose::sun_study::{SunCase, SunWorld, pooled_rms, run_case, sun_world};
+use previz::pose::sun_study::{SunCase, SunWorld, pooled_rms, run_case, run_case_every, sun_world};
 use previz::pose::trace::TruthTrace;
 use previz::scene::environment::load_equirect;
 use previz::sensors::sim::{NoiseLevel, SimSite};
@@ -188,4 +188,19 @@ fn capture_study() {
         (before / n as f64).sqrt(),
         (after / n as f64).sqrt()
     );
+}
+
+/// How often a sun frame is needed at `bad` noise: `cargo test --test sun_heading bad_noise_frame_rate -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn bad_noise_frame_rate() {
+    let w = world();
+    println!("| frame period (s) | seeds | RMS compass (°) | RMS with sun (°) | worst seed (°) |");
+    println!("|---|---|---|---|---|");
+    for period in [0.5, 0.2, 0.1, 0.05] {
+        let runs: Vec<_> = (0..10).map(|seed| run_case_every(&w, SunCase::InView, NoiseLevel::Bad, seed, 40.0, period).unwrap()).collect();
+        let (before, after) = pooled_rms(&runs);
+        let worst = runs.iter().map(|r| r.rms_after_deg).fold(0.0, f64::max);
+        println!("| {period} | 10 | {before:.2} | {after:.2} | {worst:.2} |");
+    }
 }

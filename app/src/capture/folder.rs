@@ -334,7 +334,8 @@ impl CubeCapture {
         let (m, seen_in) = match from_frames {
             Some(m) => (m, "the shots' short-exposure frames"),
             None => {
-                let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians()) else {
+                let clip = self.meta.hdr.as_ref().filter(|_| self.hdr.is_some()).map_or([1.0; 3], |h| h.clip_radiance);
+                let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians(), clip) else {
                     return keep(&mut self.meta, "no sun in the capture (clouds, or not in view)");
                 };
                 // The faces are levelled by the accelerometer: its 0.5° floor is the tilt 1σ.

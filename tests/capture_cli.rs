@@ -121,9 +121,23 @@ fn default_command_completes_for_the_seeds_that_failed() {
     let env = data("hdri/polyhaven_1k/quarry_01_1k.hdr").to_string_lossy().into_owned();
     for seed in ["0", "1", "2", "3"] {
         let out_dir = format!("cap{seed}");
-        let out = previz(&dir, &["capture", "--env", &env, "--simulate", "--seed", seed, "--face-size", "64", "-o", &out_dir, "--json"]);
+        let mut args = vec!["capture", "--env", &env, "--simulate", "--seed", seed, "--face-size", "64", "-o", &out_dir, "--json"];
+        if seed == "0" {
+            args.push("--hdr");
+        }
+        let out = previz(&dir, &args);
         assert!(out.status.success(), "seed {seed}: {}", String::from_utf8_lossy(&out.stderr));
         let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        // The simulated world puts the map's sun where SPA has it: north from the sun.
+        assert_eq!(json["heading"]["source"], "sun", "seed {seed}: {}", json["heading"]);
+        if seed == "0" {
+            // HDR: float faces beside the PNGs, and they are what an environment load reads.
+            let cap = dir.join(&out_dir);
+            assert!(json["hdr"]["clip_radiance"].is_array(), "{}", json["hdr"]);
+            let env = previz::scene::environment::load_environment(&cap).unwrap();
+            let max = env.faces.iter().flatten().flatten().fold(0f32, |m, v| m.max(*v));
+            assert!(max > 1.0, "float radiance, brightest {max}");
+        }
         for f in json["faces"].as_array().unwrap() {
             // Complete means every face seen but for a sliver (assistant::MAX_UNSEEN = 2 %).
             assert!(f["coverage"].as_f64().unwrap() >= 0.98, "seed {seed}: {f}");

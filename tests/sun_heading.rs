@@ -9,7 +9,8 @@ use previz::capture::{Assistant, CubeCapture, Mode};
 use previz::light::sun_finder::azimuth_elevation;
 use previz::pose::HeadingSource;
 use previz::pose::hand_motion::UserPathParams;
-use previz::pose::sun_study::{SunCase, SunWorld, pooled_rms, run_case, sun_world};
+use previz::pose::sun_heading::{heading_measurement, sight_sun_in_capture};
+use previz::pose::sun_study::{SunCase, SunWorld, pooled_rms, run_case, run_case_every, sun_world};
 use previz::pose::trace::TruthTrace;
 use previz::scene::environment::load_equirect;
 use previz::sensors::sim::{NoiseLevel, SimSite};
@@ -188,4 +189,54 @@ fn capture_study() {
         (before / n as f64).sqrt(),
         (after / n as f64).sqrt()
     );
+}
+
+/// How often a sun frame is needed at `bad` noise: `cargo test --test sun_heading bad_noise_frame_rate -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn bad_noise_frame_rate() {
+    let w = world();
+    println!("| frame period (s) | seeds | RMS compass (°) | RMS with sun (°) | worst seed (°) |");
+    println!("|---|---|---|---|---|");
+    for period in [0.5, 0.2, 0.1, 0.05] {
+        let runs: Vec<_> = (0..10).map(|seed| run_case_every(&w, SunCase::InView, NoiseLevel::Bad, seed, 40.0, period).unwrap()).collect();
+        let (before, after) = pooled_rms(&runs);
+        let worst = runs.iter().map(|r| r.rms_after_deg).fold(0.0, f64::max);
+        println!("| {period} | 10 | {before:.2} | {after:.2} | {worst:.2} |");
+    }
+}
+
+#[test]
+fn the_sun_is_found_in_an_hdr_captures_faces_where_8_bit_faces_clip_around_it() {
+    // The fallback of the capture's north (no short-exposure frame): the sun in the faces. At
+    // the capture's exposure the 8-bit faces clip the sky around the low sun into a wide blob
+    // (rejected); the HDR faces measure that sky, and only the disc clips (at clip_radiance).
+    let w = world();
+    let cfg = ReplayConfig {
+        mode: Mode::Stitch,
+        vfov_deg: 100.0,
+        width: 640,
+        height: 480,
+        face_size: 256,
+        noise: NoiseLevel::None,
+        seed: 0,
+        score: false,
+        render_threads: 2,
+        hdr: true,
+        ..Default::default()
+    };
+    let targets: Vec<_> = Assistant::new(cfg.assistant().unwrap()).unwrap().targets().into_iter().cloned().collect();
+    let trace = TruthTrace::new(simulate_capture_path(0, &targets, &UserPathParams::default()).unwrap().samples).unwrap();
+    let r = replay(&w.env, &trace, &cfg).unwrap();
+    let cap = r.capture.unwrap();
+    let href = cap.meta.reference_heading_deg.to_radians();
+    let clip = cap.meta.hdr.as_ref().unwrap().clip_radiance;
+    let seen = sight_sun_in_capture(&cap.to_cube_map(), href, clip).expect("the sun in the HDR faces");
+    let m = heading_measurement(&seen, w.sun_enu, 0.5f64.to_radians()).expect("at SPA's elevation");
+    let truth = r.reference_heading_error_deg.unwrap();
+    eprintln!("HDR faces: measured {:.3}° (1σ {:.3}°), reference heading error {truth:.3}°", m.error.to_degrees(), m.sigma.to_degrees());
+    assert!((m.error.to_degrees() - truth).abs() < 0.3, "measured {} vs {truth}", m.error.to_degrees());
+    let mut eight_bit = cap.clone();
+    eight_bit.hdr = None;
+    assert!(sight_sun_in_capture(&eight_bit.to_cube_map(), href, [1.0; 3]).is_none(), "the 8-bit faces' clipped blob is rejected");
 }

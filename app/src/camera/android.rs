@@ -119,6 +119,9 @@ pub struct Camera2 {
     session_callbacks: Box<ffi::ACameraCaptureSession_stateCallbacks>,
     info: CameraInfo,
     t0_ns: Option<i64>,
+    /// Auto-exposure and auto white balance locked ([`FrameSource::lock_exposure`]); applied
+    /// again when the camera restarts after a pause.
+    locked: bool,
 }
 
 impl Camera2 {
@@ -179,8 +182,19 @@ impl Camera2 {
                 onReady: Some(session_state),
                 onActive: Some(session_state),
             });
-            let mut camera =
-                Camera2 { manager, id, reader, window, streaming: None, state, device_callbacks, session_callbacks, info, t0_ns: None };
+            let mut camera = Camera2 {
+                manager,
+                id,
+                reader,
+                window,
+                streaming: None,
+                state,
+                device_callbacks,
+                session_callbacks,
+                info,
+                t0_ns: None,
+                locked: false,
+            };
             camera.start()?;
             Ok(camera)
         }
@@ -228,6 +242,7 @@ impl Camera2 {
             )?;
             let request = *s.request.insert(NonNull::new(request).context("null capture request")?);
             camera_ok("ACaptureRequest_addTarget", ffi::ACaptureRequest_addTarget(request.as_ptr(), target.as_ptr()))?;
+            set_controls_lock(request, self.locked)?;
             let mut session = null_mut();
             camera_ok(
                 "ACameraDevice_createCaptureSession",
@@ -242,6 +257,23 @@ impl Camera2 {
             self.streaming = Some(s);
         }
         Ok(())
+    }
+
+    /// Lock or release auto-exposure and auto white balance: `CONTROL_AE_LOCK` and
+    /// `CONTROL_AWB_LOCK` on the preview request, which is then repeated anew.
+    fn set_locked(&mut self, lock: bool) -> Result<()> {
+        self.locked = lock;
+        let Some(s) = &self.streaming else { return Ok(()) };
+        let (Some(request), Some(session)) = (s.request, s.session) else { return Ok(()) };
+        // SAFETY: the request and session are alive while `streaming` holds them.
+        unsafe {
+            set_controls_lock(request, lock)?;
+            let mut requests = [request.as_ptr()];
+            camera_ok(
+                "ACameraCaptureSession_setRepeatingRequest",
+                ffi::ACameraCaptureSession_setRepeatingRequest(session.as_ptr(), null_mut(), 1, requests.as_mut_ptr(), null_mut()),
+            )
+        }
     }
 
     /// Stop the repeating request and close the session and the device (the camera is then
@@ -452,6 +484,34 @@ impl FrameSource for Camera2 {
 
     fn resume(&mut self) -> Result<()> {
         self.start()
+    }
+
+    fn lock_exposure(&mut self, lock: bool) -> Result<bool> {
+        self.set_locked(lock)?;
+        Ok(lock)
+    }
+}
+
+/// Set `CONTROL_AE_LOCK` and `CONTROL_AWB_LOCK` on a capture request (ON locks both at their
+/// current values; the camera keeps adapting with OFF).
+///
+/// # Safety
+/// `request` must be a live capture request.
+unsafe fn set_controls_lock(request: NonNull<ffi::ACaptureRequest>, lock: bool) -> Result<()> {
+    use ffi::acamera_metadata_enum_acamera_control_ae_lock as Ae;
+    use ffi::acamera_metadata_enum_acamera_control_awb_lock as Awb;
+    let ae = [(if lock { Ae::ACAMERA_CONTROL_AE_LOCK_ON } else { Ae::ACAMERA_CONTROL_AE_LOCK_OFF }).0 as u8];
+    let awb = [(if lock { Awb::ACAMERA_CONTROL_AWB_LOCK_ON } else { Awb::ACAMERA_CONTROL_AWB_LOCK_OFF }).0 as u8];
+    // SAFETY: the caller's contract; one u8 entry each, as the tags are declared.
+    unsafe {
+        camera_ok(
+            "ACaptureRequest_setEntry_u8(CONTROL_AE_LOCK)",
+            ffi::ACaptureRequest_setEntry_u8(request.as_ptr(), ffi::acamera_metadata_tag::ACAMERA_CONTROL_AE_LOCK.0, 1, ae.as_ptr()),
+        )?;
+        camera_ok(
+            "ACaptureRequest_setEntry_u8(CONTROL_AWB_LOCK)",
+            ffi::ACaptureRequest_setEntry_u8(request.as_ptr(), ffi::acamera_metadata_tag::ACAMERA_CONTROL_AWB_LOCK.0, 1, awb.as_ptr()),
+        )
     }
 }
 

@@ -35,6 +35,44 @@ pub fn aces_filmic(x: f32) -> f32 {
     ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
 }
 
+/// The inverse of [`aces_filmic`] on [0, 1): the exposed linear light that the curve maps to
+/// display-linear `y` (the quadratic y·(2.43x² + 0.59x + 0.14) = 2.51x² + 0.03x solved for its
+/// positive root). `y` ≥ 1 is the curve's white point, [`ACES_WHITE`]: a clipped value, whose
+/// true light is anywhere above.
+pub fn aces_filmic_inverse(y: f32) -> f32 {
+    if y.is_nan() || y <= 0.0 {
+        return 0.0;
+    }
+    if y >= 1.0 {
+        return ACES_WHITE;
+    }
+    let (y, a) = (f64::from(y), 2.43 * f64::from(y) - 2.51);
+    let b = 0.59 * y - 0.03;
+    let c = 0.14 * y;
+    ((-b - (b * b - 4.0 * a * c).max(0.0).sqrt()) / (2.0 * a)) as f32
+}
+
+/// Where [`aces_filmic`] reaches 1: the positive root of 0.08x² − 0.56x − 0.14 = 0.
+pub const ACES_WHITE: f32 = 7.241_657;
+
+/// The known tone curve inverted: an 8-bit sRGB code value back to the exposed linear light
+/// (`x` in [`tone_to_srgb8`]) at the code's centre. Code 255 is clipped: see
+/// [`saturation_exposed`].
+pub fn srgb8_to_exposed(code: u8) -> f32 {
+    aces_filmic_inverse(crate::colour::srgb_to_linear(f32::from(code) / 255.0))
+}
+
+/// [`srgb8_to_exposed`] for every code value.
+pub fn exposed_lut() -> [f32; 256] {
+    std::array::from_fn(|i| srgb8_to_exposed(i as u8))
+}
+
+/// The exposed linear light at which the 8-bit output saturates (code 255 from here on: the
+/// curve's value where the sRGB code rounds up to 255).
+pub fn saturation_exposed() -> f32 {
+    aces_filmic_inverse(crate::colour::srgb_to_linear(254.5 / 255.0))
+}
+
 /// Exposed linear light to an 8-bit sRGB code value: tone curve, sRGB encoding, rounding.
 pub fn tone_to_srgb8(x: f32) -> u8 {
     (linear_to_srgb(aces_filmic(x)) * 255.0 + 0.5) as u8
@@ -196,6 +234,29 @@ mod tests {
             assert!(y >= last);
             last = y;
         }
+    }
+
+    #[test]
+    fn the_inverse_tone_curve_undoes_the_curve() {
+        // The white point: f(7.241657) = 1 (0.08x² − 0.56x − 0.14 = 0 at x = (0.56 + √0.3584)/0.16).
+        assert!((aces_filmic(ACES_WHITE) - 1.0).abs() < 1e-6);
+        assert!((ACES_WHITE - (0.56 + 0.3584f32.sqrt()) / 0.16).abs() < 1e-4);
+        for i in 1..2000 {
+            let x = i as f32 * 0.0035;
+            let back = aces_filmic_inverse(aces_filmic(x));
+            assert!((back - x).abs() <= 1e-4 * x.max(1.0), "x = {x}: {back}");
+        }
+        assert_eq!(aces_filmic_inverse(0.0), 0.0);
+        assert_eq!(aces_filmic_inverse(f32::NAN), 0.0);
+        assert_eq!(aces_filmic_inverse(1.5), ACES_WHITE);
+        // Every code's light maps back to that code.
+        for code in 1..255u8 {
+            assert_eq!(tone_to_srgb8(srgb8_to_exposed(code)), code, "code {code}");
+        }
+        // Code 255 starts at the saturation point: just below it is 254.
+        let s = saturation_exposed();
+        assert_eq!(tone_to_srgb8(s * 1.001), 255);
+        assert_eq!(tone_to_srgb8(s * 0.999), 254);
     }
 
     #[test]

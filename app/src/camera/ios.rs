@@ -29,8 +29,8 @@ use objc2::runtime::{AnyObject, NSObject, NSObjectProtocol, ProtocolObject};
 use objc2::{AllocAnyThread, DefinedClass, define_class, msg_send};
 use objc2_av_foundation::{
     AVCaptureConnection, AVCaptureDevice, AVCaptureDeviceInput, AVCaptureDevicePosition, AVCaptureDeviceTypeBuiltInWideAngleCamera,
-    AVCaptureOutput, AVCaptureSession, AVCaptureSessionPreset1280x720, AVCaptureVideoDataOutput,
-    AVCaptureVideoDataOutputSampleBufferDelegate, AVMediaTypeVideo,
+    AVCaptureExposureMode, AVCaptureOutput, AVCaptureSession, AVCaptureSessionPreset1280x720, AVCaptureVideoDataOutput,
+    AVCaptureVideoDataOutputSampleBufferDelegate, AVCaptureWhiteBalanceMode, AVMediaTypeVideo,
 };
 use objc2_core_media::CMSampleBuffer;
 use objc2_foundation::{NSDictionary, NSNumber, NSString};
@@ -148,6 +148,7 @@ impl Delegate {
 /// The back camera streaming 1280×720 '420f' buffers.
 pub struct IosCamera {
     session: Retained<AVCaptureSession>,
+    device: Retained<AVCaptureDevice>,
     _output: Retained<AVCaptureVideoDataOutput>,
     _delegate: Retained<Delegate>,
     _queue: DispatchRetained<DispatchQueue>,
@@ -208,7 +209,7 @@ impl IosCamera {
             let hfov = f64::from(device.activeFormat().videoFieldOfView());
             let vfov_deg = vfov_from_hfov_deg(hfov, SIZE).ok();
             session.startRunning();
-            Ok(IosCamera { session, _output: output, _delegate: delegate, _queue: queue, latest, vfov_deg, t0: None, last_t: None })
+            Ok(IosCamera { session, device, _output: output, _delegate: delegate, _queue: queue, latest, vfov_deg, t0: None, last_t: None })
         }
     }
 
@@ -308,6 +309,32 @@ impl FrameSource for IosCamera {
         // SAFETY: as in pause.
         unsafe { self.session.startRunning() };
         Ok(())
+    }
+
+    /// `AVCaptureExposureModeLocked` + `AVCaptureWhiteBalanceModeLocked` (each where the device
+    /// supports it), or back to the continuous automatic modes; false when the device cannot
+    /// lock both.
+    fn lock_exposure(&mut self, lock: bool) -> Result<bool> {
+        let (exposure, white) = if lock {
+            (AVCaptureExposureMode::Locked, AVCaptureWhiteBalanceMode::Locked)
+        } else {
+            (AVCaptureExposureMode::ContinuousAutoExposure, AVCaptureWhiteBalanceMode::ContinuousAutoWhiteBalance)
+        };
+        // SAFETY: AVFoundation calls on the device this camera owns; the modes are set only
+        // when supported and while the configuration lock is held, as AVCaptureDevice requires.
+        unsafe {
+            self.device.lockForConfiguration().map_err(|e| anyhow::anyhow!("cannot configure the camera: {}", e.localizedDescription()))?;
+            let exposure_ok = self.device.isExposureModeSupported(exposure);
+            if exposure_ok {
+                self.device.setExposureMode(exposure);
+            }
+            let white_ok = self.device.isWhiteBalanceModeSupported(white);
+            if white_ok {
+                self.device.setWhiteBalanceMode(white);
+            }
+            self.device.unlockForConfiguration();
+            Ok(lock && exposure_ok && white_ok)
+        }
     }
 }
 

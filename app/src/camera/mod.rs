@@ -12,12 +12,14 @@
 
 #[cfg(target_os = "android")]
 pub mod android;
+pub mod controls;
 pub mod exposure;
 pub mod file;
 #[cfg(target_os = "ios")]
 pub mod ios;
 pub mod platform;
 pub mod sim;
+pub mod white_balance;
 pub mod yuv;
 
 use crate::scene::Rgba8Image;
@@ -72,5 +74,15 @@ pub trait FrameSource {
     /// Start the camera again after [`FrameSource::pause`].
     fn resume(&mut self) -> Result<()> {
         Ok(())
+    }
+
+    /// Lock (true) auto-exposure and auto white balance at their current values, or let them
+    /// follow the view again (false): a capture locks them at the tap, so every shot shares one
+    /// exposure and colour ([`controls`]). Returns whether they are locked now: false from a
+    /// source that cannot lock them (files; a camera without the lock), whose captures then
+    /// estimate each shot's gain from the overlaps ([`crate::capture::gain`]).
+    fn lock_exposure(&mut self, lock: bool) -> Result<bool> {
+        let _ = lock;
+        Ok(false)
     }
 }

@@ -1,6 +1,7 @@
 //! The virtual phone: renders what a phone camera sees from an environment cube map at a given
-//! orientation — a pinhole camera (vertical field of view, resolution), auto-exposure and a
-//! tone curve to 8-bit sRGB (see [`super::exposure`]).
+//! orientation — a pinhole camera (vertical field of view, resolution), auto-exposure, white
+//! balance (auto when set, [`VirtualPhone::set_white_balance`]; lockable, [`super::controls`])
+//! and a tone curve to 8-bit sRGB (see [`super::exposure`]).
 //!
 //! Pose: a unit quaternion rotating the camera frame to the world (ENU) frame; the camera
 //! looks along its −z, +x is image right, +y image up. So the identity pose looks straight
@@ -9,7 +10,9 @@
 //! Rendering is deterministic (every pixel is computed independently; the thread count does
 //! not change the result) and runs on all cores.
 
-use super::exposure::{AutoExposure, ExposureMode, ToneLut, log_average_luminance};
+use super::controls::{AutoCamera, CameraSettings, Metering};
+use super::exposure::{ExposureMode, ToneLut, log_average_luminance};
+use super::white_balance::{NEUTRAL, WhiteBalanceMode};
 use super::{Frame, FrameSource};
 use crate::scene::{CubeMap, Rgba8Image};
 use anyhow::{Result, bail};
@@ -44,7 +47,8 @@ pub struct VirtualPhone {
     height: u32,
     /// tan of half the horizontal and vertical field of view.
     tan_half: (f32, f32),
-    exposure: AutoExposure,
+    exposure: ExposureMode,
+    controls: AutoCamera,
     lut: ToneLut,
     last_t: Option<f64>,
     threads: usize,
@@ -79,11 +83,28 @@ impl VirtualPhone {
             width,
             height,
             tan_half: (tan_h, tan_v),
-            exposure: AutoExposure::new(exposure)?,
+            exposure,
+            controls: AutoCamera::new(exposure, WhiteBalanceMode::Fixed(NEUTRAL))?,
             lut: ToneLut::new(),
             last_t: None,
             threads,
         })
+    }
+
+    /// How the white balance is chosen from now on (neutral fixed gains by default; auto follows
+    /// the view, [`super::white_balance`]). Starts the controls afresh (unlocked).
+    pub fn set_white_balance(&mut self, mode: WhiteBalanceMode) -> Result<()> {
+        self.controls = AutoCamera::new(self.exposure, mode)?;
+        Ok(())
+    }
+
+    /// Lock (true) or release (false) exposure and white balance at the last frame's values.
+    pub fn lock_controls(&mut self, lock: bool) {
+        if lock {
+            self.controls.lock();
+        } else {
+            self.controls.unlock();
+        }
     }
 
     /// Use `n` threads (at least 1) for rendering; the default is one per core.
@@ -113,46 +134,69 @@ impl VirtualPhone {
         rot.x_axis * x + rot.y_axis * y - rot.z_axis
     }
 
-    /// Log-average luminance (linear) of the view at `pose`, on the metering grid.
-    pub fn meter(&self, pose: Quat) -> Result<f32> {
+    /// What the metering grid sees of the view at `pose` (linear light): the log-average
+    /// luminance and the per-channel geometric means.
+    pub fn meter(&self, pose: Quat) -> Result<Metering> {
         let rot = pose_matrix(pose)?;
         let (gw, gh) = (self.width.div_ceil(METER_STEP), self.height.div_ceil(METER_STEP));
         let (sx, sy) = (self.width as f32 / gw as f32, self.height as f32 / gh as f32);
-        let samples = (0..gh).flat_map(|j| (0..gw).map(move |i| ((i as f32 + 0.5) * sx, (j as f32 + 0.5) * sy)));
-        Ok(log_average_luminance(samples.map(|(x, y)| self.env.sample_enu(self.pixel_ray(&rot, x, y)))))
+        let samples: Vec<[f32; 3]> = (0..gh)
+            .flat_map(|j| (0..gw).map(move |i| ((i as f32 + 0.5) * sx, (j as f32 + 0.5) * sy)))
+            .map(|(x, y)| self.env.sample_enu(self.pixel_ray(&rot, x, y)))
+            .collect();
+        let channel = |c: usize| log_average_luminance(samples.iter().map(|s| [s[c]; 3]));
+        Ok(Metering {
+            log_average_luminance: log_average_luminance(samples.iter().copied()),
+            log_average_rgb: [channel(0), channel(1), channel(2)],
+        })
     }
 
     /// The next frame of a stream at time `t` seconds: meters (auto mode), adapts the exposure
     /// by the time since the previous frame, renders.
     pub fn render(&mut self, pose: Quat, t: f64) -> Result<Frame> {
         let rot = pose_matrix(pose)?;
-        let metered = if self.exposure.is_auto() { self.meter(pose)? } else { 0.0 };
+        let metered = if self.controls.needs_metering() {
+            self.meter(pose)?
+        } else {
+            Metering { log_average_luminance: 0.0, log_average_rgb: [0.0; 3] }
+        };
         let dt = self.last_t.map_or(0.0, |last| t - last);
         self.last_t = Some(t);
-        let exposure = self.exposure.update(metered, dt);
-        Ok(Frame { image: self.draw(&rot, exposure), t })
+        let settings = self.controls.update(metered, dt);
+        Ok(Frame { image: self.draw(&rot, settings.gains()), t })
     }
 
-    /// One image at a given exposure, outside any stream (no metering, no adaptation): e.g.
-    /// the ideal view to compare a capture against, at the exposure the capture used.
+    /// One image at a given exposure (neutral white balance), outside any stream (no metering,
+    /// no adaptation): e.g. the ideal view to compare a capture against.
     pub fn render_with_exposure(&self, pose: Quat, exposure: f32) -> Result<Rgba8Image> {
         if !(exposure.is_finite() && exposure > 0.0) {
             bail!("exposure must be a positive number, got {exposure}");
         }
-        Ok(self.draw(&pose_matrix(pose)?, exposure))
+        self.render_with(pose, CameraSettings::exposure(exposure))
+    }
+
+    /// One image with given exposure and white balance, outside any stream.
+    pub fn render_with(&self, pose: Quat, settings: CameraSettings) -> Result<Rgba8Image> {
+        settings.validate()?;
+        Ok(self.draw(&pose_matrix(pose)?, settings.gains()))
     }
 
     /// The exposure (multiplier on scene radiance) of the last frame.
     pub fn exposure(&self) -> Option<f32> {
-        self.exposure.current()
+        self.controls.current().map(|s| s.exposure)
+    }
+
+    /// The exposure and white balance of the last frame.
+    pub fn settings(&self) -> Option<CameraSettings> {
+        self.controls.current()
     }
 
     /// The exposure mode (auto or fixed).
     pub fn exposure_mode(&self) -> ExposureMode {
-        self.exposure.mode()
+        self.exposure
     }
 
-    fn draw(&self, rot: &Mat3, exposure: f32) -> Rgba8Image {
+    fn draw(&self, rot: &Mat3, gains: [f32; 3]) -> Rgba8Image {
         let (w, h) = (self.width as usize, self.height as usize);
         let mut pixels = vec![0u8; w * h * 4];
         let xs: Vec<f32> = (0..w).map(|x| (2.0 * (x as f32 + 0.5) / w as f32 - 1.0) * self.tan_half.0).collect();
@@ -165,9 +209,9 @@ impl VirtualPhone {
                 let base = up * y - back;
                 for (px, &x) in row.chunks_exact_mut(4).zip(&xs) {
                     let c = env.sample_enu(base + right * x);
-                    px[0] = lut.map(c[0] * exposure);
-                    px[1] = lut.map(c[1] * exposure);
-                    px[2] = lut.map(c[2] * exposure);
+                    px[0] = lut.map(c[0] * gains[0]);
+                    px[1] = lut.map(c[1] * gains[1]);
+                    px[2] = lut.map(c[2] * gains[2]);
                     px[3] = 255;
                 }
             }
@@ -221,6 +265,11 @@ impl FrameSource for SimSequence {
             None => Ok(None),
             Some((t, pose)) => self.phone.render(pose, t).map(Some),
         }
+    }
+
+    fn lock_exposure(&mut self, lock: bool) -> Result<bool> {
+        self.phone.lock_controls(lock);
+        Ok(lock)
     }
 }
 
@@ -336,6 +385,38 @@ mod tests {
         let b = cam.render(Quat::IDENTITY, 0.1).unwrap();
         assert_eq!(a.t, 0.0);
         assert!((b.image.pixels.chunks(4).map(|p| p[0] as f32).sum::<f32>() / 256.0 - means[1]).abs() < 1e-3);
+    }
+
+    #[test]
+    fn auto_white_balance_drifts_with_the_view_unless_locked() {
+        // Blue sky above, brown ground below. Unlocked, the grey world balances each view to
+        // grey: the sky turns grey, and so does the ground; locked at the sky, the ground keeps
+        // its colour relative to the sky.
+        let mut colours = [[0.4f32, 0.25, 0.15]; 6];
+        colours[2] = [0.2, 0.3, 0.6];
+        let env = Arc::new(CubeMap::solid_faces(4, colours));
+        let settings = SimSettings { width: 16, height: 16, vfov_deg: 40.0, exposure: ExposureMode::Auto { key: 0.18, adaptation_s: 0.0 } };
+        let frames = |lock: bool| {
+            let mut phone = VirtualPhone::new(env.clone(), &settings).unwrap();
+            phone.set_white_balance(WhiteBalanceMode::Auto { adaptation_s: 0.0 }).unwrap();
+            let mut seq = SimSequence::new(phone, vec![(0.0, Quat::from_rotation_x(PI)), (1.0, Quat::IDENTITY)]).unwrap();
+            let sky = seq.next_frame().unwrap().unwrap();
+            assert_eq!(seq.lock_exposure(lock).unwrap(), lock);
+            let ground = seq.next_frame().unwrap().unwrap();
+            (pixel(&sky.image, 8, 8), pixel(&ground.image, 8, 8), seq.phone().settings().unwrap())
+        };
+        let (sky, ground, s) = frames(false);
+        let grey = |p: [u8; 3]| p.iter().all(|c| (*c as i32 - p[1] as i32).abs() <= 1);
+        assert!(grey(sky) && grey(ground), "unlocked: sky {sky:?} ground {ground:?}");
+        let near = |a: [f32; 3], b: [f32; 3]| a.iter().zip(&b).all(|(x, y)| (x / y - 1.0).abs() < 1e-3);
+        assert!(near(s.white_balance, [0.25 / 0.4, 1.0, 0.25 / 0.15]), "{:?}", s.white_balance);
+        let (sky_locked, ground_locked, s) = frames(true);
+        assert_eq!(sky_locked, sky);
+        // Locked at the sky's gains (1.5, 1, 0.5) and exposure (0.18 / its luminance).
+        assert!(near(s.white_balance, [1.5, 1.0, 0.5]), "{:?}", s.white_balance);
+        let expect = [0.4 * s.white_balance[0], 0.25, 0.15 * s.white_balance[2]].map(|c| tone_to_srgb8(c * s.exposure));
+        assert!(close(ground_locked, expect), "{ground_locked:?} vs {expect:?}");
+        assert!(ground_locked[0] > ground_locked[2] + 40, "the ground stays brown: {ground_locked:?}");
     }
 
     #[test]

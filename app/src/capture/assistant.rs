@@ -84,11 +84,25 @@ pub struct AssistantConfig {
     /// ([`super::align`]). On by default: on the quarry HDR at phone noise it raises the faces'
     /// PSNR against the ideal faces at the front's true heading by 3–4 dB (docs/capture.md).
     pub align: bool,
+    /// Scale each shot's light to the front's from the overlaps before assembly
+    /// ([`super::gain`]): undoes exposure and white balance that changed between shots. Off by
+    /// default: a capture locks both at the tap; on when the camera could not lock them
+    /// ([`crate::camera::FrameSource::lock_exposure`] returned false).
+    pub gain_compensation: bool,
 }
 
 impl AssistantConfig {
     pub fn new(mode: Mode, camera: Pinhole) -> Self {
-        AssistantConfig { mode, camera, tolerance_deg: 2.0, max_rate_deg_s: 10.0, dwell_s: 0.2, face_size: 256, align: true }
+        AssistantConfig {
+            mode,
+            camera,
+            tolerance_deg: 2.0,
+            max_rate_deg_s: 10.0,
+            dwell_s: 0.2,
+            face_size: 256,
+            align: true,
+            gain_compensation: false,
+        }
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -285,6 +299,12 @@ impl Assistant {
 
     pub fn config(&self) -> &AssistantConfig {
         &self.cfg
+    }
+
+    /// Turn the gain compensation on or off ([`AssistantConfig::gain_compensation`]): on when
+    /// the camera could not lock its exposure at the tap.
+    pub fn set_gain_compensation(&mut self, on: bool) {
+        self.cfg.gain_compensation = on;
     }
 
     /// All targets, the front first.
@@ -689,13 +709,27 @@ impl Assistant {
         };
         let cfg = &self.cfg;
         let taken: Vec<Shot> = self.states.iter().filter_map(|s| s.shot.clone()).collect();
-        // The front (the tap) is the first shot and keeps its pose: it defines the reference.
-        let (shots, alignment) = match cfg.mode {
+        // The front (the tap) is the first shot and keeps its pose and light: it defines the
+        // reference heading and the exposure. The alignment compares shots whose light was
+        // scaled to the front's (estimated with the sensor poses); the final gains are estimated
+        // again with the aligned poses, on the shots as taken.
+        let compensate = |shots: &[Shot]| super::gain::compensate(&cfg.camera, shots, 0);
+        let (taken, alignment) = match cfg.mode {
             Mode::Stitch if cfg.align => {
-                let (shots, a) = align_shots(&cfg.camera, &taken, 0);
-                (shots, Some(a))
+                let (aligned, a) = if cfg.gain_compensation {
+                    align_shots(&cfg.camera, &compensate(&taken).0, 0)
+                } else {
+                    align_shots(&cfg.camera, &taken, 0)
+                };
+                (taken.iter().zip(aligned).map(|(raw, al)| Shot { pose: al.pose, ..raw.clone() }).collect(), Some(a))
             }
             _ => (taken, None),
+        };
+        let (shots, gains) = if cfg.gain_compensation {
+            let (shots, g) = compensate(&taken);
+            (shots, Some(g.gains))
+        } else {
+            (taken, None)
         };
         // The face's own shot: stretch mode, its centre target's; stitch mode, the shot whose
         // view axis is closest to the face centre (the centre target may have been dropped).
@@ -742,6 +776,7 @@ impl Assistant {
                 let s = &self.states[shot.target];
                 let mut m = ShotMeta::new(&s.target, shot, s.heading_source);
                 m.alignment_turn_deg = alignment.as_ref().and_then(|a| a.turns_deg.get(k).copied());
+                m.gain = gains.as_ref().and_then(|g| g.get(k).copied());
                 m
             })
             .collect();

@@ -1,5 +1,6 @@
 //! A capture on disk: a folder with the six faces as PNG (posx.png … negz.png, the capture
-//! convention of [`super`]: +Z = front = reference heading) and `capture.json` with the
+//! convention of [`super`]: +Z = front = reference heading), for an HDR capture also as float
+//! OpenEXR (posx.exr … negz.exr: scene radiance, [`super::hdr`]), and `capture.json` with the
 //! metadata (reference heading, poses, timestamps, location, time). See docs/capture.md.
 //!
 //! Saving never leaves a half-written capture: everything is written into a temporary sibling
@@ -10,7 +11,7 @@ use super::Mode;
 use super::assistant::AssistantConfig;
 use super::reproject::{FaceImage, Shot};
 use super::targets::{Face, Target};
-use crate::output::{write_atomic, write_png_rgb8};
+use crate::output::{write_atomic, write_exr_f32, write_png_rgb8};
 use crate::pose::HeadingSource;
 use crate::pose::frames::heading_pitch_roll;
 use crate::scene::CubeMap;
@@ -103,6 +104,16 @@ pub struct ShotMeta {
     /// (`pose_wxyz` is after it); null when the shots were not aligned.
     #[serde(default)]
     pub alignment_turn_deg: Option<f64>,
+    /// The camera's exposure (multiplier on scene radiance) for this shot, when known.
+    #[serde(default)]
+    pub exposure: Option<f32>,
+    /// The camera's white balance gains (R, G, B) for this shot, when known.
+    #[serde(default)]
+    pub white_balance: Option<[f32; 3]>,
+    /// Gain (R, G, B) applied to this shot's light before blending, estimated from the
+    /// overlaps ([`super::gain`]); null when not estimated.
+    #[serde(default)]
+    pub gain: Option<[f32; 3]>,
 }
 
 /// What the alignment from the images did ([`super::align`]).
@@ -123,6 +134,9 @@ impl ShotMeta {
             pose_wxyz: wxyz(shot.pose),
             heading_source: heading_source_name(source),
             alignment_turn_deg: None,
+            exposure: None,
+            white_balance: None,
+            gain: None,
         }
     }
 }
@@ -138,8 +152,15 @@ pub struct CaptureMeta {
     pub reference_heading_deg: f64,
     pub tolerance_deg: f64,
     pub camera: CameraMeta,
-    /// Exposure (multiplier on scene radiance) the faces were taken at, when known.
+    /// Exposure (multiplier on scene radiance) of the front shot, when known: the faces'
+    /// exposure (the other shots are locked to it, or compensated to it).
     pub exposure: Option<f32>,
+    /// White balance gains (R, G, B) of the front shot, when known (null in older folders).
+    #[serde(default)]
+    pub white_balance: Option<[f32; 3]>,
+    /// Whether exposure and white balance were locked at the tap; null when not known.
+    #[serde(default)]
+    pub exposure_locked: Option<bool>,
     pub location: Option<Location>,
     /// When the capture was taken (RFC 3339, UTC), when known.
     pub time_utc: Option<String>,
@@ -152,6 +173,27 @@ pub struct CaptureMeta {
     /// Where the reference heading comes from and its 1σ; null in folders written before it.
     #[serde(default)]
     pub heading: Option<HeadingMeta>,
+    /// An HDR capture (exposure brackets merged): its float faces; null for 8-bit only.
+    #[serde(default)]
+    pub hdr: Option<HdrMeta>,
+}
+
+/// The float faces of an HDR capture ([`super::hdr`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HdrMeta {
+    /// The bracket taken per view (stops relative to each shot's exposure).
+    pub brackets_ev: Vec<f32>,
+    /// Per channel (R, G, B): the radiance above which every bracket clipped (the sun's disc);
+    /// such texels hold this value, a lower bound.
+    pub clip_radiance: [f32; 3],
+    /// The face files, cube-layer order (`posx.exr` … `negz.exr`): 32-bit float R, G, B in
+    /// the environment's radiance units (the exposure and white balance divided out).
+    pub files: Vec<String>,
+}
+
+/// The float face file of a face (`posx.exr` …).
+pub fn hdr_file_name(face: Face) -> String {
+    face.file_name().replace(".png", ".exr")
 }
 
 /// The reference heading's source ([`CubeCapture::calibrate_north_with_sun`]).
@@ -180,9 +222,12 @@ impl CaptureMeta {
             tolerance_deg: cfg.tolerance_deg,
             camera: CameraMeta { width: cfg.camera.width, height: cfg.camera.height, vfov_deg: cfg.camera.vfov_deg() },
             exposure: None,
+            white_balance: None,
+            exposure_locked: None,
             location: None,
             time_utc: None,
             alignment: None,
+            hdr: None,
             heading: Some(HeadingMeta {
                 source: match faces.iter().find(|f| f.face == Face::Front).map(|f| f.heading_source.as_str()) {
                     Some("gyro-only") => "gyro-only",
@@ -209,6 +254,9 @@ pub struct CubeCapture {
     pub meta: CaptureMeta,
     /// Index = cube layer (wgpu order +X, −X, +Y, −Y, +Z, −Z).
     pub faces: Vec<FaceImage>,
+    /// An HDR capture's float faces (radiance, cube-layer order, `face_size`² texels each,
+    /// top row first); None for an 8-bit capture.
+    pub hdr: Option<Vec<Vec<[f32; 3]>>>,
 }
 
 impl CubeCapture {
@@ -230,7 +278,25 @@ impl CubeCapture {
             bail!("capture is missing face(s): {}", missing.join(", "));
         }
         meta.faces.sort_by_key(|f| f.face.layer());
-        Ok(CubeCapture { meta, faces: ordered.into_iter().flatten().collect() })
+        Ok(CubeCapture { meta, faces: ordered.into_iter().flatten().collect(), hdr: None })
+    }
+
+    /// Make it an HDR capture: six float faces (cube-layer order) and their metadata.
+    pub fn set_hdr(&mut self, faces: Vec<Vec<[f32; 3]>>, brackets_ev: &[f32], clip_radiance: [f32; 3]) -> Result<()> {
+        let n = (self.meta.face_size * self.meta.face_size) as usize;
+        if faces.len() != 6 || faces.iter().any(|f| f.len() != n) {
+            bail!("an HDR capture needs six float faces of {0}x{0} texels", self.meta.face_size);
+        }
+        if faces.iter().flatten().flatten().any(|v| !(v.is_finite() && *v >= 0.0)) {
+            bail!("an HDR face holds a negative or non-finite radiance");
+        }
+        self.meta.hdr = Some(HdrMeta {
+            brackets_ev: brackets_ev.to_vec(),
+            clip_radiance,
+            files: (0..6).filter_map(|layer| Face::ALL.iter().find(|f| f.layer() == layer)).map(|f| hdr_file_name(*f)).collect(),
+        });
+        self.hdr = Some(faces);
+        Ok(())
     }
 
     pub fn face(&self, face: Face) -> &FaceImage {
@@ -268,7 +334,8 @@ impl CubeCapture {
         let (m, seen_in) = match from_frames {
             Some(m) => (m, "the shots' short-exposure frames"),
             None => {
-                let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians()) else {
+                let clip = self.meta.hdr.as_ref().filter(|_| self.hdr.is_some()).map_or([1.0; 3], |h| h.clip_radiance);
+                let Some(seen) = sight_sun_in_capture(&self.to_cube_map(), self.meta.reference_heading_deg.to_radians(), clip) else {
                     return keep(&mut self.meta, "no sun in the capture (clouds, or not in view)");
                 };
                 // The faces are levelled by the accelerometer: its 0.5° floor is the tilt 1σ.
@@ -305,10 +372,14 @@ impl CubeCapture {
         Some(turn)
     }
 
-    /// The faces as a cube map in linear light (sRGB decoded; the camera's tone curve is not
-    /// undone), in the capture's own frame: front = +Z. Render it with the reference heading
-    /// as the map's heading ([`crate::render::Compositor::set_environment`]).
+    /// The faces as a cube map in linear light, in the capture's own frame: front = +Z: an HDR
+    /// capture's float faces (radiance), else the 8-bit faces sRGB-decoded (the camera's tone
+    /// curve is not undone). Render it with the reference heading as the map's heading
+    /// ([`crate::render::Compositor::set_environment`]).
     pub fn to_cube_map(&self) -> CubeMap {
+        if let Some(hdr) = &self.hdr {
+            return CubeMap { size: self.meta.face_size, faces: std::array::from_fn(|layer| hdr[layer].clone()) };
+        }
         let lut: [f32; 256] = std::array::from_fn(|i| crate::colour::srgb_to_linear(i as f32 / 255.0));
         let faces = std::array::from_fn(|layer| {
             self.faces[layer].rgb.chunks_exact(3).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect()
@@ -340,6 +411,14 @@ pub fn save_capture(capture: &CubeCapture, dir: &Path) -> Result<()> {
         std::fs::create_dir_all(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
         for f in &capture.faces {
             write_png_rgb8(&tmp.join(f.face.file_name()), f.size, f.size, &f.rgb)?;
+        }
+        if let Some(hdr) = &capture.hdr {
+            let size = capture.meta.face_size;
+            for face in Face::ALL {
+                let texels = &hdr[face.layer()];
+                let plane = |c: usize| texels.iter().map(|t| t[c]).collect::<Vec<f32>>();
+                write_exr_f32(&tmp.join(hdr_file_name(face)), size, size, vec![("R", plane(0)), ("G", plane(1)), ("B", plane(2))])?;
+            }
         }
         let json = serde_json::to_string_pretty(&capture.meta).context("cannot encode the capture metadata")?;
         write_atomic(&tmp.join(META_FILE), json.as_bytes())?;
@@ -386,7 +465,32 @@ pub fn load_capture(dir: &Path) -> Result<CubeCapture> {
         let coverage = meta.face(face).map_or(f32::NAN, |m| m.coverage);
         faces.push(FaceImage { face, size: meta.face_size, rgb: img.into_raw(), coverage });
     }
-    CubeCapture::new(meta, faces).with_context(|| format!("capture folder {}", dir.display()))
+    let hdr = match &meta.hdr {
+        None => None,
+        Some(_) => {
+            let mut hdr = vec![Vec::new(); 6];
+            for face in Face::ALL {
+                let path = dir.join(hdr_file_name(face));
+                let img = crate::scene::decode::decode_file(&path, &[])
+                    .with_context(|| format!("HDR capture face {} ({})", face.name(), path.display()))?
+                    .image
+                    .to_rgb32f();
+                if img.width() != meta.face_size || img.height() != meta.face_size {
+                    bail!("{} is {}x{}, the metadata says {} px faces", path.display(), img.width(), img.height(), meta.face_size);
+                }
+                hdr[face.layer()] = img.pixels().map(|p| p.0).collect::<Vec<[f32; 3]>>();
+            }
+            Some(hdr)
+        }
+    };
+    let mut capture = CubeCapture::new(meta, faces).with_context(|| format!("capture folder {}", dir.display()))?;
+    capture.hdr = hdr;
+    if let Some(h) = &capture.hdr
+        && h.iter().flatten().flatten().any(|v| !(v.is_finite() && *v >= 0.0))
+    {
+        bail!("capture folder {}: an HDR face holds a negative or non-finite radiance", dir.display());
+    }
+    Ok(capture)
 }
 
 #[cfg(test)]
@@ -438,6 +542,32 @@ mod tests {
         // The linear cube map decodes sRGB: 160 -> 0.3515 (IEC 61966-2-1).
         let cube = back.to_cube_map();
         assert!((cube.faces[4][0][0] - crate::colour::srgb_to_linear(160.0 / 255.0)).abs() < 1e-6);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_hdr_capture_round_trips_its_float_faces() {
+        let dir = tmp("hdr");
+        let mut c = capture(8);
+        let faces: Vec<Vec<[f32; 3]>> = (0..6).map(|l| (0..64).map(|i| [l as f32 * 1000.0 + i as f32, 0.125, 3.5e4]).collect()).collect();
+        c.set_hdr(faces.clone(), &[-4.0, 0.0, 4.0], [4e4, 5e4, 6e4]).unwrap();
+        save_capture(&c, &dir).unwrap();
+        assert!(dir.join("posz.exr").is_file() && dir.join("posz.png").is_file());
+        let back = load_capture(&dir).unwrap();
+        assert_eq!(back.hdr.as_ref().unwrap(), &faces, "32-bit floats round-trip exactly");
+        assert_eq!(back.meta.hdr.as_ref().unwrap().clip_radiance, [4e4, 5e4, 6e4]);
+        assert_eq!(back.meta.hdr.as_ref().unwrap().files, ["posx.exr", "negx.exr", "posy.exr", "negy.exr", "posz.exr", "negz.exr"]);
+        // The cube map is the radiance (texel 9 of the front face: layer 4).
+        assert_eq!(back.to_cube_map().faces[4][9], [4009.0, 0.125, 3.5e4]);
+        // As an environment folder, the float faces win over the 8-bit previews.
+        let env = crate::scene::environment::load_environment(&dir).unwrap();
+        assert_eq!(env.faces[4][9], [4009.0, 0.125, 3.5e4]);
+        // A missing float face is named.
+        std::fs::remove_file(dir.join("negy.exr")).unwrap();
+        let e = format!("{:#}", load_capture(&dir).unwrap_err());
+        assert!(e.contains("negy.exr"), "{e}");
+        assert!(c.clone().set_hdr(vec![vec![[1.0; 3]; 64]; 5], &[0.0], [1.0; 3]).is_err());
+        assert!(c.set_hdr(vec![vec![[f32::NAN; 3]; 64]; 6], &[0.0], [1.0; 3]).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

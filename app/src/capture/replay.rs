@@ -4,9 +4,12 @@
 //! Per camera frame (30 Hz by default): the simulated sensors deliver their readings up to the
 //! frame's time, the fusion filter updates, and the assistant sees the *estimated* pose. The
 //! virtual phone renders at the *true* pose, so estimation error shows up as misplaced faces.
-//! Exposure: the phone meters and adapts (auto-exposure) until the tap, then the assistant
-//! locks it, as camera apps do for panoramas, so every shot and the ideal faces share one
-//! exposure. Frames are rendered only when a shot is taken (metering runs every frame).
+//! Exposure and white balance: the phone meters and adapts both (auto-exposure, grey-world
+//! white balance: [`crate::camera::controls`]) until the tap, then the assistant locks them, as
+//! camera apps do for panoramas, so every shot shares one exposure and colour
+//! ([`ReplayConfig::lock_exposure`]; unlocked, they keep following the view between shots and
+//! the faces' seams show it). The ideal faces use the front shot's settings. Frames are rendered
+//! only when a shot is taken (metering runs every frame while the controls are not locked).
 //!
 //! Scores per face: orientation error (estimated vs true pose of its shot), coverage, and PSNR
 //! and mean FLIP (NVIDIA FLIP, Andersson et al. 2020) against the ideal face rendered straight
@@ -18,18 +21,21 @@ use super::aim_heading::AimHeading;
 use super::assistant::{Assistant, AssistantConfig, Phase};
 use super::folder::{CubeCapture, Location};
 use super::guided_path::{AimShift, CapturePath, simulate_guided_path};
+use super::hdr::{BRACKET_EV, clip_radiance, hdr_faces, merge_brackets};
 use super::projection::{Pinhole, face_pixel_dir_local, local_to_world};
 use super::targets::Face;
 use super::targets::{AimError, Target};
-use crate::camera::exposure::{AutoExposure, ExposureMode, ToneLut};
+use crate::camera::controls::{AutoCamera, CameraSettings};
+use crate::camera::exposure::{ExposureMode, ToneLut};
 use crate::camera::sim::{SimSettings, VirtualPhone};
+use crate::camera::white_balance::WhiteBalanceMode;
 use crate::pose::frames::angle_between;
 use crate::pose::fusion::{FusionConfig, OrientationFilter};
 use crate::pose::hand_motion::UserPathParams;
 use crate::pose::sun_heading::{HeadingMeasurement, SUN_FRAME_EXPOSURE, heading_measurement, sight_sun, sun_in_view};
 use crate::pose::trace::TruthTrace;
 use crate::pose::{HeadingSource, OrientationEstimator, Pose};
-use crate::scene::CubeMap;
+use crate::scene::{CubeMap, Rgba8Image};
 use crate::sensors::sim::{Disturbance, NoiseLevel, SimConfig, SimSensors};
 use crate::sensors::{Reading, SensorSource};
 use anyhow::{Context, Result, bail};
@@ -67,6 +73,16 @@ pub struct ReplayConfig {
     /// the capture's north ([`CubeCapture::calibrate_north_with_sun`]). None: the wall clock is
     /// recorded and the sun is not used (the environment's sun is not where SPA has it now).
     pub clock: Option<chrono::DateTime<chrono::Utc>>,
+    /// Lock exposure and white balance at the tap (the default, as Camera2's AE/AWB lock);
+    /// false lets them follow the view between shots.
+    pub lock_exposure: bool,
+    /// Take an exposure bracket per shot ([`super::hdr::BRACKET_EV`]) and add float faces
+    /// merged from them to the capture ([`CubeCapture::set_hdr`]).
+    pub hdr: bool,
+    /// Scale each shot's light to the front's from the overlaps ([`super::gain`]); None: when
+    /// the exposure is not locked (locked, every shot shares the front's light, and an estimate
+    /// would only add its own error: measured −0.8 dB, docs/capture.md).
+    pub gain_compensation: Option<bool>,
 }
 
 impl Default for ReplayConfig {
@@ -87,6 +103,9 @@ impl Default for ReplayConfig {
             render_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             align: true,
             clock: None,
+            lock_exposure: true,
+            gain_compensation: None,
+            hdr: false,
         }
     }
 }
@@ -101,6 +120,7 @@ impl ReplayConfig {
         cfg.tolerance_deg = self.tolerance_deg;
         cfg.face_size = self.face_size;
         cfg.align = self.align;
+        cfg.gain_compensation = self.gain_compensation.unwrap_or(!self.lock_exposure);
         cfg.validate()?;
         Ok(cfg)
     }
@@ -175,15 +195,17 @@ impl ReplayResult {
 }
 
 /// The ideal face: every texel straight from the environment at the capture's reference
-/// heading, exposed and tone-mapped exactly as the virtual phone does (sRGB RGB8).
-pub fn ideal_face(env: &CubeMap, reference_heading_deg: f64, face: Face, size: u32, exposure: f32) -> Vec<u8> {
+/// heading, exposed, white-balanced and tone-mapped exactly as the virtual phone does (sRGB
+/// RGB8).
+pub fn ideal_face(env: &CubeMap, reference_heading_deg: f64, face: Face, size: u32, settings: CameraSettings) -> Vec<u8> {
     let lut = ToneLut::new();
+    let gains = settings.gains();
     let to_world = local_to_world(reference_heading_deg.to_radians()).as_quat();
     let mut out = Vec::with_capacity((size * size * 3) as usize);
     for y in 0..size {
         for x in 0..size {
             let c = env.sample_enu(to_world * face_pixel_dir_local(face.layer(), x, y, size, 1.0));
-            out.extend(c.map(|v| lut.map(v * exposure)));
+            out.extend([0, 1, 2].map(|k| lut.map(c[k] * gains[k])));
         }
     }
     out
@@ -232,7 +254,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         &SimSettings { width: cfg.width, height: cfg.height, vfov_deg: cfg.vfov_deg, exposure: ExposureMode::Fixed(1.0) },
     )?;
     phone.set_threads(cfg.render_threads);
-    let mut ae = AutoExposure::new(ExposureMode::default())?;
+    let mut controls = AutoCamera::new(ExposureMode::default(), WhiteBalanceMode::default())?;
     let mut sim_cfg = SimConfig::new(cfg.noise, cfg.seed);
     sim_cfg.disturbances = cfg.disturbances.clone();
     let rotation = sim_cfg.rotation;
@@ -242,7 +264,11 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
 
     let tap_t = trace.tap_times().first().copied();
     let mut tapped = None;
-    let mut locked: Option<f32> = None;
+    // The front shot's settings, and every shot's (by time).
+    let mut front: Option<CameraSettings> = None;
+    let mut shot_settings: Vec<(f64, CameraSettings)> = Vec::new();
+    // HDR: every shot's bracket (time, frames in BRACKET_EV order, the shot's settings).
+    let mut brackets: Vec<(f64, Vec<Arc<Rgba8Image>>, CameraSettings)> = Vec::new();
     let mut last_exposure_t: Option<f64> = None;
     let mut readings = Vec::new();
     let mut location = None;
@@ -274,35 +300,46 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         let truth_d = trace.orientation_at(t);
         track.push((t, aim_pose.q, truth_d));
         let truth = truth_d.as_quat();
-        let exposure = match locked {
-            Some(e) => e,
+        let settings = match controls.locked() {
+            Some(s) => s,
             None => {
                 let dt = last_exposure_t.map_or(0.0, |l| t - l);
                 last_exposure_t = Some(t);
-                ae.update(phone.meter(truth)?, dt)
+                controls.update(phone.meter(truth)?, dt)
             }
         };
         if tapped.is_none() && tap_t.is_some_and(|tt| t >= tt) {
-            let frame = Arc::new(phone.render_with_exposure(truth, exposure)?);
+            let frame = Arc::new(phone.render_with(truth, settings)?);
+            if cfg.hdr {
+                brackets.push((t, bracket(&phone, truth, settings, &frame)?, settings));
+            }
             assistant.tap(t, &pose, frame.clone())?;
             sun_fix = nearer_centre(
                 sun_fix,
-                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
+                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, settings)?.map(|(a, m)| (a, m, t)),
             );
             // From the tap on, the guidance judges aims with the heading held from here and
             // corrected by the shots' images (capture::aim_heading).
             aim.tap(&filter, t, &pose, frame);
             tapped = Some(t);
-            locked = Some(exposure);
+            front = Some(settings);
+            shot_settings.push((t, settings));
+            if cfg.lock_exposure {
+                controls.lock();
+            }
             continue;
         }
         if let Some(i) = assistant.observe(t, &aim_pose)? {
-            let frame = Arc::new(phone.render_with_exposure(truth, exposure)?);
+            let frame = Arc::new(phone.render_with(truth, settings)?);
+            if cfg.hdr {
+                brackets.push((t, bracket(&phone, truth, settings, &frame)?, settings));
+            }
+            shot_settings.push((t, settings));
             let shot_pose = aim.shot(i, t, aim_pose, pose, frame.clone());
             assistant.capture(i, t, &shot_pose, frame)?;
             sun_fix = nearer_centre(
                 sun_fix,
-                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &shot_pose, truth, exposure)?.map(|(a, m)| (a, m, t)),
+                measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &shot_pose, truth, settings)?.map(|(a, m)| (a, m, t)),
             );
             if assistant.phase() == Phase::Complete {
                 complete_t = Some(t);
@@ -329,7 +366,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         gyro_only_fraction: if frames > 0 { gyro_only as f64 / frames as f64 } else { 0.0 },
         frames,
         assembly_ms,
-        exposure: locked,
+        exposure: front.map(|s| s.exposure),
         track,
         taken,
         shot_t,
@@ -343,10 +380,21 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     match finished {
         Err(e) => result.incomplete = Some(format!("{e:#}")),
         Ok(mut capture) => {
-            capture.meta.exposure = locked;
+            capture.meta.exposure = front.map(|s| s.exposure);
+            capture.meta.white_balance = front.map(|s| s.white_balance);
+            capture.meta.exposure_locked = Some(cfg.lock_exposure);
+            for shot in &mut capture.meta.shots {
+                if let Some((_, s)) = shot_settings.iter().find(|(t, _)| *t == shot.t) {
+                    shot.exposure = Some(s.exposure);
+                    shot.white_balance = Some(s.white_balance);
+                }
+            }
             capture.meta.location = location;
             let time = cfg.clock.unwrap_or_else(chrono::Utc::now);
             capture.meta.time_utc = Some(time.to_rfc3339_opts(chrono::SecondsFormat::Secs, true));
+            if cfg.hdr {
+                add_hdr_faces(&mut capture, &brackets, &cfg.camera()?)?;
+            }
             result.faces = score(env, trace, &capture, cfg.score)?;
             // True north from the sun (after scoring: the faces are scored in their own frame).
             // The image alignment turned each shot's pose by its alignment turn (about the
@@ -361,6 +409,34 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         }
     }
     Ok(result)
+}
+
+/// The frames of a shot's exposure bracket ([`BRACKET_EV`]), the 0 EV one being `frame`.
+fn bracket(phone: &VirtualPhone, truth: Quat, settings: CameraSettings, frame: &Arc<Rgba8Image>) -> Result<Vec<Arc<Rgba8Image>>> {
+    BRACKET_EV
+        .iter()
+        .map(|&ev| if ev == 0.0 { Ok(frame.clone()) } else { phone.render_with(truth, settings.with_ev(ev)).map(Arc::new) })
+        .collect()
+}
+
+/// Merge every shot's bracket into radiance and stitch the float faces by the capture's
+/// recorded (aligned) poses.
+fn add_hdr_faces(capture: &mut CubeCapture, brackets: &[(f64, Vec<Arc<Rgba8Image>>, CameraSettings)], camera: &Pinhole) -> Result<()> {
+    let mut views = Vec::with_capacity(capture.meta.shots.len());
+    let mut clip = [f32::INFINITY; 3];
+    for shot in &capture.meta.shots {
+        let (_, frames, settings) =
+            brackets.iter().find(|b| b.0 == shot.t).with_context(|| format!("no exposure bracket for the shot at {} s", shot.t))?;
+        let with: Vec<(&Rgba8Image, CameraSettings)> =
+            frames.iter().zip(BRACKET_EV).map(|(f, ev)| (f.as_ref(), settings.with_ev(ev))).collect();
+        let shot_clip = clip_radiance(&with.iter().map(|w| w.1).collect::<Vec<_>>());
+        for (c, s) in clip.iter_mut().zip(shot_clip) {
+            *c = c.min(s);
+        }
+        views.push((quat_of(shot.pose_wxyz).as_quat(), merge_brackets(&with)?));
+    }
+    let faces = hdr_faces(&views, camera, capture.meta.reference_heading_deg, capture.meta.face_size);
+    capture.set_hdr(faces, &BRACKET_EV, clip)
 }
 
 /// SPA's apparent sun direction (ENU) for a clock and a GPS fix, when both are known.
@@ -381,12 +457,12 @@ fn measure_sun(
     sun: Option<glam::Vec3>,
     pose: &Pose,
     truth: Quat,
-    exposure: f32,
+    settings: CameraSettings,
 ) -> Result<Option<(f32, HeadingMeasurement)>> {
     let Some(sun) = sun.filter(|s| s.z > 0.0 && sun_in_view(pose.q, *s, cfg.vfov_deg, cfg.width, cfg.height, 2.0)) else {
         return Ok(None);
     };
-    let dark = phone.render_with_exposure(truth, exposure * SUN_FRAME_EXPOSURE)?;
+    let dark = phone.render_with(truth, CameraSettings { exposure: settings.exposure * SUN_FRAME_EXPOSURE, ..settings })?;
     Ok(sight_sun(&dark, cfg.vfov_deg, pose.q)?.and_then(|s| {
         let off_axis = s.dir_camera.angle_between(glam::Vec3::NEG_Z);
         heading_measurement(&s, sun, f64::from(pose.tilt_accuracy_deg).to_radians()).map(|m| (off_axis, m))
@@ -534,7 +610,8 @@ fn quat_of(wxyz: [f64; 4]) -> DQuat {
 /// Per-face scores of a complete capture (PSNR/FLIP only when `images`).
 fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool) -> Result<Vec<FaceReport>> {
     let meta = &capture.meta;
-    let exposure = meta.exposure.context("the capture has no locked exposure to score against")?;
+    let exposure = meta.exposure.context("the capture has no front exposure to score against")?;
+    let settings = CameraSettings { exposure, white_balance: meta.white_balance.unwrap_or(crate::camera::white_balance::NEUTRAL) };
     let error = |t: f64, wxyz: [f64; 4]| angle_between(quat_of(wxyz), trace.orientation_at(t)).to_degrees();
     // The tap is the first shot.
     let tap_t = meta.shots.iter().map(|s| s.t).fold(f64::INFINITY, f64::min);
@@ -545,7 +622,7 @@ fn score(env: &CubeMap, trace: &TruthTrace, capture: &CubeCapture, images: bool)
         let img = capture.face(face);
         let max_shot = meta.shots.iter().filter(|s| s.face == face).map(|s| error(s.t, s.pose_wxyz)).fold(0.0, f64::max);
         let scores = |heading: f64| {
-            let ideal = ideal_face(env, heading, face, img.size, exposure);
+            let ideal = ideal_face(env, heading, face, img.size, settings);
             (psnr(&ideal, &img.rgb), mean_flip(&ideal, &img.rgb, img.size, img.size))
         };
         let ((psnr_db, flip), (stitch_psnr_db, stitch_flip)) =

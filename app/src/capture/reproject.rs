@@ -84,8 +84,8 @@ fn encode(c: [f32; 3], out: &mut Vec<u8>) {
 }
 
 /// Assemble one face. Stretch mode uses the face's own shot only (`primary`); stitch mode
-/// blends every shot that sees each pixel. Pixels no shot sees take the nearest shot's
-/// clamped edge colour (and count against coverage).
+/// blends every shot that sees each pixel ([`stitch_face`]). Pixels no shot sees take the
+/// nearest shot's clamped edge colour (and count against coverage).
 pub fn assemble_face(
     face: Face,
     mode: Mode,
@@ -95,55 +95,85 @@ pub fn assemble_face(
     reference_heading_deg: f64,
     size: u32,
 ) -> FaceImage {
-    let to_world = local_to_world(reference_heading_deg.to_radians()).as_quat();
-    let layer = face.layer();
     let mut rgb = Vec::with_capacity((size * size * 3) as usize);
-    let mut seen = 0u64;
-    let stretch = stretch_factor(camera);
-    let inverse: Vec<Quat> = shots.iter().map(|s| s.pose.inverse()).collect();
-    for y in 0..size {
-        for x in 0..size {
-            let true_dir = to_world * face_pixel_dir_local(layer, x, y, size, 1.0);
-            match mode {
-                Mode::Stretch => {
-                    if camera.sees(primary.pose, true_dir, 0.0) {
+    let coverage = match mode {
+        Mode::Stretch => {
+            let to_world = local_to_world(reference_heading_deg.to_radians()).as_quat();
+            let stretch = stretch_factor(camera);
+            let mut seen = 0u64;
+            for y in 0..size {
+                for x in 0..size {
+                    if camera.sees(primary.pose, to_world * face_pixel_dir_local(face.layer(), x, y, size, 1.0), 0.0) {
                         seen += 1;
                     }
-                    let d = to_world * face_pixel_dir_local(layer, x, y, size, stretch);
+                    let d = to_world * face_pixel_dir_local(face.layer(), x, y, size, stretch);
                     let p = camera.project(primary.pose, d).unwrap_or(Vec2::new(camera.width as f32, camera.height as f32) * 0.5);
                     encode(sample_linear(&primary.image, p), &mut rgb);
                 }
-                Mode::Stitch => {
-                    let (mut sum, mut wsum) = ([0.0f32; 3], 0.0f32);
-                    for (shot, inv) in shots.iter().zip(&inverse) {
-                        let Some(n) = camera.to_ndc(*inv * true_dir) else { continue };
-                        let w = feather_weight(n);
-                        if w > 0.0 {
-                            let c = sample_linear(&shot.image, camera.ndc_to_pixel(n));
-                            for k in 0..3 {
-                                sum[k] += w * c[k];
-                            }
-                            wsum += w;
-                        }
+            }
+            seen as f32 / (size * size) as f32
+        }
+        Mode::Stitch => {
+            let poses: Vec<Quat> = shots.iter().map(|s| s.pose).collect();
+            let (colours, coverage) =
+                stitch_face(face, &poses, camera, reference_heading_deg, size, |k, p| sample_linear(&shots[k].image, p));
+            for c in colours {
+                encode(c, &mut rgb);
+            }
+            coverage
+        }
+    };
+    FaceImage { face, size, rgb, coverage }
+}
+
+/// Stitch one face from shots taken with `poses` (camera → world): per face pixel, every shot
+/// that sees its direction, sampled by `sample(shot, pixel position)` (linear light, any
+/// scale: display-linear 8-bit frames, or merged radiance) and blended with feathered edges.
+/// Pixels no shot sees take the nearest shot's clamped edge sample. Returns the face's
+/// colours (top row first) and its coverage.
+pub fn stitch_face(
+    face: Face,
+    poses: &[Quat],
+    camera: &Pinhole,
+    reference_heading_deg: f64,
+    size: u32,
+    sample: impl Fn(usize, Vec2) -> [f32; 3],
+) -> (Vec<[f32; 3]>, f32) {
+    let to_world = local_to_world(reference_heading_deg.to_radians()).as_quat();
+    let inverse: Vec<Quat> = poses.iter().map(|q| q.inverse()).collect();
+    let mut out = Vec::with_capacity((size * size) as usize);
+    let mut seen = 0u64;
+    for y in 0..size {
+        for x in 0..size {
+            let true_dir = to_world * face_pixel_dir_local(face.layer(), x, y, size, 1.0);
+            let (mut sum, mut wsum) = ([0.0f32; 3], 0.0f32);
+            for (k, inv) in inverse.iter().enumerate() {
+                let Some(n) = camera.to_ndc(*inv * true_dir) else { continue };
+                let w = feather_weight(n);
+                if w > 0.0 {
+                    let c = sample(k, camera.ndc_to_pixel(n));
+                    for i in 0..3 {
+                        sum[i] += w * c[i];
                     }
-                    if wsum > 0.0 {
-                        seen += 1;
-                        encode(sum.map(|s| s / wsum), &mut rgb);
-                    } else {
-                        encode(nearest_edge(shots, &inverse, camera, true_dir), &mut rgb);
-                    }
+                    wsum += w;
                 }
+            }
+            if wsum > 0.0 {
+                seen += 1;
+                out.push(sum.map(|s| s / wsum));
+            } else {
+                out.push(nearest_edge(&inverse, camera, true_dir, &sample));
             }
         }
     }
-    FaceImage { face, size, rgb, coverage: seen as f32 / (size * size) as f32 }
+    (out, seen as f32 / (size * size) as f32)
 }
 
 /// Colour for a direction no shot sees: the shot whose view axis is closest to it, sampled at
 /// its clamped edge.
-fn nearest_edge(shots: &[Shot], inverse: &[Quat], camera: &Pinhole, dir: Vec3) -> [f32; 3] {
-    let best = shots.iter().zip(inverse).max_by(|a, b| (a.1 * dir).z.total_cmp(&(b.1 * dir).z).reverse());
-    let Some((shot, inv)) = best else { return [0.0; 3] };
+fn nearest_edge(inverse: &[Quat], camera: &Pinhole, dir: Vec3, sample: &impl Fn(usize, Vec2) -> [f32; 3]) -> [f32; 3] {
+    let best = inverse.iter().enumerate().max_by(|a, b| (*a.1 * dir).z.total_cmp(&(*b.1 * dir).z).reverse());
+    let Some((k, inv)) = best else { return [0.0; 3] };
     let c = *inv * dir;
     // Push directions behind the camera to the frame's edge in the same image direction.
     let n = if c.z < -1e-3 {
@@ -152,7 +182,7 @@ fn nearest_edge(shots: &[Shot], inverse: &[Quat], camera: &Pinhole, dir: Vec3) -
         Vec2::new(c.x, c.y).normalize_or_zero() * 1e3
     };
     let n = n.clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
-    sample_linear(&shot.image, camera.ndc_to_pixel(n))
+    sample(k, camera.ndc_to_pixel(n))
 }
 
 /// A synthetic "frame" for the capture tests: what a camera at `pose` sees of a world whose

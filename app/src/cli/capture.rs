@@ -87,6 +87,10 @@ pub struct RunArgs {
     /// alignment before assembly (both on by default, see docs/capture.md)
     #[arg(long = "no-align")]
     pub no_align: bool,
+    /// Take an exposure bracket per view (-4, 0, +4 EV) and write HDR faces (posx.exr ...:
+    /// scene radiance) beside the 8-bit ones
+    #[arg(long)]
+    pub hdr: bool,
     /// Print per-face capture time, orientation error, coverage, PSNR and mean FLIP as JSON
     #[arg(long)]
     pub json: bool,
@@ -142,6 +146,7 @@ fn run_capture(a: RunArgs) -> Result<()> {
         face_size: a.face_size,
         score: true,
         align: !a.no_align,
+        hdr: a.hdr,
         ..ReplayConfig::default()
     };
     let assistant_cfg = cfg.assistant().context("bad --vfov, --tolerance or --face-size")?;
@@ -156,7 +161,14 @@ fn run_capture(a: RunArgs) -> Result<()> {
             TruthTrace::new(path.samples)?
         }
     };
-    let env = Arc::new(load_environment(env_path).with_context(|| format!("cannot load the environment {}", env_path.display()))?);
+    // A simulated user in a simulated world: the environment's own sun is put where SPA has the
+    // sun for the simulated phone's place (its GPS fix) at a simulated time, so the capture's
+    // north is calibrated from the sun (docs/capture.md). Face folders, maps without a sun, or
+    // a replayed trace: the map as it is, and no sun position.
+    let (env, cfg) = match a.simulate.then(|| simulated_world(env_path)).transpose()?.flatten() {
+        Some(w) => (w.env, ReplayConfig { clock: Some(w.time), ..cfg }),
+        None => (Arc::new(load_environment(env_path).with_context(|| format!("cannot load the environment {}", env_path.display()))?), cfg),
+    };
     let result = replay(&env, &trace, &cfg)?;
     let Some(capture) = &result.capture else {
         bail!("{}", result.incomplete.unwrap_or_else(|| "capture incomplete".into()));
@@ -178,6 +190,9 @@ fn run_capture(a: RunArgs) -> Result<()> {
             "time_to_complete_s": result.time_to_complete(),
             "shots": result.shots,
             "aligned_pairs": capture.meta.alignment.map(|a| a.pairs),
+            "time_utc": capture.meta.time_utc,
+            "heading": capture.meta.heading,
+            "hdr": capture.meta.hdr,
             "faces": result.faces.iter().map(|f| serde_json::json!({
                 "face": f.face.name(),
                 "file": f.face.file_name(),
@@ -202,6 +217,12 @@ fn run_capture(a: RunArgs) -> Result<()> {
             result.time_to_complete().unwrap_or(0.0),
             capture.meta.reference_heading_deg
         );
+        if let Some(h) = &capture.meta.heading {
+            println!("  north: {} (1σ {}): {}", h.source, h.accuracy_deg.map_or("unknown".into(), |a| format!("{a:.2}°")), h.note);
+        }
+        if capture.hdr.is_some() {
+            println!("  HDR faces: posx.exr ... negz.exr (brackets -4, 0, +4 EV)");
+        }
         for f in &result.faces {
             println!(
                 "  {:<5} t={:>6.2} s  error {:.2}°  coverage {:>5.1}%  PSNR {} dB  FLIP {}",
@@ -215,6 +236,19 @@ fn run_capture(a: RunArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The simulated world of `--simulate` for an equirectangular map with a sun
+/// ([`crate::pose::sun_study::sun_world`] at the simulated phone's site); None for a face folder
+/// or a map whose sun is not found or never at its elevation there.
+fn simulated_world(env_path: &std::path::Path) -> Result<Option<crate::pose::sun_study::SunWorld>> {
+    if env_path.is_dir() {
+        return Ok(None);
+    }
+    let map = crate::scene::environment::load_equirect(env_path)
+        .with_context(|| format!("cannot load the environment {}", env_path.display()))?;
+    let size = (map.width() / 4).max(1).next_power_of_two().min(2048);
+    Ok(crate::pose::sun_study::sun_world(&map, crate::sensors::sim::SimSite::default(), size).ok())
 }
 
 fn run_stability(a: StabilityArgs) -> Result<()> {

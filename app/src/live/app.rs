@@ -333,6 +333,9 @@ impl App {
 
     /// Leave capture mode for the composite (with the capture's environment once it is saved).
     pub fn composite(&mut self) {
+        if let Err(e) = self.session.lock_camera_exposure(false) {
+            self.status = format!("camera exposure stays locked: {e:#}");
+        }
         self.capture = None;
         self.session.set_show_model(true);
     }
@@ -442,7 +445,13 @@ impl App {
         let image = || self.session.camera_frame(gpu).map(Arc::new);
         if run.tap && run.assistant.phase() == Phase::WaitingForTap {
             run.tap = false;
-            run.assistant.tap(f.t, &pose, image()?)?;
+            // Every shot shares the front's exposure and white balance: locked at the tap
+            // (after this frame). A camera that cannot lock them gets each shot's gain
+            // estimated from the overlaps instead.
+            let front = image()?;
+            let locked = self.session.lock_camera_exposure(true)?;
+            run.assistant.set_gain_compensation(!locked);
+            run.assistant.tap(f.t, &pose, front)?;
             run.last_shot = Some((Face::Front.name().to_string(), f.t));
         } else if let Some(i) = run.assistant.observe(f.t, &pose)? {
             run.assistant.capture(i, f.t, &pose, image()?)?;
@@ -458,6 +467,7 @@ impl App {
 
     /// Assemble the faces, save them as a capture folder and light the model with them.
     fn finish_capture(&mut self, gpu: &Gpu) -> Result<()> {
+        self.session.lock_camera_exposure(false)?;
         let Some(run) = &mut self.capture else { return Ok(()) };
         let mut capture = run.assistant.finish()?;
         let (lat, lon) = self.session.location();

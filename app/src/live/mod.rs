@@ -759,6 +759,12 @@ impl LiveSession {
         self.cfg.start + chrono::Duration::microseconds((self.last_t.unwrap_or(0.0) * 1e6).round() as i64)
     }
 
+    /// Lock (true) or release the camera's auto-exposure and auto white balance
+    /// ([`FrameSource::lock_exposure`]); whether they are locked now.
+    pub fn lock_camera_exposure(&mut self, lock: bool) -> Result<bool> {
+        self.sources.camera.lock_exposure(lock)
+    }
+
     /// Latitude and longitude the sun is computed for now.
     pub fn location(&self) -> (f64, f64) {
         self.location

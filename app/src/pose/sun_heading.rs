@@ -80,10 +80,10 @@ fn linear_pixels(image: &Rgba8Image) -> Vec<[f32; 3]> {
     image.pixels.chunks_exact(4).map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]]).collect()
 }
 
-/// The sun finder's options for 8-bit sources: saturation at 1.0 after sRGB decoding, the
-/// search cap a little larger than the biggest blob accepted.
-fn clipped_options() -> Options {
-    Options { clip_level: Some(1.0), search_radius: (2.0 * MAX_RADIUS_DEG).to_radians(), ..Default::default() }
+/// The sun finder's options for a source that clips at `clip_level` (8-bit sources: 1.0 after
+/// sRGB decoding), the search cap a little larger than the biggest blob accepted.
+fn clipped_options(clip_level: f32) -> Options {
+    Options { clip_level: Some(clip_level), search_radius: (2.0 * MAX_RADIUS_DEG).to_radians(), ..Default::default() }
 }
 
 /// Shape of the sun finder's region: (angular radius in rad, roundness) about `centre`.
@@ -99,16 +99,17 @@ fn blob_shape(samples: &[DirSample], region: &[usize], centre: Vec3) -> (f32, f3
 }
 
 /// Sub-pixel centre of a clipped sun: the mean direction of the samples within `radius` + two
-/// pixels of the finder's centre, each weighted by its (clipped) luminance above the sky's.
+/// pixels of the finder's centre, each weighted by its luminance (at most `white`, a clipped
+/// sample's) above the sky's.
 /// Saturated samples weigh alike; the partly covered ones at the rim, brighter than the sky but
 /// not saturated, weigh by how much of the sun they caught, which places the centre between
 /// pixels.
-fn refined_centre(samples: &[DirSample], centre: Vec3, radius: f32, pixel: f32, sky_lum: f32) -> Vec3 {
+fn refined_centre(samples: &[DirSample], centre: Vec3, radius: f32, pixel: f32, sky_lum: f32, white: f32) -> Vec3 {
     let cos_cap = (radius + 2.0 * pixel).cos();
     let sum: Vec3 = samples
         .iter()
         .filter(|s| s.dir.dot(centre) >= cos_cap)
-        .map(|s| s.dir * ((luminance_bt709(s.radiance).min(1.0) - sky_lum).max(0.0) * s.solid_angle))
+        .map(|s| s.dir * ((luminance_bt709(s.radiance).min(white) - sky_lum).max(0.0) * s.solid_angle))
         .sum();
     sum.normalize_or(centre)
 }
@@ -118,12 +119,12 @@ fn refined_centre(samples: &[DirSample], centre: Vec3, radius: f32, pixel: f32, 
 /// size, shape, border or contrast tests (clouds, reflections, a sun cut by the frame).
 pub fn sight_sun(image: &Rgba8Image, vfov_deg: f32, pose: Quat) -> Result<Option<SunSighting>> {
     let samples = from_camera_image(image.width, image.height, &linear_pixels(image), vfov_deg.to_radians(), pose)?;
-    let Some(sun) = sun_finder::find_sun(&samples, &clipped_options()) else { return Ok(None) };
+    let Some(sun) = sun_finder::find_sun(&samples, &clipped_options(1.0)) else { return Ok(None) };
     let (radius, roundness) = blob_shape(&samples, &sun.samples, sun.dir);
     let radius_deg = radius.to_degrees();
     let tan_v = (0.5 * vfov_deg.to_radians()).tan();
     let pixel_plane = 2.0 * tan_v / image.height as f32;
-    let dir_world = refined_centre(&samples, sun.dir, radius, pixel_plane, luminance_bt709(sun.sky_radiance));
+    let dir_world = refined_centre(&samples, sun.dir, radius, pixel_plane, luminance_bt709(sun.sky_radiance), 1.0);
     let dir_camera = (pose.inverse() * dir_world).normalize();
     if dir_camera.z >= -1e-3 {
         return Ok(None);
@@ -154,20 +155,25 @@ pub fn sight_sun(image: &Rgba8Image, vfov_deg: f32, pose: Quat) -> Result<Option
 /// Find the sun in a capture's cube map (8-bit faces decoded to linear, the capture's local
 /// frame: front = +Z = North) placed in the world with `reference_heading` (radians, clockwise
 /// from North). Same tests as [`sight_sun`] except the border (a cube has none).
-pub fn sight_sun_in_capture(cube: &CubeMap, reference_heading: f64) -> Option<SunSighting> {
+///
+/// `clip`: the radiance (R, G, B) at which the faces clip: `[1.0; 3]` for 8-bit faces (sRGB
+/// decoded), an HDR capture's `clip_radiance` for its float faces (the sun's disc clips even in
+/// the darkest bracket; [`crate::capture::hdr`]).
+pub fn sight_sun_in_capture(cube: &CubeMap, reference_heading: f64, clip: [f32; 3]) -> Option<SunSighting> {
     let turn = Quat::from_rotation_z(-reference_heading as f32);
     let mut samples = from_cube(cube);
     for s in &mut samples {
         s.dir = turn * s.dir;
     }
-    let sun = sun_finder::find_sun(&samples, &clipped_options())?;
+    // A texel whose largest channel reaches the largest channel's clip is clipped.
+    let sun = sun_finder::find_sun(&samples, &clipped_options(clip.into_iter().fold(0.0, f32::max)))?;
     let (radius, roundness) = blob_shape(&samples, &sun.samples, sun.dir);
     let radius_deg = radius.to_degrees();
     if radius_deg > MAX_RADIUS_DEG || roundness > MAX_ROUNDNESS {
         return None;
     }
     let texel = (2.0 / cube.size as f32).atan();
-    let dir_world = refined_centre(&samples, sun.dir, radius, texel, luminance_bt709(sun.sky_radiance));
+    let dir_world = refined_centre(&samples, sun.dir, radius, texel, luminance_bt709(sun.sky_radiance), luminance_bt709(clip));
     let margin = |v: f32, limit: f32| (1.0 - v / limit).clamp(0.0, 1.0);
     Some(SunSighting {
         dir_world,
@@ -381,7 +387,7 @@ mod tests {
         // 8-bit like a capture: expose, clip at 1, quantise.
         let q = |c: f32| crate::colour::srgb_to_linear((crate::colour::linear_to_srgb((c * 0.5).min(1.0)) * 255.0).round() / 255.0);
         let cube = CubeMap { size: cube.size, faces: cube.faces.map(|f| f.into_iter().map(|p| p.map(q)).collect()) };
-        let s = sight_sun_in_capture(&cube, 203f64.to_radians()).expect("sun in the capture");
+        let s = sight_sun_in_capture(&cube, 203f64.to_radians(), [1.0; 3]).expect("sun in the capture");
         let m = heading_measurement(&s, dir(215.0, 12.0), 0.0).unwrap();
         // Within half of the capture's 0.35° texel (the disc saturates every texel it touches).
         assert!((m.error.to_degrees() - 3.0).abs() < 0.18, "{}", m.error.to_degrees());

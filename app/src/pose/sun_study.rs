@@ -138,8 +138,14 @@ pub struct SunRun {
     pub series: Vec<(f64, f64, f64, Option<f64>, bool)>,
 }
 
-/// Run one case: `secs` seconds of the phone held by hand.
+/// Run one case: `secs` seconds of the phone held by hand, a frame examined every
+/// [`FRAME_PERIOD_S`].
 pub fn run_case(world: &SunWorld, case: SunCase, noise: NoiseLevel, seed: u64, secs: f64) -> Result<SunRun> {
+    run_case_every(world, case, noise, seed, secs, FRAME_PERIOD_S)
+}
+
+/// [`run_case`] with a frame examined every `period_s` (a multiple of the sensors' 0.01 s).
+pub fn run_case_every(world: &SunWorld, case: SunCase, noise: NoiseLevel, seed: u64, secs: f64, period_s: f64) -> Result<SunRun> {
     let look = match case {
         SunCase::InView => world.sun_azimuth_deg - 10.0,
         SunCase::Hidden => world.sun_azimuth_deg + 150.0,
@@ -165,7 +171,7 @@ pub fn run_case(world: &SunWorld, case: SunCase, noise: NoiseLevel, seed: u64, s
     let mut readings = Vec::new();
     let mut series = Vec::new();
     let steps = (secs / 0.01).round() as usize;
-    let frame_every = (FRAME_PERIOD_S / 0.01).round() as usize;
+    let frame_every = ((period_s / 0.01).round() as usize).max(1);
     for k in 1..=steps {
         let t = k as f64 * 0.01;
         readings.clear();

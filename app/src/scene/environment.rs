@@ -87,7 +87,8 @@ pub fn cube_from_faces(faces: [DynamicImage; 6]) -> Result<CubeMap> {
 }
 
 /// Six faces from a folder, found by name (posx/negx/... or px/nx/..., any case, with a .jpg,
-/// .jpeg, .png, .hdr or .exr extension).
+/// .jpeg, .png, .hdr or .exr extension). A face given once as float (.exr/.hdr) and also as
+/// 8-bit images loads the float one (an HDR capture folder keeps 8-bit previews beside it).
 fn load_face_folder(dir: &Path) -> Result<CubeMap> {
     let files = find_face_files(dir)?;
     // Decode the six faces in parallel; each error names its file.
@@ -132,6 +133,11 @@ fn find_face_files(dir: &Path) -> Result<[PathBuf; 6]> {
         );
     }
     for (f, files) in found.iter_mut().enumerate() {
+        // One float face beside 8-bit ones (an HDR capture keeps 8-bit previews): the float one.
+        let is_float = |p: &PathBuf| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("hdr"));
+        if files.len() > 1 && files.iter().filter(|p| is_float(p)).count() == 1 {
+            files.retain(is_float);
+        }
         if files.len() > 1 {
             files.sort();
             let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();

@@ -16,7 +16,7 @@
 //! recorded as the capture's `clip_radiance`.
 
 use super::projection::Pinhole;
-use super::reproject::stitch_face;
+use super::reproject::{bilinear, stitch_face};
 use super::targets::Face;
 use crate::camera::controls::CameraSettings;
 use crate::camera::exposure::{exposed_lut, saturation_exposed};
@@ -39,21 +39,8 @@ pub struct FloatImage {
 impl FloatImage {
     /// Bilinear sample at pixel position `p` (centres at +0.5), clamped to the edge.
     pub fn sample(&self, p: Vec2) -> [f32; 3] {
-        let (w, h) = (self.width as usize, self.height as usize);
-        if w == 0 || h == 0 || !p.is_finite() {
-            return [0.0; 3];
-        }
-        let x = (p.x - 0.5).clamp(0.0, (w - 1) as f32);
-        let y = (p.y - 0.5).clamp(0.0, (h - 1) as f32);
-        let (x0, y0) = (x as usize, y as usize);
-        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-        let px = |xx: usize, yy: usize, c: usize| self.rgb[yy * w + xx][c];
-        std::array::from_fn(|c| {
-            let top = px(x0, y0, c) + (px(x1, y0, c) - px(x0, y0, c)) * fx;
-            let bottom = px(x0, y1, c) + (px(x1, y1, c) - px(x0, y1, c)) * fx;
-            top + (bottom - top) * fy
-        })
+        let w = self.width as usize;
+        bilinear(w, self.height as usize, p, |x, y, c| self.rgb[y * w + x][c])
     }
 }
 

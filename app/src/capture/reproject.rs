@@ -47,7 +47,13 @@ fn srgb_lut() -> &'static [f32; 256] {
 /// clamped to the image's edge.
 pub fn sample_linear(image: &Rgba8Image, p: Vec2) -> [f32; 3] {
     let lut = srgb_lut();
-    let (w, h) = (image.width as usize, image.height as usize);
+    bilinear(image.width as usize, image.height as usize, p, |x, y, c| lut[image.pixels[4 * (y * image.width as usize + x) + c] as usize])
+}
+
+/// Bilinear interpolation of a `w`×`h` RGB image whose texel (x, y) channel c is `px(x, y, c)`,
+/// at pixel position `p` (centres at +0.5), clamped to the edge; black for an empty image or a
+/// non-finite position.
+pub fn bilinear(w: usize, h: usize, p: Vec2, px: impl Fn(usize, usize, usize) -> f32) -> [f32; 3] {
     if w == 0 || h == 0 || !p.is_finite() {
         return [0.0; 3];
     }
@@ -56,7 +62,6 @@ pub fn sample_linear(image: &Rgba8Image, p: Vec2) -> [f32; 3] {
     let (x0, y0) = (x as usize, y as usize);
     let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
     let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-    let px = |xx: usize, yy: usize, c: usize| lut[image.pixels[4 * (yy * w + xx) + c] as usize];
     std::array::from_fn(|c| {
         let top = px(x0, y0, c) + (px(x1, y0, c) - px(x0, y0, c)) * fx;
         let bottom = px(x0, y1, c) + (px(x1, y1, c) - px(x0, y1, c)) * fx;

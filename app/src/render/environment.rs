@@ -84,38 +84,45 @@ impl EnvironmentCache {
     /// `cube`'s GGX-prefiltered levels (light::ggx::prefilter), computed on the first ask for
     /// its content (outside the lock).
     pub fn prefiltered(&self, key: EnvKey, cube: &CubeMap) -> Arc<Vec<CubeMap>> {
-        {
-            let mut state = self.lock();
-            if let Some(hit) = recent(&mut state.prefiltered, &key) {
-                state.counts.reused += 1;
-                return hit;
-            }
-        }
-        let levels = Arc::new(ggx::prefilter(cube));
-        let mut state = self.lock();
-        state.prefiltered.retain(|(k, _)| *k != key);
-        keep(&mut state.prefiltered, key, levels.clone());
-        state.counts.prefiltered += 1;
+        let computed = self.cached(
+            |s| &mut s.prefiltered,
+            |c| &mut c.prefiltered,
+            key,
+            || Ok::<_, std::convert::Infallible>(Arc::new(ggx::prefilter(cube))),
+        );
+        let Ok(levels) = computed;
         levels
     }
 
     /// `cube`'s colour priors after `exposure` (priors::environment_priors_scaled), computed on
     /// the first ask for its content at that exposure. Errors are not kept.
     pub fn priors(&self, key: EnvKey, cube: &CubeMap, exposure: f32) -> Result<priors::EnvironmentPriors> {
-        let k = (key, exposure.to_bits());
+        self.cached(|s| &mut s.priors, |c| &mut c.priors, (key, exposure.to_bits()), || priors::environment_priors_scaled(cube, exposure))
+    }
+
+    /// The value under `key` in the list `list` picks out, or `compute`'s (run outside the lock,
+    /// counted in the count `computed` picks out, kept only when it succeeds).
+    fn cached<K: PartialEq + Copy, V: Clone, E>(
+        &self,
+        list: fn(&mut EnvState) -> &mut Vec<(K, V)>,
+        computed: fn(&mut EnvCounts) -> &mut usize,
+        key: K,
+        compute: impl FnOnce() -> std::result::Result<V, E>,
+    ) -> std::result::Result<V, E> {
         {
             let mut state = self.lock();
-            if let Some(hit) = recent(&mut state.priors, &k) {
+            if let Some(hit) = recent(list(&mut state), &key) {
                 state.counts.reused += 1;
                 return Ok(hit);
             }
         }
-        let p = priors::environment_priors_scaled(cube, exposure)?;
+        let value = compute()?;
         let mut state = self.lock();
-        state.priors.retain(|(q, _)| *q != k);
-        keep(&mut state.priors, k, p);
-        state.counts.priors += 1;
-        Ok(p)
+        let kept = list(&mut state);
+        kept.retain(|(k, _)| *k != key);
+        keep(kept, key, value.clone());
+        *computed(&mut state.counts) += 1;
+        Ok(value)
     }
 
     pub fn counts(&self) -> EnvCounts {

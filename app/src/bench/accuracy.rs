@@ -559,7 +559,7 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
                 .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
         }
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::LowerLeft)
             .label_font(("sans-serif", 16))
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK)
@@ -586,13 +586,23 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
             .map_err(|e| err(&e))?;
         c.draw_series(DashedLineSeries::new(vec![(0.0, 0.06), (c_max, 0.06)], 8, 6, goal.stroke_width(2))).map_err(|e| err(&e))?;
         for (m, col, ratio) in &costed {
-            c.draw_series(std::iter::once(TriangleMarker::new((*ratio, m.flip_roi), 9, col.filled()))).map_err(|e| err(&e))?;
-            c.draw_series(std::iter::once(Text::new(m.method.clone(), (*ratio, m.flip_roi), ("sans-serif", 15).into_font())))
-                .map_err(|e| err(&e))?;
+            let col = *col;
+            c.draw_series(std::iter::once(TriangleMarker::new((*ratio, m.flip_roi), 9, col.filled())))
+                .map_err(|e| err(&e))?
+                .label(format!("{} ({ratio:.1}x)", m.method))
+                .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
         }
         if costed.is_empty() {
             right
                 .draw(&Text::new("no frame costs given (--costs)", (200, 380), ("sans-serif", 20).into_font()))
+                .map_err(|e| err(&e))?;
+        } else {
+            c.configure_series_labels()
+                .position(SeriesLabelPosition::LowerRight)
+                .label_font(("sans-serif", 16))
+                .background_style(WHITE.mix(0.9))
+                .border_style(BLACK)
+                .draw()
                 .map_err(|e| err(&e))?;
         }
         root.present().map_err(|e| err(&e))?;

@@ -75,7 +75,12 @@ fn light_and_render(scene: &Scene) -> Lit {
     let inputs = load_inputs(scene, false).unwrap();
     let light = measure_environment(scene, &inputs.env).unwrap();
     let dir = map_to_world(light.sun_dir.expect("a sun"), (scene.env.heading as f32).to_radians());
-    Lit { sun: luminance_bt709(light.sun_irradiance), dir, turbidity: light.turbidity, composite: common::render_with(scene, &inputs, Layer::Composite) }
+    Lit {
+        sun: luminance_bt709(light.sun_irradiance),
+        dir,
+        turbidity: light.turbidity,
+        composite: common::render_with(scene, &inputs, Layer::Composite),
+    }
 }
 
 fn rgb(r: &Rendered) -> Vec<u8> {

@@ -566,7 +566,8 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
             .draw()
             .map_err(|e| err(&e))?;
 
-        let costed: Vec<(&MethodMean, RGBColor, f64)> = methods.iter().filter_map(|(m, col)| m.floor_ratio.map(|r| (*m, *col, r))).collect();
+        let costed: Vec<(&MethodMean, RGBColor, f64)> =
+            methods.iter().filter_map(|(m, col)| m.floor_ratio.map(|r| (*m, *col, r))).collect();
         let c_max = costed.iter().map(|c| c.2).fold(1.0, f64::max) * 1.2;
         let mut c = ChartBuilder::on(&right)
             .caption("against frame cost (GPU, × the background-only frame; previz bench frame)", ("sans-serif", 18))
@@ -593,9 +594,7 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
                 .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
         }
         if costed.is_empty() {
-            right
-                .draw(&Text::new("no frame costs given (--costs)", (200, 380), ("sans-serif", 20).into_font()))
-                .map_err(|e| err(&e))?;
+            right.draw(&Text::new("no frame costs given (--costs)", (200, 380), ("sans-serif", 20).into_font())).map_err(|e| err(&e))?;
         } else {
             c.configure_series_labels()
                 .position(SeriesLabelPosition::LowerRight)

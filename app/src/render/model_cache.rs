@@ -56,6 +56,9 @@ impl ModelKey {
     }
 }
 
+/// The last ground map's key (the model matrix's bits and the sky's shape) and the map.
+type GroundKeyAndMap = ([u32; 16], SkyShape, Arc<GroundSky>);
+
 /// What a model's upload needs, computed once per model content.
 pub struct PreparedModel {
     pub key: ModelKey,
@@ -70,7 +73,7 @@ pub struct PreparedModel {
     occluders: OnceLock<Occluders>,
     /// The ground under the last placement and sky asked for: the model matrix's bits, the
     /// sky's shape and its map.
-    ground: Mutex<Option<([u32; 16], SkyShape, Arc<GroundSky>)>>,
+    ground: Mutex<Option<GroundKeyAndMap>>,
     ground_computed: std::sync::atomic::AtomicUsize,
 }
 

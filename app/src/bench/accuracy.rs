@@ -142,6 +142,34 @@ pub struct AccuracyRow {
     /// Time to make the image, ms (previz: fastest of the timed frames, wall clock including
     /// readback; path tracer: the reference script's wall time).
     pub ms: f64,
+    /// The method's frame cost as a ratio of the background-only floor, measured by `previz
+    /// bench frame` (bench::frame::MethodCost, GPU time, default scene and frame; issue 11's
+    /// measure of cost); None for the path tracer and for a method the costs do not list.
+    pub floor_ratio: Option<f64>,
+}
+
+/// Give each row its method's frame cost over the floor ([`AccuracyRow::floor_ratio`]) from
+/// `costs` (`bench::frame::method_costs` of a `previz bench frame` run). Returns the names of the
+/// previz methods the costs do not list.
+pub fn attach_costs(rows: &mut [AccuracyRow], costs: &[crate::bench::frame::MethodCost]) -> Vec<String> {
+    let mut missing = Vec::new();
+    for r in rows.iter_mut() {
+        r.floor_ratio = costs.iter().find(|c| c.method == r.method).map(|c| c.floor_ratio);
+        if r.floor_ratio.is_none() && !r.method.starts_with("path tracer") && !missing.contains(&r.method) {
+            missing.push(r.method.clone());
+        }
+    }
+    missing
+}
+
+/// Rows as CSV (docs/accuracy.csv); `floor_ratio` is empty where there is none.
+pub fn csv(rows: &[AccuracyRow]) -> String {
+    let mut s = String::from("scene,method,flip_frame,flip_roi,model_luminance_ratio,ms,floor_ratio\n");
+    for r in rows {
+        let ratio = r.floor_ratio.map_or(String::new(), |v| v.to_string());
+        s += &format!("{},{},{},{},{},{},{ratio}\n", r.scene, r.method, r.flip_frame, r.flip_roi, r.model_luminance_ratio, r.ms);
+    }
+    s
 }
 
 /// A reference: the composite (RGB8) with its region of interest and model mask.
@@ -365,7 +393,15 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
         let r = image.ok_or_else(|| anyhow!("no frame rendered"))?;
         let rgb: Vec<u8> = r.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         let (flip_frame, flip_roi, model_luminance_ratio) = score(reference, &rgb)?;
-        rows.push(AccuracyRow { scene: name.into(), method: method.name().into(), flip_frame, flip_roi, model_luminance_ratio, ms: best });
+        rows.push(AccuracyRow {
+            scene: name.into(),
+            method: method.name().into(),
+            flip_frame,
+            flip_roi,
+            model_luminance_ratio,
+            ms: best,
+            floor_ratio: None,
+        });
     }
     Ok(rows)
 }
@@ -391,6 +427,7 @@ pub fn score_ladder(dir: &Path, name: &str, reference: &Reference) -> Result<Vec
             flip_roi,
             model_luminance_ratio,
             ms: seconds * 1e3,
+            floor_ratio: None,
         });
     }
     Ok(rows)
@@ -398,22 +435,37 @@ pub fn score_ladder(dir: &Path, name: &str, reference: &Reference) -> Result<Vec
 
 /// Markdown table of rows.
 pub fn markdown(rows: &[AccuracyRow]) -> String {
-    let mut s = String::from("| scene | method | FLIP frame | FLIP ROI | model luminance / ref | ms |\n|---|---|---|---|---|---|\n");
+    let mut s = String::from(
+        "| scene | method | FLIP frame | FLIP ROI | model luminance / ref | ms | frame cost × floor |\n|---|---|---|---|---|---|---|\n",
+    );
     for r in rows {
+        let ratio = r.floor_ratio.map_or(String::new(), |v| format!("{v:.1}"));
         s += &format!(
-            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.1} |\n",
+            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.1} | {ratio} |\n",
             r.scene, r.method, r.flip_frame, r.flip_roi, r.model_luminance_ratio, r.ms
         );
     }
     s
 }
 
-/// Chart size, pixels.
-const CHART_W: u32 = 1200;
-const CHART_H: u32 = 800;
+/// Chart size, pixels: two panels side by side.
+const CHART_W: u32 = 1800;
+const CHART_H: u32 = 760;
 
-/// Mean over scenes of (ms, FLIP ROI) per method, in the order methods first appear.
-pub fn per_method_means(rows: &[AccuracyRow]) -> Vec<(String, f64, f64)> {
+/// One method's means over the scenes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MethodMean {
+    pub method: String,
+    /// Mean time per image, ms.
+    pub ms: f64,
+    /// Mean FLIP in the region of interest.
+    pub flip_roi: f64,
+    /// The method's frame cost over the floor (the same on every scene: one `bench frame` run).
+    pub floor_ratio: Option<f64>,
+}
+
+/// Mean over scenes of time, FLIP ROI and cost per method, in the order methods first appear.
+pub fn per_method_means(rows: &[AccuracyRow]) -> Vec<MethodMean> {
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
         if !names.contains(&r.method.as_str()) {
@@ -425,14 +477,21 @@ pub fn per_method_means(rows: &[AccuracyRow]) -> Vec<(String, f64, f64)> {
         .map(|n| {
             let sel: Vec<&AccuracyRow> = rows.iter().filter(|r| r.method == *n).collect();
             let k = sel.len() as f64;
-            (n.to_string(), sel.iter().map(|r| r.ms).sum::<f64>() / k, sel.iter().map(|r| f64::from(r.flip_roi)).sum::<f64>() / k)
+            MethodMean {
+                method: n.to_string(),
+                ms: sel.iter().map(|r| r.ms).sum::<f64>() / k,
+                flip_roi: sel.iter().map(|r| f64::from(r.flip_roi)).sum::<f64>() / k,
+                floor_ratio: sel.iter().find_map(|r| r.floor_ratio),
+            }
         })
         .collect()
 }
 
-/// Error against cost: one point per previz method, the path tracer's ladder as a line (means
-/// over the scenes), x = time per image (ms, log), y = mean FLIP in the model + shadow (log),
-/// with the issue's goal (0.06) as a dashed line. RGB8.
+/// Error against cost, two panels sharing the error axis (mean FLIP in the model + shadow, log;
+/// means over the scenes; the issue's goal 0.06 dashed): left, against the time per image (ms,
+/// log), one point per previz method and the path tracer's ladder as a line; right, against
+/// each previz method's frame cost as a ratio of the background-only floor
+/// ([`AccuracyRow::floor_ratio`], `previz bench frame`), where the rows carry one. RGB8.
 pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
     use plotters::prelude::*;
     let err = |e: &dyn std::fmt::Display| anyhow!("drawing the accuracy chart: {e}");
@@ -441,16 +500,33 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
     if means.is_empty() {
         bail!("no rows to chart");
     }
-    let x_min = means.iter().map(|m| m.1).fold(f64::INFINITY, f64::min).max(1e-3) / 2.0;
-    let x_max = means.iter().map(|m| m.1).fold(0.0, f64::max) * 2.0;
-    let y_min = means.iter().map(|m| m.2).fold(0.06, f64::min) / 1.5;
-    let y_max = means.iter().map(|m| m.2).fold(0.0, f64::max) * 1.5;
+    let x_min = means.iter().map(|m| m.ms).fold(f64::INFINITY, f64::min).max(1e-3) / 2.0;
+    let x_max = means.iter().map(|m| m.ms).fold(0.0, f64::max) * 2.0;
+    let y_min = means.iter().map(|m| m.flip_roi).fold(0.06, f64::min) / 1.5;
+    let y_max = means.iter().map(|m| m.flip_roi).fold(0.0, f64::max) * 1.5;
+    let is_tracer = |m: &MethodMean| m.method.starts_with("path tracer");
+    let palette = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(23, 190, 207),
+        RGBColor(188, 189, 34),
+    ];
+    let methods: Vec<(&MethodMean, RGBColor)> =
+        means.iter().filter(|m| !is_tracer(m)).enumerate().map(|(i, m)| (m, palette[i % palette.len()])).collect();
+    let goal = RGBColor(44, 160, 44);
+    let black = RGBColor(0, 0, 0);
     let mut buf = vec![0u8; (CHART_W * CHART_H * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (CHART_W, CHART_H)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
-        let mut c = ChartBuilder::on(&root)
-            .caption("Lighting accuracy vs cost (mean over the reference scenes)", ("sans-serif", 26))
+        let root = root.titled("Lighting accuracy vs cost (mean over the reference scenes)", ("sans-serif", 26)).map_err(|e| err(&e))?;
+        let (left, right) = root.split_horizontally(CHART_W * 55 / 100);
+        let mut c = ChartBuilder::on(&left)
+            .caption("against time per image (lavapipe wall clock; the path tracer's run)", ("sans-serif", 18))
             .margin(20)
             .x_label_area_size(60)
             .y_label_area_size(80)
@@ -465,42 +541,69 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
             .y_label_formatter(&|y| format!("{y:.2}"))
             .draw()
             .map_err(|e| err(&e))?;
-        let goal = RGBColor(44, 160, 44);
         c.draw_series(DashedLineSeries::new(vec![(x_min, 0.06), (x_max, 0.06)], 8, 6, goal.stroke_width(2)))
             .map_err(|e| err(&e))?
             .label("goal: FLIP 0.06")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], goal.stroke_width(2)));
-        let tracer: Vec<(f64, f64)> = means.iter().filter(|m| m.0.starts_with("path tracer")).map(|m| (m.1, m.2)).collect();
-        let black = RGBColor(0, 0, 0);
+        let tracer: Vec<(f64, f64)> = means.iter().filter(|m| is_tracer(m)).map(|m| (m.ms, m.flip_roi)).collect();
         c.draw_series(LineSeries::new(tracer.clone(), black.stroke_width(2)))
             .map_err(|e| err(&e))?
             .label("path tracer 1/4/16/64 spp vs 256 spp")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], black.stroke_width(2)));
         c.draw_series(tracer.iter().map(|p| Circle::new(*p, 5, black.filled()))).map_err(|e| err(&e))?;
-        let palette = [
-            RGBColor(31, 119, 180),
-            RGBColor(255, 127, 14),
-            RGBColor(214, 39, 40),
-            RGBColor(148, 103, 189),
-            RGBColor(140, 86, 75),
-            RGBColor(227, 119, 194),
-            RGBColor(23, 190, 207),
-            RGBColor(188, 189, 34),
-        ];
-        for (i, m) in means.iter().filter(|m| !m.0.starts_with("path tracer")).enumerate() {
-            let col = palette[i % palette.len()];
-            c.draw_series(std::iter::once(TriangleMarker::new((m.1, m.2), 9, col.filled())))
+        for (m, col) in &methods {
+            let col = *col;
+            c.draw_series(std::iter::once(TriangleMarker::new((m.ms, m.flip_roi), 9, col.filled())))
                 .map_err(|e| err(&e))?
-                .label(m.0.clone())
+                .label(m.method.clone())
                 .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
         }
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::LowerLeft)
             .label_font(("sans-serif", 16))
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK)
             .draw()
             .map_err(|e| err(&e))?;
+
+        let costed: Vec<(&MethodMean, RGBColor, f64)> =
+            methods.iter().filter_map(|(m, col)| m.floor_ratio.map(|r| (*m, *col, r))).collect();
+        let c_max = costed.iter().map(|c| c.2).fold(1.0, f64::max) * 1.2;
+        let mut c = ChartBuilder::on(&right)
+            .caption("against frame cost (GPU, × the background-only frame; previz bench frame)", ("sans-serif", 18))
+            .margin(20)
+            .x_label_area_size(60)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.0..c_max, (y_min..y_max).log_scale())
+            .map_err(|e| err(&e))?;
+        c.configure_mesh()
+            .x_desc("frame cost, × the background-only floor")
+            .y_desc("mean FLIP in model + shadow (log scale)")
+            .label_style(("sans-serif", 16))
+            .axis_desc_style(("sans-serif", 18))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.2}"))
+            .draw()
+            .map_err(|e| err(&e))?;
+        c.draw_series(DashedLineSeries::new(vec![(0.0, 0.06), (c_max, 0.06)], 8, 6, goal.stroke_width(2))).map_err(|e| err(&e))?;
+        for (m, col, ratio) in &costed {
+            let col = *col;
+            c.draw_series(std::iter::once(TriangleMarker::new((*ratio, m.flip_roi), 9, col.filled())))
+                .map_err(|e| err(&e))?
+                .label(format!("{} ({ratio:.1}x)", m.method))
+                .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 7, col.filled()));
+        }
+        if costed.is_empty() {
+            right.draw(&Text::new("no frame costs given (--costs)", (200, 380), ("sans-serif", 20).into_font())).map_err(|e| err(&e))?;
+        } else {
+            c.configure_series_labels()
+                .position(SeriesLabelPosition::LowerRight)
+                .label_font(("sans-serif", 16))
+                .background_style(WHITE.mix(0.9))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| err(&e))?;
+        }
         root.present().map_err(|e| err(&e))?;
     }
     Ok(buf)
@@ -525,17 +628,35 @@ mod tests {
             flip_roi: roi,
             model_luminance_ratio: 1.0,
             ms,
+            floor_ratio: None,
         };
-        let rows = [row("a", "hemisphere", 0.2, 10.0), row("b", "hemisphere", 0.4, 30.0), row("a", "path tracer 1 spp", 0.1, 1000.0)];
+        let mut rows = [row("a", "hemisphere", 0.2, 10.0), row("b", "hemisphere", 0.4, 30.0), row("a", "path tracer 1 spp", 0.1, 1000.0)];
         let m = per_method_means(&rows);
         assert_eq!(m.len(), 2);
-        assert_eq!(m[0].0, "hemisphere");
-        assert!((m[0].1 - 20.0).abs() < 1e-9 && (m[0].2 - 0.3).abs() < 1e-6);
+        assert_eq!(m[0].method, "hemisphere");
+        assert!((m[0].ms - 20.0).abs() < 1e-9 && (m[0].flip_roi - 0.3).abs() < 1e-6 && m[0].floor_ratio.is_none());
         let img = chart(&rows).unwrap();
         assert_eq!(img.len(), (CHART_W * CHART_H * 3) as usize);
         // Something other than white was drawn.
         assert!(img.iter().any(|&v| v < 128));
         assert!(chart(&[]).is_err());
+        // Costs from bench frame: the method's ratio on its rows, none on the path tracer's; a
+        // method the costs lack is named. The right panel then draws its marker (the palette's
+        // first colour, hemisphere's).
+        let cost = |m: &str, r: f64| crate::bench::frame::MethodCost { method: m.into(), gpu_ms: 4.5 * r, floor_ratio: r };
+        assert_eq!(attach_costs(&mut rows, &[cost("sh9-ggx", 10.8)]), vec!["hemisphere".to_string()]);
+        assert_eq!(attach_costs(&mut rows, &[cost("hemisphere", 7.7), cost("sh9-ggx", 10.8)]), Vec::<String>::new());
+        assert_eq!(rows.iter().map(|r| r.floor_ratio).collect::<Vec<_>>(), vec![Some(7.7), Some(7.7), None]);
+        assert_eq!(per_method_means(&rows)[0].floor_ratio, Some(7.7));
+        let blue = |img: &[u8], x0: u32| {
+            img.chunks_exact(3).enumerate().filter(|(i, p)| (*i as u32 % CHART_W) >= x0 && p[0] < 60 && p[1] > 100 && p[2] > 160).count()
+        };
+        let with_costs = chart(&rows).unwrap();
+        let right = CHART_W * 55 / 100;
+        assert!(blue(&with_costs, right) > 20 && blue(&img, right) == 0, "{} {}", blue(&with_costs, right), blue(&img, right));
+        let text = csv(&rows);
+        assert!(text.starts_with("scene,method,flip_frame,flip_roi,model_luminance_ratio,ms,floor_ratio\n"));
+        assert!(text.contains(",10,7.7\n") && text.ends_with(",1000,\n"), "{text}");
     }
 
     #[test]

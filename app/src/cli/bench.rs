@@ -55,6 +55,10 @@ pub struct AccuracyArgs {
     /// Also draw the error-vs-cost chart (PNG).
     #[arg(long, value_name = "PNG")]
     pub chart: Option<PathBuf>,
+    /// Each method's frame cost over the background-only floor: the CSV `previz bench frame
+    /// --csv` wrote (its "method …" rows), put beside the error in the table, CSV and chart.
+    #[arg(long, value_name = "CSV", default_value = "docs/bench_frame_goals.csv")]
+    pub costs: PathBuf,
     /// Also write the rows as CSV.
     #[arg(long, value_name = "CSV")]
     pub csv: Option<PathBuf>,
@@ -226,6 +230,10 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
     if names.is_empty() {
         bail!("no scene in {} has a reference NAME.png in {}", a.scenes.display(), a.references.display());
     }
+    let costs_text = std::fs::read_to_string(&a.costs).map_err(|e| anyhow::anyhow!("--costs {}: {e}", a.costs.display()))?;
+    let costs = crate::bench::frame::method_costs(
+        &crate::bench::frame::read_csv(&costs_text).map_err(|e| anyhow::anyhow!("--costs {}: {e}", a.costs.display()))?,
+    );
     let gpu = Gpu::headless()?;
     let bar = indicatif::ProgressBar::new(names.len() as u64);
     let mut rows = Vec::new();
@@ -242,15 +250,15 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    let missing = accuracy::attach_costs(&mut rows, &costs);
+    if !missing.is_empty() {
+        bail!("--costs {}: no \"method …\" row for {}", a.costs.display(), missing.join(", "));
+    }
     if let Some(path) = &a.chart {
         accuracy::write_chart(&rows, path)?;
     }
     if let Some(path) = &a.csv {
-        let mut s = String::from("scene,method,flip_frame,flip_roi,model_luminance_ratio,ms\n");
-        for r in &rows {
-            s += &format!("{},{},{},{},{},{}\n", r.scene, r.method, r.flip_frame, r.flip_roi, r.model_luminance_ratio, r.ms);
-        }
-        crate::output::write_atomic(path, s.as_bytes())?;
+        crate::output::write_atomic(path, accuracy::csv(&rows).as_bytes())?;
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rows)?);

@@ -133,7 +133,14 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     let fit = sky_model::fit_turbidity(samples, sun.dir, |i| !in_sun[i] && samples[i].radiance.iter().all(|&c| c < 0.99 * clip))
         .filter(|(_, rms)| *rms <= sky_model::MAX_FIT_RMS);
     let atmosphere = fit.map_or_else(clear_sky::Atmosphere::default, |(t, _)| sky_model::atmosphere_for_turbidity(t));
-    let sun_irradiance = restore_sun(&sky, elevation, &atmosphere);
+    // The clipped disc's own energy is a lower bound (an HDR capture's disc still holds about a
+    // third of the sun).
+    let restored = restore_sun(&sky, elevation, &atmosphere);
+    let sun_irradiance = if luminance_bt709(restored) > 0.0 && luminance_bt709(sun.irradiance) > luminance_bt709(restored) {
+        sun.irradiance
+    } else {
+        restored
+    };
     let source = if luminance_bt709(sun_irradiance) > 0.0 { SunSource::Restored } else { SunSource::None };
     let on_ground = sun_irradiance.map(|e| e * sun.dir.z.max(0.0));
     let sky = Sh9::project(&bounded_ground(sky_samples, on_ground));

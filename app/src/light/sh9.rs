@@ -40,6 +40,40 @@ pub fn irradiance_colour(c: &[[f32; 3]; 9], n: Vec3) -> [f32; 3] {
     if lum > 0.0 { e.map(|v| v / lum) } else { [1.0; 3] }
 }
 
+/// The shape of a sky's radiance (luminance) as SH9 coefficients in the environment map's own
+/// frame, with the map's heading: what weights the ground's sky-visibility rays
+/// (scene::occlusion::ground_sky), so that the model hides a directional sky by the light the
+/// hidden part gives. Normalised to L00 = 1 and rounded to 1/32, so that a sky of the same shape
+/// (the live view's camera frame folded again) keeps the ground map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkyShape {
+    pub coeffs: [f32; 9],
+    /// Radians: a world direction d is the map's Rz(heading)·d (shaders/frame.wgsl env_map_dir).
+    pub heading: f32,
+}
+
+impl SkyShape {
+    /// The same radiance from every direction.
+    pub const UNIFORM: SkyShape = SkyShape { coeffs: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], heading: 0.0 };
+
+    /// From irradiance coefficients (cosine-convolved, RGB, as the sh9-ggx light carries them:
+    /// radiance L_i = E_i / Â_i); uniform when the sky gives no light.
+    pub fn from_irradiance(c: &[[f32; 3]; 9], heading: f32) -> SkyShape {
+        let l: [f32; 9] = std::array::from_fn(|i| crate::colour::luminance_bt709(c[i]) / COSINE_LOBE[i]);
+        if !(l[0] > 0.0 && l.iter().all(|v| v.is_finite())) {
+            return SkyShape::UNIFORM;
+        }
+        SkyShape { coeffs: l.map(|v| (v / l[0] * 32.0).round() / 32.0), heading }
+    }
+
+    /// Radiance (relative, ≥ 0) towards unit world direction `d`.
+    pub fn radiance(&self, d: Vec3) -> f32 {
+        let (s, c) = self.heading.sin_cos();
+        let m = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+        basis(m).iter().zip(self.coeffs).map(|(y, c)| y * c).sum::<f32>().max(0.0)
+    }
+}
+
 /// Clamped-cosine convolution factor Â_l of each coefficient (RH2001 eq. 8).
 pub const COSINE_LOBE: [f32; 9] = [PI, 2.0 * PI / 3.0, 2.0 * PI / 3.0, 2.0 * PI / 3.0, PI / 4.0, PI / 4.0, PI / 4.0, PI / 4.0, PI / 4.0];
 
@@ -143,6 +177,28 @@ mod tests {
         assert_eq!(irradiance_colour(&[[0.0; 3]; 9], Vec3::Z), [1.0; 3]);
     }
     use super::*;
+
+    #[test]
+    fn a_sky_shape_is_its_radiance_and_turns_with_the_map() {
+        // Irradiance coefficients of the radiance L = 1 + 0.5 x (x = East): L00 = √(4π),
+        // L11 = 0.5 √(4π/3) (basis 0.488603 x), each times its Â_l.
+        let (l00, l11) = ((4.0 * PI).sqrt(), 0.5 * (4.0 * PI / 3.0).sqrt());
+        let mut c = [[0.0f32; 3]; 9];
+        c[0] = [l00 * COSINE_LOBE[0]; 3];
+        c[3] = [l11 * COSINE_LOBE[3]; 3];
+        let shape = SkyShape::from_irradiance(&c, 0.0);
+        let (east, west, up) = (shape.radiance(Vec3::X), shape.radiance(-Vec3::X), shape.radiance(Vec3::Z));
+        // Normalised to L00 = 1: radiance 1/√(4π) · (1 + 0.5 x).
+        let k = 1.0 / (4.0 * PI).sqrt();
+        assert!((east - 1.5 * k).abs() < 0.01 && (west - 0.5 * k).abs() < 0.01 && (up - k).abs() < 0.01, "{east} {west} {up}");
+        // The map turned by 90° (its North faces the world's East, setup::light::map_to_world):
+        // the world's South sees the map's East (frame.wgsl env_map_dir).
+        let turned = SkyShape::from_irradiance(&c, std::f32::consts::FRAC_PI_2);
+        assert!((turned.radiance(-Vec3::Y) - east).abs() < 1e-5, "{}", turned.radiance(-Vec3::Y));
+        assert!((turned.radiance(Vec3::X) - up).abs() < 1e-5, "{}", turned.radiance(Vec3::X));
+        // No light: uniform.
+        assert_eq!(SkyShape::from_irradiance(&[[0.0; 3]; 9], 0.3), SkyShape::UNIFORM);
+    }
     use crate::colour::luminance_bt709;
     use crate::light::samples::{from_cube, from_equirect};
     use crate::light::sun_finder::{Options, find_sun, without_sun};

@@ -603,7 +603,7 @@ impl LiveSession {
         // The capture replaces the environment folded from the camera frame for good.
         self.fold = None;
         let priors = self.compositor.priors().context("environment priors")?;
-        let (unit, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians());
+        let (unit, scene_light) = environment_light(&scene, env, &priors, exposure, (heading_deg as f32).to_radians())?;
         let light = crate::setup::lighting(&scene, &unit);
         self.unit_light = scene_light.unit;
         self.full_sunlight = scene.sun.sunlight as f32 * self.unit_light.sunlight;
@@ -721,7 +721,7 @@ impl LiveSession {
         state.pending = Some(std::thread::spawn(move || {
             let started = std::time::Instant::now();
             let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;
-            let (unit, _) = environment_light(&scene, &cube, &prepared.env.priors, 1.0, 0.0);
+            let (unit, _) = environment_light(&scene, &cube, &prepared.env.priors, 1.0, 0.0)?;
             Ok(PreparedFold { cube, prepared, sky_sh: unit.sky_sh, cpu_ms: started.elapsed().as_secs_f64() * 1e3, fold_ms })
         }));
         Ok(())

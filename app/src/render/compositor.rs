@@ -469,8 +469,10 @@ impl Compositor {
         Ok(data)
     }
 
-    /// The ground's sky visibility under the model as `p` places it, computed and uploaded when
-    /// the model's turn or scale differs from the last one it was computed for.
+    /// The ground's sky visibility under the model as `p` places it and its sky lights it
+    /// (the rays weighted by the sky's radiance, light::sh9::SkyShape), computed and uploaded
+    /// when the model's turn or scale or the sky's shape differs from the last one it was
+    /// computed for.
     fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let matrix = super::view::model_matrix(model.bounds(), &p.placement);
@@ -479,7 +481,8 @@ impl Compositor {
         let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
         // Computed by the device's model cache once per key (shared by every compositor on the
         // device), uploaded here when it is not the map this compositor holds.
-        let sky = model.prepared.ground_sky(key);
+        let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let sky = model.prepared.ground_sky(key, crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading));
         if self.ground_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &sky)) {
             return Ok(());
         }

@@ -11,6 +11,7 @@
 use super::pipelines::Vertex;
 use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
+use crate::light::sh9::SkyShape;
 use crate::scene::lod::LodChain;
 use crate::scene::occlusion::{self, GroundSky, Occluders};
 use crate::scene::{Mesh, Model};
@@ -55,6 +56,9 @@ impl ModelKey {
     }
 }
 
+/// The last ground map's key (the model matrix's bits and the sky's shape) and the map.
+type GroundKeyAndMap = ([u32; 16], SkyShape, Arc<GroundSky>);
+
 /// What a model's upload needs, computed once per model content.
 pub struct PreparedModel {
     pub key: ModelKey,
@@ -67,8 +71,9 @@ pub struct PreparedModel {
     model: Model,
     colour: OnceLock<std::result::Result<ColourStats, String>>,
     occluders: OnceLock<Occluders>,
-    /// The ground under the last placement asked for: the model matrix's bits and its map.
-    ground: Mutex<Option<([u32; 16], Arc<GroundSky>)>>,
+    /// The ground under the last placement and sky asked for: the model matrix's bits, the
+    /// sky's shape and its map.
+    ground: Mutex<Option<GroundKeyAndMap>>,
     ground_computed: std::sync::atomic::AtomicUsize,
 }
 
@@ -121,22 +126,26 @@ impl PreparedModel {
         self.colour.get().is_some()
     }
 
-    /// The ground's sky visibility under the model placed by `placement` (model space → world):
+    /// The ground's sky visibility under the model placed by `placement` (model space → world)
+    /// under a sky of shape `light` (its rays weighted by the sky's radiance):
     /// [`occlusion::ground_sky`] over [`occlusion::GROUND_TEXELS`]² texels, computed when the
-    /// placement differs from the last one asked for. The same `Arc` comes back while the
-    /// placement stays, so `Arc::ptr_eq` with the one uploaded says whether to upload.
-    pub fn ground_sky(&self, placement: Mat4) -> Arc<GroundSky> {
+    /// placement or the sky's shape differs from the last one asked for. The same `Arc` comes
+    /// back while both stay, so `Arc::ptr_eq` with the one uploaded says whether to upload.
+    pub fn ground_sky(&self, placement: Mat4, light: SkyShape) -> Arc<GroundSky> {
         let bits = placement.to_cols_array().map(f32::to_bits);
         let mut last = self.ground.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some((b, sky)) = last.as_ref()
+        if let Some((b, shape, sky)) = last.as_ref()
             && *b == bits
+            && *shape == light
         {
             return sky.clone();
         }
         let occluders = self.occluders.get_or_init(|| Occluders::of_model(&self.model));
-        let sky = Arc::new(occlusion::ground_sky(occluders, self.bounds, placement, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS));
+        let radiance = |d: Vec3| light.radiance(d);
+        let sky =
+            Arc::new(occlusion::ground_sky(occluders, self.bounds, placement, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS, &radiance));
         self.ground_computed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        *last = Some((bits, sky.clone()));
+        *last = Some((bits, light, sky.clone()));
         sky
     }
 
@@ -374,17 +383,22 @@ mod tests {
     fn the_ground_map_is_computed_once_per_placement() {
         let prepared = PreparedModel::new(&tetrahedron()).unwrap();
         let here = Mat4::from_translation(Vec3::new(1.0, 2.0, 0.0));
-        let a = prepared.ground_sky(here);
-        let b = prepared.ground_sky(here);
+        let a = prepared.ground_sky(here, SkyShape::UNIFORM);
+        let b = prepared.ground_sky(here, SkyShape::UNIFORM);
         assert!(Arc::ptr_eq(&a, &b) && prepared.ground_sky_computed() == 1);
         // Moved: computed again, and the square follows the model.
         let there = Mat4::from_translation(Vec3::new(3.0, 2.0, 0.0));
-        let c = prepared.ground_sky(there);
+        let c = prepared.ground_sky(there, SkyShape::UNIFORM);
         assert_eq!(prepared.ground_sky_computed(), 2);
         assert!(((c.min + c.max) * 0.5 - (a.min + a.max) * 0.5 - glam::Vec2::new(2.0, 0.0)).length() < 1e-5);
         // Back to the first placement: the map is computed again (only the last is kept), equal.
-        let d = prepared.ground_sky(here);
+        let d = prepared.ground_sky(here, SkyShape::UNIFORM);
         assert_eq!(prepared.ground_sky_computed(), 3);
         assert_eq!(*d, *a);
+        // A sky of another shape (brighter in the East) weights the rays differently: computed
+        // again; the same shape again keeps it.
+        let east = SkyShape { coeffs: [1.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0], heading: 0.0 };
+        let e = prepared.ground_sky(here, east);
+        assert!(Arc::ptr_eq(&e, &prepared.ground_sky(here, east)) && prepared.ground_sky_computed() == 4);
     }
 }

@@ -116,18 +116,31 @@ impl Occluders {
     /// The cosine-weighted visibility of the hemisphere around unit `normal` at `point`, from
     /// `rays` rays whose pattern is shifted by `seed` (deterministic).
     pub fn visibility(&self, point: Vec3, normal: Vec3, rays: u32, seed: u32) -> f32 {
+        self.weighted_visibility(point, normal, rays, seed, |_| 1.0)
+    }
+
+    /// [`Occluders::visibility`] with each direction `d` (unit, the occluders' space) weighted by
+    /// `radiance(d)` ≥ 0: the share of the cosine-weighted light from a sky of that radiance that
+    /// reaches `point`, Σ V(d) L(d) / Σ L(d) over the same rays. A weight of 1 everywhere is
+    /// the plain visibility; a sky that gives no light along the rays leaves it plain too.
+    pub fn weighted_visibility(&self, point: Vec3, normal: Vec3, rays: u32, seed: u32, radiance: impl Fn(Vec3) -> f32) -> f32 {
         let Some(n) = normal.try_normalize() else { return 1.0 };
         let (t, b) = orthonormal_basis(n);
         let origin = point + n * self.epsilon;
         let shift = (unit_hash(seed), unit_hash(seed.wrapping_mul(0x9E37_79B9) ^ 0x5bd1_e995));
-        let open = (0..rays.max(1))
-            .filter(|&i| {
-                let (u1, u2) = hammersley(i, rays.max(1));
-                let d = cosine_direction((u1 + shift.0).fract(), (u2 + shift.1).fract());
-                !self.blocked(origin, t * d.x + b * d.y + n * d.z, f32::INFINITY)
-            })
-            .count();
-        open as f32 / rays.max(1) as f32
+        let (mut open, mut total, mut open_n) = (0f32, 0f32, 0u32);
+        for i in 0..rays.max(1) {
+            let (u1, u2) = hammersley(i, rays.max(1));
+            let d = cosine_direction((u1 + shift.0).fract(), (u2 + shift.1).fract());
+            let dir = t * d.x + b * d.y + n * d.z;
+            let w = radiance(dir).max(0.0);
+            total += w;
+            if !self.blocked(origin, dir, f32::INFINITY) {
+                open += w;
+                open_n += 1;
+            }
+        }
+        if total > 0.0 { open / total } else { open_n as f32 / rays.max(1) as f32 }
     }
 }
 
@@ -275,8 +288,19 @@ pub fn ground_square(bounds: (Vec3, Vec3), model: Mat4) -> (Vec2, Vec2, f32) {
 
 /// The ground's sky visibility around a model placed by `model` (model space → world, a
 /// rotation, uniform scale and translation): `occluders` are the model's triangles in model
-/// space; `size`² texels over [`ground_square`], `rays` rays each. Computed once per placement.
-pub fn ground_sky(occluders: &Occluders, bounds: (Vec3, Vec3), model: Mat4, size: u32, rays: u32) -> GroundSky {
+/// space; `size`² texels over [`ground_square`], `rays` rays each, each ray weighted by the sky's
+/// radiance `sky(d)` along it (world direction; any scale): the model hides a directional sky (a
+/// courtyard lit from one side, the bright sky around a low sun) by how much light the hidden
+/// part gives, not by its solid angle alone ([`Occluders::weighted_visibility`]; `|_| 1.0`: a
+/// uniform sky). Computed once per placement and sky.
+pub fn ground_sky(
+    occluders: &Occluders,
+    bounds: (Vec3, Vec3),
+    model: Mat4,
+    size: u32,
+    rays: u32,
+    sky: &(dyn Fn(Vec3) -> f32 + Sync),
+) -> GroundSky {
     let (min, max, z) = ground_square(bounds, model);
     let to_model = model.inverse();
     let up = to_model.transform_vector3(Vec3::Z).normalize_or_zero();
@@ -291,7 +315,8 @@ pub fn ground_sky(occluders: &Occluders, bounds: (Vec3, Vec3), model: Mat4, size
                     let (x, y) = (k % n, c * rows + k / n);
                     let uv = (Vec2::new(x as f32, y as f32) + 0.5) / n as f32;
                     let world = (min + (max - min) * uv).extend(z);
-                    *v = occluders.visibility(to_model.transform_point3(world), up, rays, (y * n + x) as u32);
+                    let radiance = |d: Vec3| sky(model.transform_vector3(d).normalize_or_zero());
+                    *v = occluders.weighted_visibility(to_model.transform_point3(world), up, rays, (y * n + x) as u32, radiance);
                 }
             });
         }
@@ -633,7 +658,7 @@ mod tests {
             Mat4::from_translation(Vec3::new(3.0, -1.0, 0.5)) * Mat4::from_rotation_z(0.7) * Mat4::from_scale(Vec3::splat(1.5)) * y_up;
         let bounds = (Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 3.0, 1.0));
         let occ = Occluders::new(mesh_triangles(&mesh).collect());
-        let sky = ground_sky(&occ, bounds, model, 33, 256);
+        let sky = ground_sky(&occ, bounds, model, 33, 256, &|_| 1.0);
         assert!((sky.z - 2.0).abs() < 1e-4, "{}", sky.z);
         let centre = Vec2::new(3.0, -1.0);
         assert!(((sky.min + sky.max) * 0.5 - centre).length() < 1e-4);
@@ -663,7 +688,7 @@ mod tests {
         }
         let occ = Occluders::new(mesh_triangles(&mesh).collect());
         // Bounds that reach down to the ground (a model whose box includes a pedestal).
-        let sky = ground_sky(&occ, (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0)), Mat4::IDENTITY, 25, 1024);
+        let sky = ground_sky(&occ, (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0)), Mat4::IDENTITY, 25, 1024, &|_| 1.0);
         let under = sky.at(Vec2::ZERO);
         assert!((under - 0.75).abs() < 0.01, "{under}");
     }
@@ -679,6 +704,33 @@ mod tests {
             // Brighter surroundings give back more light.
             assert!(multi_bounce(ao, 0.8) >= multi_bounce(ao, 0.4) && multi_bounce(ao, 0.4) >= ao);
         }
+    }
+
+    #[test]
+    fn a_wall_hides_the_light_of_the_sky_behind_it() {
+        // A wall 0.01 East of the origin, 200 wide and 100 tall, hides every direction with
+        // x > 0 (up to 0.006° from the zenith): half of the cosine-weighted sky. A sky that
+        // shines only from the East is hidden whole, one that shines only from the West not at
+        // all. A sky of radiance 1 + x (x = sinθ cosφ) keeps, by hand,
+        // ∫ (1 + x) cosθ dω over x < 0 / ∫ over the hemisphere = (π/2 − 2/3) / π = 0.288.
+        let (x, lo, hi) = (0.01, -100.0, 100.0);
+        let a = Vec3::new(x, lo, 0.0);
+        let b = Vec3::new(x, hi, 0.0);
+        let c = Vec3::new(x, hi, 100.0);
+        let d = Vec3::new(x, lo, 100.0);
+        let occ = Occluders::new(vec![[a, b, c], [a, c, d]]);
+        let rays = 4096;
+        let uniform = occ.visibility(Vec3::ZERO, Vec3::Z, rays, 3);
+        assert!((uniform - 0.5).abs() < 0.01, "{uniform}");
+        assert_eq!(occ.weighted_visibility(Vec3::ZERO, Vec3::Z, rays, 3, |_| 1.0), uniform);
+        let east = occ.weighted_visibility(Vec3::ZERO, Vec3::Z, rays, 3, |d| d.x.max(0.0));
+        let west = occ.weighted_visibility(Vec3::ZERO, Vec3::Z, rays, 3, |d| (-d.x).max(0.0));
+        assert!(east < 0.005 && west > 0.995, "{east} {west}");
+        let tilted = occ.weighted_visibility(Vec3::ZERO, Vec3::Z, rays, 3, |d| 1.0 + d.x);
+        let want = (std::f32::consts::FRAC_PI_2 - 2.0 / 3.0) / std::f32::consts::PI;
+        assert!((tilted - want).abs() < 0.01, "{tilted} vs {want}");
+        // No light along any ray: the plain visibility.
+        assert_eq!(occ.weighted_visibility(Vec3::ZERO, Vec3::Z, rays, 3, |_| 0.0), uniform);
     }
 
     #[test]

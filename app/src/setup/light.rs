@@ -16,19 +16,60 @@ use crate::light::sun_finder;
 use crate::render::{HemispherePriors, LightingMethod};
 use crate::scene::CubeMap;
 use crate::setup::scene_file::Scene;
+use anyhow::{Context, Result, bail};
 use glam::Vec3;
+use std::path::Path;
 
-/// Measure the light in the scene's environment map. An 8-bit map (every value ≤ 1: JPEG cube
-/// maps, captures) has a clipped sun: it is found with clip level 1 and its energy restored from
-/// the clear-sky model at the scene's sun elevation when the scene gives the sun's direction
-/// (else the saturated disc's); a float HDR map is trusted as it is.
-pub fn measure_environment(scene: &Scene, env: &CubeMap) -> MeasuredLight {
+/// Measure the light in the scene's environment map. A clipped sun is found at the map's clip
+/// level ([`clip_level`]) and its energy restored from the clear-sky model at the scene's sun
+/// elevation when the scene gives the sun's direction (else the saturated disc's); a float map
+/// with no clip level is trusted as it is. Errors: an HDR capture's capture.json that cannot be
+/// read.
+pub fn measure_environment(scene: &Scene, env: &CubeMap) -> Result<MeasuredLight> {
     let samples = from_cube(env);
-    let max = samples.iter().flat_map(|s| s.radiance).fold(0f32, f32::max);
-    let low_dynamic_range = max <= 1.0;
-    let finder = sun_finder::Options { clip_level: low_dynamic_range.then_some(1.0), ..Default::default() };
+    let clip_level = clip_level(scene, &samples)?;
+    let finder = sun_finder::Options { clip_level, ..Default::default() };
     let solar_elevation = scene.sun.direction.map(|d| sun_finder::azimuth_elevation(Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32)).1);
-    measure(&samples, &MeasureOptions { finder, restore_clipped: low_dynamic_range, solar_elevation })
+    Ok(measure(&samples, &MeasureOptions { finder, restore_clipped: clip_level.is_some(), solar_elevation }))
+}
+
+/// The radiance at which the environment's values clip, None when they do not: 1 for an 8-bit
+/// map (every value ≤ 1: JPEG cube maps, 8-bit captures, the folded camera frame); for a float
+/// map, the clip level of the HDR capture it was loaded from (the scene's environment folder's
+/// capture.json, [`hdr_capture_clip`]: even the darkest bracket clips the sun's disc, which
+/// then holds about a third of the sun's irradiance); None for any other float map (a
+/// downloaded HDR is trusted as it is).
+pub fn clip_level(scene: &Scene, samples: &[crate::light::samples::DirSample]) -> Result<Option<f32>> {
+    let max = samples.iter().flat_map(|s| s.radiance).fold(0f32, f32::max);
+    if max <= 1.0 {
+        return Ok(Some(1.0));
+    }
+    match &scene.environment {
+        Some(path) => hdr_capture_clip(path),
+        None => Ok(None),
+    }
+}
+
+/// An HDR capture folder's clip level: capture.json's `hdr.clip_radiance`, its smallest channel.
+/// The sun finder takes one level and tests a texel's largest channel against it; a texel of
+/// the disc clips in some channels only (quarry_01's warm sun: R and G at their clip, 110 and
+/// 139, B below 139 although its clip is 148), so a texel is clipped when any channel reaches
+/// the lowest clip. None for a path that is not a capture folder or a capture without float
+/// faces. Errors name the metadata file.
+pub fn hdr_capture_clip(path: &Path) -> Result<Option<f32>> {
+    let meta = path.join(crate::capture::folder::META_FILE);
+    if !path.is_dir() || !meta.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&meta).with_context(|| format!("cannot read the capture metadata {}", meta.display()))?;
+    let parsed: crate::capture::CaptureMeta =
+        serde_json::from_str(&text).with_context(|| format!("{}: not valid capture metadata", meta.display()))?;
+    let Some(hdr) = parsed.hdr else { return Ok(None) };
+    let clip = hdr.clip_radiance.into_iter().fold(f32::INFINITY, f32::min);
+    if !(clip.is_finite() && clip > 0.0) {
+        bail!("{}: hdr.clip_radiance {:?} is not a positive radiance", meta.display(), hdr.clip_radiance);
+    }
+    Ok(Some(clip))
 }
 
 /// A direction in the map's own frame (ENU of the unrotated cube map) as a world direction, for
@@ -172,6 +213,21 @@ mod tests {
         let (s, c) = h.sin_cos();
         let back = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
         assert!((back - m).length() < 1e-6);
+    }
+
+    #[test]
+    fn an_hdr_captures_clip_level_is_read_from_its_metadata() {
+        let dir = std::env::temp_dir().join(format!("previz-setup-light-clip-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        // A folder of faces without capture.json, and a file, are not captures.
+        assert_eq!(hdr_capture_clip(&dir).unwrap(), None);
+        assert_eq!(hdr_capture_clip(&dir.join("missing.hdr")).unwrap(), None);
+        // Unreadable metadata is an error naming the file, not a map trusted as it is.
+        std::fs::write(dir.join("capture.json"), "{").unwrap();
+        let e = format!("{:#}", hdr_capture_clip(&dir).unwrap_err());
+        assert!(e.contains("capture.json") && e.contains("not valid capture metadata"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -185,7 +185,7 @@ fn set_up(
     compositor.set_model(gpu, model)?;
     let bounds = compositor.model_bounds().context("model bounds")?;
     let priors = compositor.priors().context("environment priors")?;
-    let measured = measure_environment(scene, env);
+    let measured = measure_environment(scene, env)?;
     // `auto` becomes the method the model and the measured light need.
     let choice = method_choice::resolve(scene.method, model, &measured);
     let scene = &Scene { method: method_choice::MethodRequest::Fixed(choice.method), ..scene.clone() };
@@ -196,15 +196,16 @@ fn set_up(
 
 /// The light of `scene` measured in `env` (uploaded with `priors`, at `exposure` and `heading`
 /// radians): the light terms with the scene's multipliers at 1, before the twilight fade
-/// ([`lighting`] applies them), and the measured light with those terms.
+/// ([`lighting`] applies them), and the measured light with those terms. Errors: see
+/// [`measure_environment`].
 pub fn environment_light(
     scene: &Scene,
     env: &CubeMap,
     priors: &crate::render::HemispherePriors,
     exposure: f32,
     heading: f32,
-) -> (LightTerms, SceneLight) {
-    environment_light_measured(scene, measure_environment(scene, env), priors, exposure, heading)
+) -> Result<(LightTerms, SceneLight)> {
+    Ok(environment_light_measured(scene, measure_environment(scene, env)?, priors, exposure, heading))
 }
 
 /// [`environment_light`] with the environment already measured.

@@ -522,7 +522,8 @@ const POLE_PITCH_DEG: f64 = 80.0;
 /// guidance. The guidance is drawn from the *estimated* pose, so a user watching it aims where
 /// the estimate says the target is, not where it truly is. Simulated in passes: when a pass
 /// leaves targets untaken, the mean aim error shown during each of their holds shifts the
-/// user's aim for the next pass, up to `max_attempts`
+/// user's aim for the next pass, and the repair targets the assistant added are visited at the
+/// end of the next pass, aimed where the screen showed them; up to `max_attempts`
 /// passes. The result is the last pass. A pass that completes is replayed once more with each
 /// hold ending [`REACTION_S`] after its shot ([`reactive_holds`]) — the user moves on when the
 /// screen shows the shot taken — and that replay is the result when it completes too. The user does not see the true target, only the
@@ -584,12 +585,25 @@ pub fn replay_guided(
             }
             shift.pitch_deg -= errors.iter().map(|e| e.pitch_deg).sum::<f64>() / n;
         }
-        // New holes the guidance pointed at: visited at the end of the next pass.
+        // New holes the guidance pointed at: visited at the end of the next pass, where the
+        // screen showed them. The guidance draws a repair target from the estimated pose, so a
+        // user following its arrow holds the phone off the hole's true direction by the
+        // estimate's error (est · truth⁻¹, at `bad` noise mostly the held heading's drift) at the
+        // end of this pass, when the guidance pointed at it.
+        let error_at_end = result.track.last().map(|(_, est, truth)| est.as_dquat() * truth.inverse());
         for r in &result.repairs {
             let dir = r.direction(0.0);
             if !targets[planned.len()..].iter().any(|e| e.direction(0.0).angle_between(dir) < REPAIR_SAME_RAD) {
+                let mut shift = AimShift::default();
+                if let Some(err) = error_at_end {
+                    let shown = r.aim_error(href, err * r.pose(path.reference_heading_deg));
+                    if r.pitch_deg.abs() < POLE_PITCH_DEG {
+                        shift.heading_deg = -shown.heading_deg / r.pitch_deg.to_radians().cos();
+                    }
+                    shift.pitch_deg = -shown.pitch_deg;
+                }
                 targets.push(r.clone());
-                shifts.push(AimShift::default());
+                shifts.push(shift);
             }
         }
     }

@@ -541,3 +541,54 @@ fn a_model_file_opened_joins_the_picker_and_a_bad_one_is_named_and_changes_nothi
     assert_eq!(app.models().len(), 3);
     assert_eq!(app.session().scene().model.as_deref(), Some(teapot.as_path()));
 }
+
+/// The app's capture mode judges aims with the heading held at the tap and corrected by each
+/// landed shot's image match (`capture::aim_heading`), as `previz capture` does: at `bad` sensor
+/// noise, through the app's own loop on the virtual phone, the guidance's heading relative to
+/// the front follows the camera's true turn closely, where the fused pose's (the compass's
+/// error changes with heading) wanders.
+#[test]
+fn the_capture_guidance_holds_its_heading_at_bad_noise() {
+    use previz::pose::frames::{heading_difference_deg, heading_pitch_roll};
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let env = Arc::new(inp.env);
+    let cfg = LiveConfig { noise: NoiseLevel::Bad, ..config() };
+    let camera = previz::capture::projection::Pinhole::from_vfov(W, H, s.camera.vfov as f32).unwrap();
+    let truth = previz::live::capture_then_look_around_path(&camera, s.camera.heading, s.camera.pitch, cfg.duration_s, cfg.seed).unwrap();
+    let sources = Sources::simulated_capture(env.clone(), &s, exposure(&s, &env), &cfg).unwrap();
+    let session = LiveSession::new(gpu(), &env, &inp.model, &s, cfg, sources).unwrap();
+    let mut app = App::new(session, tempdir("app_session", "aim"));
+    app.start_capture().unwrap();
+    let heading = |q: glam::DQuat| heading_pitch_roll(q).heading.to_degrees();
+    // (aim, fused, true) headings at the tap, then the largest error of the turn since the tap.
+    let mut at_tap: Option<(f64, f64, f64)> = None;
+    let (mut aim_worst, mut fused_worst, mut compared) = (0f64, 0f64, 0usize);
+    let mut frames = 0;
+    while app.mode() == AppMode::Capturing && frames < 15 * 55 {
+        assert!(app.frame(gpu()).unwrap(), "the session ended");
+        frames += 1;
+        let (Some(f), Some(aim)) = (app.last_frame(), app.capture_aim_pose()) else { continue };
+        let (Some(fused), Some(g)) = (f.pose, app.guidance()) else { continue };
+        if g.phase == previz::capture::assistant::Phase::WaitingForTap {
+            continue;
+        }
+        let t = truth.orientation_at(f.t);
+        // Heading is undefined looking straight up or down: compare where the camera is within
+        // 60° of the horizon.
+        if heading_pitch_roll(t).pitch.to_degrees().abs() > 60.0 {
+            continue;
+        }
+        let now = (heading(aim.q.as_dquat()), heading(fused.q.as_dquat()), heading(t));
+        let tap = *at_tap.get_or_insert(now);
+        let turned = heading_difference_deg(now.2, tap.2);
+        aim_worst = aim_worst.max(heading_difference_deg(heading_difference_deg(now.0, tap.0), turned).abs());
+        fused_worst = fused_worst.max(heading_difference_deg(heading_difference_deg(now.1, tap.1), turned).abs());
+        compared += 1;
+    }
+    eprintln!(
+        "bad noise: {} after {frames} frames; worst turn error since the tap: guidance {aim_worst:.2} deg, fused pose {fused_worst:.2} deg over {compared} frames",
+        if app.mode() == AppMode::CaptureDone { "capture complete" } else { "capture incomplete" }
+    );
+    assert!(compared > 100, "only {compared} frames compared");
+}

@@ -447,6 +447,24 @@ fn x_y_z_sliders_turn_the_model_by_the_dragged_angle() {
         assert!((turned - 180.0).abs() < 1e-3, "{label} dragged to the right end: the model turned {turned}° about {label}");
         assert_eq!(app.controls().rotation_deg[axis], 180.0);
     }
+
+    // Reset: the scene's values and placement again.
+    let size = egui::vec2(800.0, 900.0);
+    click_at(&egui::Context::default(), &mut app, "reset", size);
+    app.apply(gpu()).unwrap();
+    assert_eq!(app.session().params().placement.rotation, glam::Vec3::ZERO, "reset turns the model back");
+    assert_eq!(app.controls().rotation_deg, [0.0; 3]);
+
+    // The place goes into an export only when the user ticks `location`.
+    assert!(app.frame(gpu()).unwrap());
+    let toml_of = |app: &App| std::fs::read_to_string(app.last_export().unwrap().join("scene.toml")).unwrap();
+    click_at(&egui::Context::default(), &mut app, "shutter", size);
+    app.apply(gpu()).unwrap();
+    assert!(!toml_of(&app).contains("location"), "no place unless asked");
+    click_at(&egui::Context::default(), &mut app, "location", size);
+    click_at(&egui::Context::default(), &mut app, "shutter", size);
+    app.apply(gpu()).unwrap();
+    assert!(toml_of(&app).contains("# location: latitude 51.454500, longitude -2.587900"), "{}", toml_of(&app));
 }
 
 /// The rectangles egui drew the composite mode's panels in, after a few passes of the app's UI
@@ -549,7 +567,8 @@ fn a_model_file_opened_joins_the_picker_and_a_bad_one_is_named_and_changes_nothi
 /// than the fused pose's (whose compass error changes with heading). Measured (seed 2): rms
 /// 4.84° against 8.04° for the fused pose, worst 9.40° against 12.87°; complete after 676
 /// frames. The same run judging aims with the fused pose (the app before AimHeading) was still
-/// incomplete after 825 frames (55 s).
+/// incomplete after 825 frames (55 s). A suspend → resume after the fifth shot keeps the capture
+/// in progress.
 #[test]
 fn the_capture_guidance_holds_its_heading_at_bad_noise() {
     use previz::pose::frames::{heading_difference_deg, heading_pitch_roll};
@@ -596,6 +615,14 @@ fn the_capture_guidance_holds_its_heading_at_bad_noise() {
         if g.shots_done > std::mem::replace(&mut shots, g.shots_done) {
             aim_shots.push(aim_error);
             fused_shots.push(fused_error);
+            // Mid-capture the app goes to the background and comes back (another app, the
+            // screen locked): the capture in progress survives and goes on.
+            if shots == 5 {
+                app.suspend().unwrap();
+                assert!(app.frame(gpu()).is_err(), "a suspended app advances no frame");
+                app.resume().unwrap();
+                assert_eq!((app.mode(), app.guidance().unwrap().shots_done), (AppMode::Capturing, 5));
+            }
         }
     }
     let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len().max(1) as f64).sqrt();

@@ -166,6 +166,8 @@ pub struct App {
     requests: Requests,
     script: VecDeque<Step>,
     last_export: Option<PathBuf>,
+    /// The user asked for the place to be written into exports (the bar's `location` box).
+    export_location: bool,
     captured: Option<PathBuf>,
     permissions: Option<Box<dyn PermissionSource>>,
     /// Frames since the answers were last read.
@@ -211,6 +213,7 @@ impl App {
             requests: Requests::default(),
             script: VecDeque::new(),
             last_export: None,
+            export_location: false,
             captured: None,
             permissions: None,
             since_poll: 0,
@@ -519,7 +522,9 @@ impl App {
     /// Export the current frame into a new folder `previz-export-<time>` of the export folder.
     pub fn shutter(&mut self, gpu: &Gpu) -> Result<PathBuf> {
         let dir = new_folder(&self.export_dir, "previz-export", self.session.now())?;
-        if let Err(e) = super::export::export(&mut self.session, gpu, &dir, None) {
+        // The place only when the user asked for it.
+        let location = self.export_location.then(|| self.session.location());
+        if let Err(e) = super::export::export(&mut self.session, gpu, &dir, location) {
             let _ = std::fs::remove_dir(&dir);
             return Err(e);
         }
@@ -621,6 +626,7 @@ impl App {
             ui.horizontal(|ui| {
                 self.requests.capture |= ui.button("capture").clicked();
                 self.requests.shutter |= ui.button("shutter").clicked();
+                ui.checkbox(&mut self.export_location, "location").on_hover_text("write the place into exports");
                 if !self.status.is_empty() {
                     ui.add(egui::Label::new(&self.status).truncate());
                 }

@@ -264,6 +264,38 @@ mod tests {
         assert!((p.lighting.sunlight - 1.0).abs() < 1e-6);
     }
 
+    /// Each of the panel's values lands in the frame term it names (seed 000 Fig. 23: DL, SL,
+    /// R, CC, A, D, S, G, X/Y/Z; the method).
+    #[test]
+    fn every_slider_writes_the_term_it_names() {
+        let mut p = params();
+        let c = Controls {
+            open: true,
+            daylight: 1.25,
+            sunlight: 0.5,
+            reflection: 0.75,
+            colour: 0.25,
+            ambient: 1.5,
+            diffuse: 0.5,
+            specular: 1.75,
+            gloss: 64.0,
+            rotation_deg: [10.0, -20.0, 30.0],
+            method: LightingMethod::Sh9Ggx,
+        };
+        c.apply(&mut p, 4.0);
+        let l = &p.lighting;
+        assert_eq!((l.daylight, l.sunlight, l.reflection, p.colour.strength), (1.25, 2.0, 0.75, 0.25));
+        assert_eq!((l.material.ambient, l.material.diffuse, l.material.specular, l.material.gloss), (1.5, 0.5, 1.75, Some(64.0)));
+        let r = p.placement.rotation;
+        assert!((r - Vec3::new(10f32.to_radians(), -20f32.to_radians(), 30f32.to_radians())).abs().max_element() < 1e-6, "{r}");
+        assert_eq!(p.method, LightingMethod::Sh9Ggx);
+        // And the panel read back from those parameters shows the same values (SL at 1; the
+        // angles through radians and back, to float rounding).
+        let back = Controls::from_params(&p);
+        assert!(back.rotation_deg.iter().zip(c.rotation_deg).all(|(a, b)| (a - b).abs() < 1e-4), "{:?}", back.rotation_deg);
+        assert_eq!(Controls { sunlight: 0.5, rotation_deg: c.rotation_deg, ..back }, c);
+    }
+
     fn params() -> FrameParams {
         use crate::render::{Camera, ColourSettings, Lighting, MaterialTerms, Placement};
         FrameParams {

@@ -372,3 +372,22 @@ fn the_model_is_placed_where_the_phone_points_at_start() {
         assert_eq!(session.params().placement, placed);
     }
 }
+
+/// A GPS fix moves the place the sun is computed for: a session set to a manual place (0° N,
+/// 0° E) whose simulated phone reports fixes at Golden, Colorado takes Golden's sun — NREL SPA's
+/// published azimuth and zenith there — from the first fix on.
+#[test]
+fn a_gps_fix_moves_the_place_the_sun_is_computed_for() {
+    let s = scene(&captured_here());
+    let inputs = load_inputs(&s, false).unwrap();
+    let mut cfg = config("2003-10-17T12:30:30-07:00", NoiseLevel::None);
+    cfg.duration_s = 1.0;
+    let mut session = LiveSession::simulated(gpu(), Arc::new(inputs.env), &inputs.model, &s, cfg.clone()).unwrap();
+    session.set_place(0.0, 0.0, cfg.start).unwrap();
+    assert_eq!(session.location(), (0.0, 0.0));
+    let f = session.advance(gpu()).unwrap().unwrap();
+    let (lat, lon) = session.location();
+    assert!((lat - 39.742476).abs() < 1e-9 && (lon + 105.1786).abs() < 1e-9, "the fix's place: {lat}, {lon}");
+    assert!((f.sun.azimuth_deg - 194.34024).abs() < 0.05, "azimuth {}", f.sun.azimuth_deg);
+    assert!((f.sun.apparent_zenith_deg - 50.11162).abs() < 0.05, "zenith {}", f.sun.apparent_zenith_deg);
+}

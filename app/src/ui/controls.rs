@@ -304,7 +304,7 @@ mod tests {
         ctx.all_styles_mut(|s| s.animation_time = 0.0);
         let rect = egui::Rect::from_min_size(egui::pos2(400.0, 0.0), egui::vec2(300.0, 600.0));
         let mut c = Controls { open: false, ..Controls::from_params(&params()) };
-        let mut pass = |c: &mut Controls, events: Vec<egui::Event>| {
+        let pass = |c: &mut Controls, events: Vec<egui::Event>| {
             let input = egui::RawInput {
                 screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0))),
                 events,
@@ -341,7 +341,7 @@ mod tests {
 
         // The method picker: a click on the method shown opens the list, a click on another
         // method picks it.
-        let mut click = |c: &mut Controls, label: &str, texts: &[(String, egui::Rect)]| {
+        let click = |c: &mut Controls, label: &str, texts: &[(String, egui::Rect)]| {
             let at = texts.iter().rfind(|(t, _)| t == label).unwrap_or_else(|| panic!("no {label:?} on screen")).1.center();
             let button = |pressed| egui::Event::PointerButton {
                 pos: at,

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::cli::{previz, tempdir};
+use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::{gpu, inputs, scene};
 use previz::live::export::{FILES, LIGHTING_DIR, export};
 use previz::live::{LiveConfig, LiveSession};
@@ -146,4 +146,14 @@ fn a_fold_lit_export_is_reproduced_with_the_fold_not_the_map() {
         b += f64::from(p[2]);
     }
     assert!(r > 2.0 * b, "the fold lit the model red: r {r} b {b}");
+
+    // A lighting environment that is not there, or a bad value, is a clear error naming the
+    // key, and nothing is written.
+    let before = files(&out_dir);
+    for (set, needles) in
+        [("lighting.environment=missing", ["lighting.environment", "missing"]), ("lighting.exposure=-1", ["lighting.exposure", "-1"])]
+    {
+        let out = previz(&out_dir, &["composite", "scene.toml", "-o", "bad.png", "--set", set]);
+        assert_clean_failure(&out, &out_dir, &before, &needles);
+    }
 }

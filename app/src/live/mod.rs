@@ -727,8 +727,13 @@ impl LiveSession {
         let fold_ms = started.elapsed().as_secs_f64() * 1e3;
         state.last = Some((pose, t));
         // The folded frame is in the renderer's linear light already (the camera image is the
-        // background the model is drawn over): exposure 1, indexed by world directions.
-        let scene = self.scene.clone();
+        // background the model is drawn over): exposure 1, indexed by world directions. It is
+        // measured with the frame's sun, as `previz composite` measures an export's lighting
+        // environment with the exported `sun.direction` (a clipped sun's restored energy depends
+        // on its elevation).
+        let mut scene = self.scene.clone();
+        let d = self.params.lighting.sun_dir;
+        scene.sun.direction = Some([f64::from(d.x), f64::from(d.y), f64::from(d.z)]);
         state.pending = Some(std::thread::spawn(move || {
             let started = std::time::Instant::now();
             let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;

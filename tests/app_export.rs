@@ -4,9 +4,9 @@
 
 mod common;
 
-use common::cli::{previz, tempdir};
+use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::{gpu, inputs, scene};
-use previz::live::export::{FILES, export};
+use previz::live::export::{FILES, LIGHTING_DIR, export};
 use previz::live::{LiveConfig, LiveSession};
 use previz::sensors::sim::NoiseLevel;
 use previz::ui::controls::{Controls, apply_gesture};
@@ -68,4 +68,92 @@ fn an_exported_frame_is_reproduced_by_previz_composite() {
     assert!(std::fs::read_to_string(asked.join("scene.toml")).unwrap().contains("# location: latitude 51.454500, longitude -2.587900"));
     let e = export(&mut session, gpu(), &dir.join("missing"), None).unwrap_err().to_string();
     assert!(e.contains("missing") && e.contains("not an existing directory"), "{e}");
+}
+
+/// Before any capture the app lights the model with the camera frame folded into a cube map; the
+/// export writes the fold (`lighting/`, float faces) and names it `lighting.environment`, so
+/// `previz composite` of the export lights the model as the app did. The world is red to the East
+/// and blue to the West and the camera looks East: the fold is red, while the scene's map lights
+/// the model's camera-facing side blue from behind the camera — the same export lit by the map
+/// instead is far outside the bound.
+#[test]
+fn a_fold_lit_export_is_reproduced_with_the_fold_not_the_map() {
+    let dir = tempdir("app_export", "fold");
+    let world = dir.join("world");
+    std::fs::create_dir(&world).unwrap();
+    let cube = common::east_red_west_blue(32);
+    for (stem, face) in ["posx", "negx", "posy", "negy", "posz", "negz"].iter().zip(&cube.faces) {
+        let plane = |c: usize| face.iter().map(|t| t[c]).collect::<Vec<f32>>();
+        let channels = vec![("R", plane(0)), ("G", plane(1)), ("B", plane(2))];
+        previz::output::write_exr_f32(&world.join(format!("{stem}.exr")), cube.size, cube.size, channels).unwrap();
+    }
+    let s = scene(&format!(
+        "width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nmethod = \"sh9-ggx\"\nenvironment = {:?}\n\
+         [camera]\nheading = 90.0\npitch = -5.0\n[material]\nspecular = 1.0\n",
+        world.display().to_string()
+    ));
+    let inp = inputs(&s);
+    let cfg = LiveConfig {
+        lat_deg: 51.4545,
+        lon_deg: -2.5879,
+        start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00").unwrap().with_timezone(&chrono::Utc),
+        frame_hz: 10.0,
+        duration_s: 3.0,
+        noise: NoiseLevel::None,
+        seed: 3,
+    };
+    let mut session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, cfg).unwrap();
+    session.fold_camera_into_environment();
+    while session.advance(gpu()).unwrap().is_some_and(|f| f.t < 2.0) {
+        session.finish_fold(gpu()).unwrap();
+    }
+    assert!(session.folded_environment().is_some(), "the fold lights the model");
+
+    let out_dir = dir.join("export");
+    std::fs::create_dir(&out_dir).unwrap();
+    let written = export(&mut session, gpu(), &out_dir, None).unwrap();
+    for name in FILES.iter().map(|f| out_dir.join(f)).chain(["posx", "negz"].map(|f| out_dir.join(LIGHTING_DIR).join(format!("{f}.exr")))) {
+        assert!(written.contains(&name), "{} not written", name.display());
+    }
+    let toml = std::fs::read_to_string(out_dir.join("scene.toml")).unwrap();
+    let table: toml::Table = toml.parse().unwrap();
+    assert_eq!(table["lighting"]["environment"].as_str(), Some(LIGHTING_DIR), "{toml}");
+
+    let rgb = |name: &str| image::open(out_dir.join(name)).unwrap().to_rgb8();
+    let flip_against_app = |name: &str| {
+        let (app, again) = (rgb("composite.png"), rgb(name));
+        previz::capture::replay::mean_flip(app.as_raw(), again.as_raw(), app.width(), app.height()).unwrap()
+    };
+    let out = previz(&out_dir, &["composite", "scene.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let fold_lit = flip_against_app("recomposite.png");
+    // The same export without its lighting environment: lit by the scene's map.
+    let mut map_lit = table.clone();
+    map_lit.remove("lighting");
+    map_lit.insert("output".into(), toml::Value::String("recomposite_map.png".into()));
+    std::fs::write(out_dir.join("scene_map.toml"), toml::to_string(&map_lit).unwrap()).unwrap();
+    let out = previz(&out_dir, &["composite", "scene_map.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let map_lit = flip_against_app("recomposite_map.png");
+    eprintln!("mean FLIP against the app's frame: fold-lit recomposite {fold_lit:.4}, map-lit {map_lit:.4}");
+    assert!(fold_lit <= 0.02, "mean FLIP {fold_lit} between the app's fold-lit frame and its recomposite\n{toml}");
+    assert!(map_lit > 0.02, "lit by the map instead the recomposite would pass too (mean FLIP {map_lit}): the test cannot fail");
+    // The model the app drew is red (the fold, looking East).
+    let model = image::open(out_dir.join("model_rgba.png")).unwrap().to_rgba8();
+    let (mut r, mut b) = (0f64, 0f64);
+    for p in model.as_raw().chunks_exact(4).filter(|p| p[3] == 255) {
+        r += f64::from(p[0]);
+        b += f64::from(p[2]);
+    }
+    assert!(r > 2.0 * b, "the fold lit the model red: r {r} b {b}");
+
+    // A lighting environment that is not there, or a bad value, is a clear error naming the
+    // key, and nothing is written.
+    let before = files(&out_dir);
+    for (set, needles) in
+        [("lighting.environment=missing", ["lighting.environment", "missing"]), ("lighting.exposure=-1", ["lighting.exposure", "-1"])]
+    {
+        let out = previz(&out_dir, &["composite", "scene.toml", "-o", "bad.png", "--set", set]);
+        assert_clean_failure(&out, &out_dir, &before, &needles);
+    }
 }

@@ -218,23 +218,6 @@ fn a_map_that_is_not_a_capture_of_here_and_now_lights_with_its_own_sun() {
     assert!(params.lighting.sunlight > 0.0);
 }
 
-/// A synthetic world for the folded environment: every direction East of the meridian plane
-/// (x > 0) red, West blue, both below 1 (an 8-bit map without a sun: ambient and reflections
-/// only).
-fn east_red_west_blue(size: u32) -> previz::scene::CubeMap {
-    use previz::scene::cubemap::face_uv_to_cube_dir;
-    let faces = std::array::from_fn(|layer| {
-        (0..size * size)
-            .map(|i| {
-                let (x, y) = ((i % size) as f32 + 0.5, (i / size) as f32 + 0.5);
-                let d = previz::scene::cube_to_enu(face_uv_to_cube_dir(layer, x / size as f32, y / size as f32));
-                if d.x > 0.0 { [0.8, 0.08, 0.08] } else { [0.08, 0.08, 0.8] }
-            })
-            .collect()
-    });
-    previz::scene::CubeMap { size, faces }
-}
-
 /// The camera's truth: heading 90° (East, at the model) for 3 s, a half turn to 270° in 1 s,
 /// West for 3 s; pitch −5°.
 fn east_then_west() -> previz::pose::trace::TruthTrace {
@@ -274,7 +257,7 @@ fn the_folded_camera_frame_lights_the_model_and_follows_the_camera() {
                 [camera]\nheading = 90.0\npitch = -5.0\n[material]\nspecular = 1.0\n";
     let s = scene(toml);
     let model = load_inputs(&s, false).unwrap().model;
-    let env = Arc::new(east_red_west_blue(32));
+    let env = Arc::new(common::east_red_west_blue(32));
     let mut cfg = config("2026-06-21T12:00:00Z", NoiseLevel::None);
     cfg.frame_hz = 15.0;
     cfg.duration_s = 7.0;
@@ -388,4 +371,23 @@ fn the_model_is_placed_where_the_phone_points_at_start() {
         }
         assert_eq!(session.params().placement, placed);
     }
+}
+
+/// A GPS fix moves the place the sun is computed for: a session set to a manual place (0° N,
+/// 0° E) whose simulated phone reports fixes at Golden, Colorado takes Golden's sun — NREL SPA's
+/// published azimuth and zenith there — from the first fix on.
+#[test]
+fn a_gps_fix_moves_the_place_the_sun_is_computed_for() {
+    let s = scene(&captured_here());
+    let inputs = load_inputs(&s, false).unwrap();
+    let mut cfg = config("2003-10-17T12:30:30-07:00", NoiseLevel::None);
+    cfg.duration_s = 1.0;
+    let mut session = LiveSession::simulated(gpu(), Arc::new(inputs.env), &inputs.model, &s, cfg.clone()).unwrap();
+    session.set_place(0.0, 0.0, cfg.start).unwrap();
+    assert_eq!(session.location(), (0.0, 0.0));
+    let f = session.advance(gpu()).unwrap().unwrap();
+    let (lat, lon) = session.location();
+    assert!((lat - 39.742476).abs() < 1e-9 && (lon + 105.1786).abs() < 1e-9, "the fix's place: {lat}, {lon}");
+    assert!((f.sun.azimuth_deg - 194.34024).abs() < 0.05, "azimuth {}", f.sun.azimuth_deg);
+    assert!((f.sun.apparent_zenith_deg - 50.11162).abs() < 0.05, "zenith {}", f.sun.apparent_zenith_deg);
 }

@@ -166,3 +166,20 @@ pub fn assert_unchanged(before: &wgpu::HalCounters, after: &wgpu::HalCounters, n
         assert_eq!(count(before, name), count(after, name), "{name} changed across {across}");
     }
 }
+
+/// A synthetic world for the folded environment: every direction East of the meridian plane
+/// (x > 0) red, West blue, both below 1 (an 8-bit map without a sun: ambient and reflections
+/// only).
+pub fn east_red_west_blue(size: u32) -> previz::scene::CubeMap {
+    use previz::scene::cubemap::face_uv_to_cube_dir;
+    let faces = std::array::from_fn(|layer| {
+        (0..size * size)
+            .map(|i| {
+                let (x, y) = ((i % size) as f32 + 0.5, (i / size) as f32 + 0.5);
+                let d = previz::scene::cube_to_enu(face_uv_to_cube_dir(layer, x / size as f32, y / size as f32));
+                if d.x > 0.0 { [0.8, 0.08, 0.08] } else { [0.08, 0.08, 0.8] }
+            })
+            .collect()
+    });
+    previz::scene::CubeMap { size, faces }
+}

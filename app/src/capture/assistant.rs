@@ -699,6 +699,25 @@ impl Assistant {
             .collect()
     }
 
+    /// `face` as the shots taken so far assemble it, `size` texels a side, as [`Assistant::finish`]
+    /// assembles it (stitch mode: every shot that sees a texel, blended; stretch mode: the face's
+    /// own shot) but with the shots placed and exposed as taken — the joint alignment and the gain
+    /// compensation run once, at the end. What the capture screen's thumbnails show. None before
+    /// the tap and, in stretch mode, until the face's own shot is in.
+    pub fn face_so_far(&self, face: Face, size: u32) -> Option<FaceImage> {
+        let href = self.reference_heading_deg?;
+        let shots: Vec<Shot> = self.states.iter().filter_map(|s| s.shot.clone()).collect();
+        let primary = match self.cfg.mode {
+            Mode::Stretch => {
+                let i = self.states.iter().position(|s| s.target.primary && s.target.face == face)?;
+                shots.iter().find(|s| s.target == i)?
+            }
+            // Stitch mode blends every shot; the primary is not used.
+            Mode::Stitch => shots.first()?,
+        };
+        Some(assemble_face(face, self.cfg.mode, primary, &shots, &self.cfg.camera, href, size))
+    }
+
     /// Assemble the six faces (in parallel) once every target has its shot; otherwise an
     /// error naming each missing face and why.
     pub fn finish(&self) -> Result<CubeCapture> {
@@ -801,6 +820,7 @@ fn seen_samples(camera: &Pinhole, samples: &[Vec3], local: Quat, margin_deg: f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::capture::projection::local_to_world;
     use crate::pose::frames::from_heading_pitch_roll;
 
     fn pose(q: glam::DQuat) -> Pose {
@@ -840,6 +860,54 @@ mod tests {
             }
         }
         taken
+    }
+
+    /// The face assembled so far blends every shot taken: a front face seen half by a shot
+    /// turned left and half by one turned right shows both halves (the world's colour at each
+    /// texel's direction), where the front shot alone shows neither.
+    #[test]
+    fn a_face_seen_by_two_half_covering_shots_shows_both_halves() {
+        // 40°x30° lens; the world is red left of heading -25°, blue right of +25°, grey between.
+        let cam = Pinhole::from_vfov(80, 60, 30.0).unwrap();
+        let colour = |d: Vec3| -> [u8; 3] {
+            let az = d.x.atan2(d.y).to_degrees();
+            if az < -25.0 {
+                [200, 20, 20]
+            } else if az > 25.0 {
+                [20, 20, 200]
+            } else {
+                [120, 120, 120]
+            }
+        };
+        let shot = |h: f64| (aim(h, 0.0), Arc::new(super::super::reproject::render_synthetic(&cam, aim(h, 0.0).q, &colour)));
+        let mut a = Assistant::new(AssistantConfig::new(Mode::Stitch, cam)).unwrap();
+        assert!(a.face_so_far(Face::Front, 32).is_none(), "nothing before the tap");
+        let (p, f) = shot(0.0);
+        a.tap(1.0, &p, f).unwrap();
+        // The share of the front face's texels showing the world's colour in their direction.
+        let matching = |a: &Assistant| {
+            let face = a.face_so_far(Face::Front, 32).unwrap();
+            let n = face.rgb.len() / 3;
+            let ok = (0..n)
+                .filter(|&i| {
+                    let d = face_pixel_dir_local(Face::Front.layer(), (i % 32) as u32, (i / 32) as u32, 32, 1.0);
+                    let want = colour(local_to_world(0.0).as_quat() * d);
+                    (0..3).all(|c| (i32::from(face.rgb[3 * i + c]) - i32::from(want[c])).abs() <= 30)
+                })
+                .count();
+            ok as f64 / n as f64
+        };
+        let front_only = matching(&a);
+        // Two shots, 32° left and right: together they see the face's width (±45°).
+        let free: Vec<usize> = (0..a.targets().len()).filter(|&i| a.shot(i).is_none()).take(2).collect();
+        for (k, h) in [(free[0], -32.0), (free[1], 32.0)] {
+            let (p, f) = shot(h);
+            a.capture(k, 2.0, &p, f).unwrap();
+        }
+        let both = matching(&a);
+        eprintln!("texels matching the world: front shot alone {front_only:.3}, with both half-covering shots {both:.3}");
+        assert!(both >= 0.95, "the face shows both halves: {:.1}% of its texels match the world", 100.0 * both);
+        assert!(front_only < 0.7, "the front shot alone shows neither half: {:.1}% match", 100.0 * front_only);
     }
 
     #[test]

@@ -6,14 +6,17 @@ use crate::render::Layer;
 use crate::scene::demo;
 use crate::setup::method_choice::{self, MethodRequest};
 use crate::setup::scene_file::{Scene, SceneBuilder};
-use crate::setup::{SceneLight, load_inputs, prepare_with_light};
+use crate::setup::{SceneLight, load_inputs, load_lighting, prepare_with_light, set_lighting_environment};
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug, Default)]
 #[command(after_help = "Every flag has a scene-file key (see README: Scene file); flags override the file, \
---set overrides both. With no scene file, --model or --env, the built-in demo scene is used.")]
+--set overrides both. With no scene file, --model or --env, the built-in demo scene is used. \
+Key lighting.environment (with lighting.heading, lighting.exposure) names a separate map the model's \
+reflections, sky ambient and colour priors come from (the app's export writes its folded camera frame \
+there); the sun, the daylight level and, without --background, the background stay the environment's.")]
 pub struct Args {
     #[command(flatten)]
     pub scene: SceneArgs,
@@ -212,11 +215,15 @@ pub fn run(args: Args) -> Result<()> {
     }
     let t_load = Instant::now();
     let inputs = load_inputs(&scene, demo)?;
+    let lighting = load_lighting(&scene)?;
     let load_ms = ms(t_load);
 
     let t_upload = Instant::now();
     let gpu = Gpu::headless()?;
-    let (mut compositor, params, light) = prepare_with_light(&gpu, &scene, &inputs)?;
+    let (mut compositor, mut params, light) = prepare_with_light(&gpu, &scene, &inputs)?;
+    if let Some(map) = &lighting {
+        set_lighting_environment(&gpu, &mut compositor, &mut params, &scene, map)?;
+    }
     let upload_ms = ms(t_upload);
 
     let composite = compositor.render(&gpu, &params, Layer::Composite)?;

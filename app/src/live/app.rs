@@ -22,6 +22,7 @@
 
 use super::{LiveFrame, LiveSession};
 use crate::capture::Mode as CaptureMode;
+use crate::capture::aim_heading::AimHeading;
 use crate::capture::assistant::{Assistant, AssistantConfig, Phase};
 use crate::capture::projection::Pinhole;
 use crate::capture::targets::Face;
@@ -79,22 +80,18 @@ pub const SHOT_FEEDBACK_S: f64 = 0.6;
 /// Side of the faces of a capture taken in the app (pixels).
 pub const CAPTURE_FACE_SIZE: u32 = 256;
 
-/// [`CaptureRun::thumb_sources`] of a thumbnail showing the assembled face.
+/// [`CaptureRun::thumb_sources`] of a thumbnail showing the finished capture's face.
 const ASSEMBLED: usize = usize::MAX;
-
-/// Of the shots taken (target index, camera → world orientation), the one whose view axis is
-/// closest to `centre` (a face's centre direction, world): the shot a face's thumbnail shows
-/// mid-capture. None when no shot is taken.
-fn thumbnail_shot(centre: glam::Vec3, taken: &[(usize, glam::Quat)]) -> Option<usize> {
-    let axis = |q: glam::Quat| (q * glam::Vec3::NEG_Z).dot(centre);
-    taken.iter().max_by(|a, b| axis(a.1).total_cmp(&axis(b.1))).map(|&(k, _)| k)
-}
 
 struct CaptureRun {
     assistant: Assistant,
+    /// The heading the guidance judges aims with (held from the tap, each landed shot's
+    /// measured turn correcting its drift), and the pose it gave at the latest frame.
+    aim: AimHeading,
+    aim_pose: Option<crate::pose::Pose>,
     thumbs: [Option<egui::TextureHandle>; 6],
-    /// What each thumbnail shows: the index of a shot, [`ASSEMBLED`] (the assembled face), or
-    /// nothing yet.
+    /// What each thumbnail shows: the face assembled from this many shots, [`ASSEMBLED`] (the
+    /// finished capture's face), or nothing yet.
     thumb_sources: [Option<usize>; 6],
     /// The last shot's target name and camera time.
     last_shot: Option<(String, f64)>,
@@ -169,6 +166,8 @@ pub struct App {
     requests: Requests,
     script: VecDeque<Step>,
     last_export: Option<PathBuf>,
+    /// The user asked for the place to be written into exports (the bar's `location` box).
+    export_location: bool,
     captured: Option<PathBuf>,
     permissions: Option<Box<dyn PermissionSource>>,
     /// Frames since the answers were last read.
@@ -214,6 +213,7 @@ impl App {
             requests: Requests::default(),
             script: VecDeque::new(),
             last_export: None,
+            export_location: false,
             captured: None,
             permissions: None,
             since_poll: 0,
@@ -294,6 +294,12 @@ impl App {
         self.capture.as_ref().map_or([false; 6], |run| run.thumbs.each_ref().map(Option::is_some))
     }
 
+    /// The pose the capture's guidance judged aims with at the latest frame (the fused pose
+    /// before the tap, the held heading after it); None outside capture mode.
+    pub fn capture_aim_pose(&self) -> Option<crate::pose::Pose> {
+        self.capture.as_ref().and_then(|c| c.aim_pose)
+    }
+
     /// The capture assistant's guidance while capturing.
     pub fn guidance(&self) -> Option<crate::capture::assistant::Guidance> {
         self.capture.as_ref().map(|c| c.assistant.guidance())
@@ -313,6 +319,8 @@ impl App {
         let assistant = Assistant::new(cfg)?;
         self.capture = Some(CaptureRun {
             assistant,
+            aim: AimHeading::new(camera, true),
+            aim_pose: None,
             thumbs: Default::default(),
             thumb_sources: [None; 6],
             last_shot: None,
@@ -440,7 +448,14 @@ impl App {
             return Ok(());
         }
         run.tap |= f.user_tapped;
+        for r in self.session.readings() {
+            run.aim.update(r)?;
+        }
         let Some(pose) = f.pose else { return Ok(()) };
+        // From the tap on, aims are judged with the heading held at the tap and corrected by
+        // the shots' images (capture::aim_heading, as `previz capture` does).
+        let aim_pose = run.aim.aim_pose(pose, self.session.display_rotation());
+        run.aim_pose = Some(aim_pose);
         // A phone camera's YUV frame stays on the GPU: read back only when a shot is taken.
         let image = || self.session.camera_frame(gpu).map(Arc::new);
         if run.tap && run.assistant.phase() == Phase::WaitingForTap {
@@ -451,10 +466,13 @@ impl App {
             let front = image()?;
             let locked = self.session.lock_camera_exposure(true)?;
             run.assistant.set_gain_compensation(!locked);
-            run.assistant.tap(f.t, &pose, front)?;
+            run.assistant.tap(f.t, &pose, front.clone())?;
+            run.aim.tap(self.session.orientation_filter(), f.t, &pose, front);
             run.last_shot = Some((Face::Front.name().to_string(), f.t));
-        } else if let Some(i) = run.assistant.observe(f.t, &pose)? {
-            run.assistant.capture(i, f.t, &pose, image()?)?;
+        } else if let Some(i) = run.assistant.observe(f.t, &aim_pose)? {
+            let frame = image()?;
+            let shot_pose = run.aim.shot(i, f.t, aim_pose, pose, frame.clone());
+            run.assistant.capture(i, f.t, &shot_pose, frame)?;
             let name = run.assistant.targets().get(i).map_or_else(String::new, |t| t.name.clone());
             run.last_shot = Some((name, f.t));
         }
@@ -504,7 +522,9 @@ impl App {
     /// Export the current frame into a new folder `previz-export-<time>` of the export folder.
     pub fn shutter(&mut self, gpu: &Gpu) -> Result<PathBuf> {
         let dir = new_folder(&self.export_dir, "previz-export", self.session.now())?;
-        if let Err(e) = super::export::export(&mut self.session, gpu, &dir, None) {
+        // The place only when the user asked for it.
+        let location = self.export_location.then(|| self.session.location());
+        if let Err(e) = super::export::export(&mut self.session, gpu, &dir, location) {
             let _ = std::fs::remove_dir(&dir);
             return Err(e);
         }
@@ -606,6 +626,7 @@ impl App {
             ui.horizontal(|ui| {
                 self.requests.capture |= ui.button("capture").clicked();
                 self.requests.shutter |= ui.button("shutter").clicked();
+                ui.checkbox(&mut self.export_location, "location").on_hover_text("write the place into exports");
                 if !self.status.is_empty() {
                     ui.add(egui::Label::new(&self.status).truncate());
                 }
@@ -616,33 +637,33 @@ impl App {
     fn capture_ui(&mut self, ctx: &egui::Context) {
         let now = self.last.map_or(0.0, |f| f.t);
         let Some(run) = &mut self.capture else { return };
-        // Thumbnails: while capturing, every face some shot has seen shows the taken shot that
-        // looks closest to the face's centre (`thumbnail_shot`: stitch mode sees a face through
-        // the extra views long before its centre target, which it may never take), loaded again
-        // when a closer shot comes; once finished, the assembled faces.
+        // Thumbnails: while capturing, every face some shot has seen shows the face as the shots
+        // taken so far assemble it (`Assistant::face_so_far`, thumbnail-sized), made again only
+        // when a shot lands; once finished, the capture's faces.
         let g = run.assistant.guidance();
         let targets = run.assistant.targets();
-        let taken: Vec<(usize, glam::Quat)> = (0..targets.len()).filter_map(|k| run.assistant.shot(k).map(|shot| (k, shot.pose))).collect();
+        let taken: Vec<usize> = (0..targets.len()).filter(|&k| run.assistant.shot(k).is_some()).collect();
         for (i, face) in Face::ALL.iter().enumerate() {
             let source = match &run.assembled {
                 Some(_) => Some(ASSEMBLED),
                 None => {
-                    let seen = g.face_progress[i] > 0.0 || taken.iter().any(|&(k, _)| targets[k].face == *face);
-                    let centre = |href: f64| crate::capture::targets::Target::for_face(*face).direction(href).as_vec3();
-                    let centre = run.assistant.reference_heading_deg().map(centre);
-                    centre.filter(|_| seen).and_then(|c| thumbnail_shot(c, &taken))
+                    let seen = g.face_progress[i] > 0.0 || taken.iter().any(|&k| targets[k].face == *face);
+                    seen.then_some(taken.len())
                 }
             };
             if source == run.thumb_sources[i] {
                 continue;
             }
             let image = match (source, &run.assembled) {
-                (Some(ASSEMBLED), Some(faces)) => faces.get(i),
-                (Some(k), _) => run.assistant.shot(k).map(|shot| shot.image.as_ref()),
+                (Some(ASSEMBLED), Some(faces)) => faces.get(i).cloned(),
+                (Some(_), _) => run.assistant.face_so_far(*face, THUMB as u32).map(|f| {
+                    let pixels = f.rgb.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect();
+                    crate::scene::Rgba8Image { width: f.size, height: f.size, pixels }
+                }),
                 (None, _) => None,
             };
             let Some(image) = image else { continue };
-            run.thumbs[i] = Some(ctx.load_texture(face.name(), thumbnail(image, THUMB as usize), egui::TextureOptions::LINEAR));
+            run.thumbs[i] = Some(ctx.load_texture(face.name(), thumbnail(&image, THUMB as usize), egui::TextureOptions::LINEAR));
             run.thumb_sources[i] = source;
         }
         let g = run.assistant.guidance();
@@ -883,22 +904,5 @@ mod tests {
         );
         let e = Step::parse_list("capture,jump").unwrap_err().to_string();
         assert!(e.contains("--script") && e.contains("jump"), "{e}");
-    }
-
-    #[test]
-    fn a_face_thumbnail_shows_the_shot_looking_closest_to_its_centre() {
-        use crate::pose::frames::from_heading_pitch_roll;
-        let look = |h: f64, p: f64| from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0).as_quat();
-        // Shots at headings 0 (North), 45 and 100 degrees, the last looking 30 degrees up.
-        let taken = [(0, look(0.0, 0.0)), (3, look(45.0, 0.0)), (7, look(100.0, 30.0))];
-        // East's centre (+x): the 100-degree shot is 31.5 deg off (cos 10 deg x cos 30 deg = 0.853),
-        // the 45-degree one 45 deg (0.707).
-        assert_eq!(thumbnail_shot(glam::Vec3::X, &taken), Some(7));
-        assert_eq!(thumbnail_shot(glam::Vec3::Y, &taken), Some(0));
-        // Straight up: the shot looking 30 degrees up.
-        assert_eq!(thumbnail_shot(glam::Vec3::Z, &taken), Some(7));
-        // North-east (45 deg): the 45-degree shot exactly.
-        assert_eq!(thumbnail_shot(glam::Vec3::new(1.0, 1.0, 0.0).normalize(), &taken), Some(3));
-        assert_eq!(thumbnail_shot(glam::Vec3::X, &[]), None);
     }
 }

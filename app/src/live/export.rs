@@ -5,6 +5,9 @@
 //! values, the model's placement, the camera image as background — so that
 //! `previz composite scene.toml` (run in the folder) renders the same frame into
 //! `recomposite.png`. The place (latitude, longitude) is written, as a comment, only when asked.
+//! While the camera frame folded into a cube map lights the model (before any capture), the fold
+//! is written too, as a folder of six float faces ([`LIGHTING_DIR`]), and the scene names it as
+//! its lighting environment (`lighting.environment`): the recomposite is lit as the frame was.
 
 use super::LiveSession;
 use crate::gpu::Gpu;
@@ -16,6 +19,13 @@ use toml::Value;
 
 /// The files of one export, in the order written.
 pub const FILES: [&str; 6] = ["composite.png", "model_rgba.png", "background.png", "camera.png", "layers.exr", "scene.toml"];
+
+/// The folder the folded camera frame is written into (`posx.exr` … `negz.exr`, 32-bit float
+/// linear R, G, B, each face stored as the loaders read it), when it lights the frame.
+pub const LIGHTING_DIR: &str = "lighting";
+
+/// Face file stems in cube-layer order (+X, −X, +Y, −Y, +Z, −Z), as `scene::environment` reads them.
+const FACE_STEMS: [&str; 6] = ["posx", "negx", "posy", "negy", "posz", "negz"];
 
 /// The scene of the session's current frame (model, environment, size and what the frame does
 /// not change come from the scene the session was made from). Paths: the camera image is
@@ -80,6 +90,12 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
         env.push(("exposure", Value::Float(e)));
     }
     top.insert("env".into(), table(env));
+    if session.folded_environment().is_some() {
+        // The fold is in the renderer's linear light, indexed by world directions.
+        let lighting =
+            vec![("environment", Value::String(LIGHTING_DIR.into())), ("heading", Value::Float(0.0)), ("exposure", Value::Float(1.0))];
+        top.insert("lighting".into(), table(lighting));
+    }
     top.insert(
         "effects".into(),
         table(vec![
@@ -101,8 +117,9 @@ pub fn scene_toml(session: &LiveSession, location: Option<(f64, f64)>) -> Result
     Ok(text)
 }
 
-/// Export the current frame into `dir` (an existing folder): the files of [`FILES`]. Nothing is
-/// left behind when a write fails.
+/// Export the current frame into `dir` (an existing folder): the files of [`FILES`], and the
+/// folded camera frame's faces in [`LIGHTING_DIR`] while it lights the model. Nothing is left
+/// behind when a write fails.
 pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option<(f64, f64)>) -> Result<Vec<PathBuf>> {
     if !dir.is_dir() {
         bail!("export folder {}: not an existing directory", dir.display());
@@ -114,6 +131,7 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option
     let layers = session.render_float_layers(gpu)?;
     let toml = scene_toml(session, location)?;
     let mut written = Vec::new();
+    let mut made_dir = None;
     let result = (|| -> Result<()> {
         for (name, w, h, rgba) in [
             (FILES[0], composite.width, composite.height, &composite.rgba),
@@ -128,6 +146,17 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option
         let path = dir.join(FILES[4]);
         crate::output::write_exr_f32(&path, layers.width, layers.height, layers.channels())?;
         written.push(path);
+        if let Some(cube) = session.folded_environment() {
+            let faces = dir.join(LIGHTING_DIR);
+            std::fs::create_dir(&faces).with_context(|| format!("cannot create {}", faces.display()))?;
+            made_dir = Some(faces.clone());
+            for (stem, face) in FACE_STEMS.iter().zip(&cube.faces) {
+                let path = faces.join(format!("{stem}.exr"));
+                let plane = |c: usize| face.iter().map(|t| t[c]).collect::<Vec<f32>>();
+                crate::output::write_exr_f32(&path, cube.size, cube.size, vec![("R", plane(0)), ("G", plane(1)), ("B", plane(2))])?;
+                written.push(path);
+            }
+        }
         let path = dir.join(FILES[5]);
         std::fs::write(&path, &toml).with_context(|| format!("writing {}", path.display()))?;
         written.push(path);
@@ -136,6 +165,9 @@ pub fn export(session: &mut LiveSession, gpu: &Gpu, dir: &Path, location: Option
     if let Err(e) = result {
         for p in &written {
             let _ = std::fs::remove_file(p);
+        }
+        if let Some(d) = made_dir {
+            let _ = std::fs::remove_dir(d);
         }
         return Err(e);
     }

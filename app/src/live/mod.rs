@@ -318,6 +318,8 @@ struct FoldedEnvironment {
     cpu_ms: f64,
     /// The CPU half of the latest fold, running.
     pending: Option<std::thread::JoinHandle<Result<PreparedFold>>>,
+    /// The folded map that lights the model now (the export writes it).
+    applied: Option<CubeMap>,
 }
 
 /// A folded map with what the frame needs from it, computed off the frame's thread.
@@ -650,7 +652,8 @@ impl LiveSession {
     /// and now (`env.captured_here`).
     pub fn fold_camera_into_environment(&mut self) {
         if self.fold.is_none() && !self.scene.env.captured_here {
-            self.fold = Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, frame_ms: 0.0, cpu_ms: 0.0, pending: None });
+            self.fold =
+                Some(FoldedEnvironment { fold: None, last: None, refreshes: 0, frame_ms: 0.0, cpu_ms: 0.0, pending: None, applied: None });
         }
     }
 
@@ -684,7 +687,15 @@ impl LiveSession {
         state.refreshes += 1;
         state.frame_ms = done.fold_ms + started.elapsed().as_secs_f64() * 1e3;
         state.cpu_ms = done.cpu_ms;
+        state.applied = Some(done.cube);
         Ok(())
+    }
+
+    /// The camera frame folded into a cube map that lights the model now (world directions,
+    /// the renderer's linear light: exposure 1, heading 0); None before the first fold is
+    /// applied and once a capture replaced it.
+    pub fn folded_environment(&self) -> Option<&CubeMap> {
+        self.fold.as_ref().and_then(|f| f.applied.as_ref())
     }
 
     /// Apply a finished fold; fold the current camera frame when one is due (see
@@ -716,8 +727,13 @@ impl LiveSession {
         let fold_ms = started.elapsed().as_secs_f64() * 1e3;
         state.last = Some((pose, t));
         // The folded frame is in the renderer's linear light already (the camera image is the
-        // background the model is drawn over): exposure 1, indexed by world directions.
-        let scene = self.scene.clone();
+        // background the model is drawn over): exposure 1, indexed by world directions. It is
+        // measured with the frame's sun, as `previz composite` measures an export's lighting
+        // environment with the exported `sun.direction` (a clipped sun's restored energy depends
+        // on its elevation).
+        let mut scene = self.scene.clone();
+        let d = self.params.lighting.sun_dir;
+        scene.sun.direction = Some([f64::from(d.x), f64::from(d.y), f64::from(d.z)]);
         state.pending = Some(std::thread::spawn(move || {
             let started = std::time::Instant::now();
             let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;
@@ -768,6 +784,21 @@ impl LiveSession {
     /// Latitude and longitude the sun is computed for now.
     pub fn location(&self) -> (f64, f64) {
         self.location
+    }
+
+    /// The sensor readings the latest frame delivered, in the order the fusion filter took them.
+    pub fn readings(&self) -> &[Reading] {
+        &self.readings
+    }
+
+    /// The fusion filter, as the latest frame's readings left it.
+    pub fn orientation_filter(&self) -> &OrientationFilter {
+        &self.filter
+    }
+
+    /// How the app's display is rotated from the device's natural orientation now.
+    pub fn display_rotation(&self) -> DisplayRotation {
+        self.sources.rotation
     }
 
     /// A description of the sensor source, for the overlay.

@@ -55,9 +55,11 @@ pub fn load_inputs(scene: &Scene, demo: bool) -> Result<Inputs> {
 /// HDR maps, the key-value rule of Reinhard et al. 2002 (log-average luminance → 0.18) over the
 /// horizontal faces.
 pub fn exposure(scene: &Scene, env: &CubeMap) -> f32 {
-    if let Some(e) = scene.env.exposure {
-        return e as f32;
-    }
+    scene.env.exposure.map_or_else(|| auto_exposure(env), |e| e as f32)
+}
+
+/// [`exposure`] for a map the scene gives no exposure for.
+fn auto_exposure(env: &CubeMap) -> f32 {
     let max = env.faces.iter().flatten().flat_map(|p| p.iter()).fold(0f32, |m, v| m.max(*v));
     if max <= 1.0 {
         return 1.0;
@@ -72,6 +74,37 @@ pub fn exposure(scene: &Scene, env: &CubeMap) -> f32 {
         return 1.0;
     }
     (0.18 / (sum / n as f64).exp()) as f32
+}
+
+/// The scene's lighting environment (`lighting.environment`), loaded; None when it names none.
+pub fn load_lighting(scene: &Scene) -> Result<Option<CubeMap>> {
+    let Some(path) = &scene.lighting.environment else { return Ok(None) };
+    crate::scene::environment::load_environment(path).map(Some).with_context(|| format!("lighting.environment {}", path.display()))
+}
+
+/// Light and reflect the model of a prepared scene with `map`, its lighting environment
+/// ([`load_lighting`]): the reflections, the colour priors and the sky's SH9 ambient (colour and
+/// direction) come from `map` at `lighting.exposure` and `lighting.heading`; the sun and the
+/// ambient level stay the ones measured in the scene's environment — what the app does with the
+/// camera frame folded into a cube map. Without a `background` the environment stays the
+/// background: the frame's background is rendered from it first and kept as the image.
+pub fn set_lighting_environment(
+    gpu: &Gpu,
+    compositor: &mut Compositor,
+    params: &mut FrameParams,
+    scene: &Scene,
+    map: &CubeMap,
+) -> Result<()> {
+    if scene.background.is_none() {
+        let b = compositor.render(gpu, params, crate::render::Layer::Background)?;
+        compositor.set_background(gpu, Some(&Rgba8Image { width: b.width, height: b.height, pixels: b.rgba }))?;
+    }
+    let exposure = scene.lighting.exposure.map_or_else(|| auto_exposure(map), |e| e as f32);
+    let heading = (scene.lighting.heading as f32).to_radians();
+    compositor.set_environment(gpu, map, exposure, heading)?;
+    let priors = compositor.priors().context("lighting environment priors")?;
+    params.lighting.sky_sh = environment_light(scene, map, &priors, exposure, heading).0.sky_sh;
+    Ok(())
 }
 
 /// The camera and the model's placement a scene describes, given the loaded model's bounds.

@@ -32,6 +32,8 @@ pub struct Scene {
     pub material: MaterialSection,
     pub placement: PlacementSection,
     pub env: EnvSection,
+    /// A separate map the model is lit and reflects with.
+    pub lighting: LightingSection,
     pub effects: EffectsSection,
     pub colour: ColourSection,
 }
@@ -127,6 +129,22 @@ pub struct EnvSection {
     pub captured_here: bool,
 }
 
+/// A lighting environment apart from the scene's `environment`: the map the model's reflections,
+/// its sky ambient (SH9 colour and direction) and the colour priors come from, as the app's
+/// camera frame folded into a cube map lights it before any capture exists. The sun (direction,
+/// intensity, colour, shadows) and the ambient level (daylight) are still measured in
+/// `environment`, which also stays the background when no `background` is given.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct LightingSection {
+    /// The map (a folder of six faces, or an equirectangular image). None: `environment` lights.
+    pub environment: Option<PathBuf>,
+    /// Heading (degrees clockwise from north) of its front (+Z) face; 0: its faces are the world's.
+    pub heading: f64,
+    /// Linear scale of its radiance; absent: the rule of `env.exposure` applied to this map.
+    pub exposure: Option<f64>,
+}
+
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct EffectsSection {
@@ -172,6 +190,7 @@ impl Default for Scene {
             material: MaterialSection::default(),
             placement: PlacementSection::default(),
             env: EnvSection::default(),
+            lighting: LightingSection::default(),
             effects: EffectsSection::default(),
             colour: ColourSection::default(),
         }
@@ -271,7 +290,7 @@ impl SceneBuilder {
     pub fn build(self) -> Result<Scene> {
         let output_given = self.table.contains_key("output");
         let mut scene: Scene = toml::Value::Table(self.table).try_into().map_err(|e: toml::de::Error| anyhow!("{e}"))?;
-        for p in [&mut scene.model, &mut scene.environment, &mut scene.background].into_iter().flatten() {
+        for p in [&mut scene.model, &mut scene.environment, &mut scene.background, &mut scene.lighting.environment].into_iter().flatten() {
             if p.is_relative() {
                 *p = self.base_dir.join(&*p);
             }
@@ -359,6 +378,14 @@ impl Scene {
             check("env.exposure", e, 1e-9, 1e9)?;
         }
         check("env.heading", self.env.heading, -360.0, 720.0)?;
+        let l = &self.lighting;
+        if l.environment.is_none() && (l.heading != 0.0 || l.exposure.is_some()) {
+            bail!("lighting.heading and lighting.exposure describe lighting.environment, which is not given");
+        }
+        check("lighting.heading", l.heading, -360.0, 720.0)?;
+        if let Some(e) = l.exposure {
+            check("lighting.exposure", e, 1e-9, 1e9)?;
+        }
         let e = &self.effects;
         check("effects.reflection", e.reflection, 0.0, 1.0)?;
         check("effects.ior", e.ior, 1.0, 3.0)?;
@@ -401,6 +428,8 @@ mod tests {
             ("method=phong", "method"),
             ("colour.correction=lut", "correction"),
             ("colour.strength=1.5", "colour.strength"),
+            ("lighting.heading=30", "lighting.environment"),
+            ("lighting.map=fold", "map"),
         ] {
             let mut b = SceneBuilder::new();
             let err = b.set_str(assignment).and_then(|()| b.build().map(|_| ())).unwrap_err();
@@ -409,5 +438,20 @@ mod tests {
         }
         assert!(SceneBuilder::new().set_str("novalue").is_err());
         assert!(SceneBuilder::from_toml("width = [", Path::new(".")).is_err());
+    }
+
+    #[test]
+    fn a_lighting_environment_resolves_beside_the_scene_and_its_values_are_checked() {
+        let s =
+            SceneBuilder::from_toml("[lighting]\nenvironment = \"fold\"\nexposure = 1.0\n", Path::new("/export")).unwrap().build().unwrap();
+        assert_eq!(s.lighting.environment.as_deref(), Some(Path::new("/export/fold")));
+        assert_eq!((s.lighting.heading, s.lighting.exposure), (0.0, Some(1.0)));
+        assert_eq!(SceneBuilder::new().build().unwrap().lighting, LightingSection::default());
+        for (assignment, needle) in [("lighting.exposure=0", "lighting.exposure"), ("lighting.heading=nan", "lighting.heading")] {
+            let mut b = SceneBuilder::new();
+            b.set_str("lighting.environment=fold").unwrap();
+            let err = b.set_str(assignment).and_then(|()| b.build().map(|_| ())).unwrap_err();
+            assert!(format!("{err:#}").contains(needle), "{assignment}: {err:#}");
+        }
     }
 }

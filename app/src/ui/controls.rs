@@ -264,6 +264,102 @@ mod tests {
         assert!((p.lighting.sunlight - 1.0).abs() < 1e-6);
     }
 
+    /// Each of the panel's values lands in the frame term it names (seed 000 Fig. 23: DL, SL,
+    /// R, CC, A, D, S, G, X/Y/Z; the method).
+    #[test]
+    fn every_slider_writes_the_term_it_names() {
+        let mut p = params();
+        let c = Controls {
+            open: true,
+            daylight: 1.25,
+            sunlight: 0.5,
+            reflection: 0.75,
+            colour: 0.25,
+            ambient: 1.5,
+            diffuse: 0.5,
+            specular: 1.75,
+            gloss: 64.0,
+            rotation_deg: [10.0, -20.0, 30.0],
+            method: LightingMethod::Sh9Ggx,
+        };
+        c.apply(&mut p, 4.0);
+        let l = &p.lighting;
+        assert_eq!((l.daylight, l.sunlight, l.reflection, p.colour.strength), (1.25, 2.0, 0.75, 0.25));
+        assert_eq!((l.material.ambient, l.material.diffuse, l.material.specular, l.material.gloss), (1.5, 0.5, 1.75, Some(64.0)));
+        let r = p.placement.rotation;
+        assert!((r - Vec3::new(10f32.to_radians(), -20f32.to_radians(), 30f32.to_radians())).abs().max_element() < 1e-6, "{r}");
+        assert_eq!(p.method, LightingMethod::Sh9Ggx);
+        // And the panel read back from those parameters shows the same values (SL at 1; the
+        // angles through radians and back, to float rounding).
+        let back = Controls::from_params(&p);
+        assert!(back.rotation_deg.iter().zip(c.rotation_deg).all(|(a, b)| (a - b).abs() < 1e-4), "{:?}", back.rotation_deg);
+        assert_eq!(Controls { sunlight: 0.5, rotation_deg: c.rotation_deg, ..back }, c);
+    }
+
+    /// Folded away, the panel draws no slider, only the button that brings it back; a click on
+    /// that button (synthetic egui input) unfolds it; the method picker picks what is clicked.
+    #[test]
+    fn the_panel_folds_away_and_its_button_brings_it_back_and_its_method_picker_picks() {
+        let ctx = egui::Context::default();
+        ctx.all_styles_mut(|s| s.animation_time = 0.0);
+        let rect = egui::Rect::from_min_size(egui::pos2(400.0, 0.0), egui::vec2(300.0, 600.0));
+        let mut c = Controls { open: false, ..Controls::from_params(&params()) };
+        let pass = |c: &mut Controls, events: Vec<egui::Event>| {
+            let input = egui::RawInput {
+                screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0))),
+                events,
+                ..Default::default()
+            };
+            let mut out = ctx.run_pass(input, |ctx| {
+                c.show(ctx, rect);
+            });
+            out.textures_delta.set.drain().for_each(drop);
+            out.textures_delta.free.drain().for_each(drop);
+            let texts: Vec<(String, egui::Rect)> = out
+                .shapes
+                .iter()
+                .filter_map(|s| match &s.shape {
+                    egui::Shape::Text(t) => Some((t.galley.text().to_string(), t.visual_bounding_rect())),
+                    _ => None,
+                })
+                .collect();
+            texts
+        };
+        pass(&mut c, vec![]);
+        let folded = pass(&mut c, vec![]);
+        assert!(!folded.iter().any(|(t, _)| t.contains("SL")), "a folded panel shows no slider: {folded:?}");
+        let at = folded.iter().find(|(t, _)| t == "controls").expect("the unfold button").1.center();
+        let button =
+            |pressed| egui::Event::PointerButton { pos: at, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() };
+        pass(&mut c, vec![egui::Event::PointerMoved(at), button(true)]);
+        pass(&mut c, vec![button(false)]);
+        assert!(c.open, "the button unfolds the panel");
+        // (A window appearing is laid out, unseen, in its first pass.)
+        pass(&mut c, vec![]);
+        let unfolded = pass(&mut c, vec![]);
+        assert!(unfolded.iter().any(|(t, _)| t.contains("SL")), "the unfolded panel shows its sliders: {unfolded:?}");
+
+        // The method picker: a click on the method shown opens the list, a click on another
+        // method picks it.
+        let click = |c: &mut Controls, label: &str, texts: &[(String, egui::Rect)]| {
+            let at = texts.iter().rfind(|(t, _)| t == label).unwrap_or_else(|| panic!("no {label:?} on screen")).1.center();
+            let button = |pressed| egui::Event::PointerButton {
+                pos: at,
+                button: egui::PointerButton::Primary,
+                pressed,
+                modifiers: Default::default(),
+            };
+            pass(c, vec![egui::Event::PointerMoved(at), button(true)]);
+            pass(c, vec![button(false)]);
+            pass(c, vec![]);
+            pass(c, vec![])
+        };
+        assert_eq!(c.method, LightingMethod::BlinnPhong);
+        let listed = click(&mut c, LightingMethod::BlinnPhong.name(), &unfolded);
+        click(&mut c, LightingMethod::Sh9Ggx.name(), &listed);
+        assert_eq!(c.method, LightingMethod::Sh9Ggx, "picked from the list");
+    }
+
     fn params() -> FrameParams {
         use crate::render::{Camera, ColourSettings, Lighting, MaterialTerms, Placement};
         FrameParams {

@@ -103,7 +103,7 @@ pub fn set_lighting_environment(
     let heading = (scene.lighting.heading as f32).to_radians();
     compositor.set_environment(gpu, map, exposure, heading)?;
     let priors = compositor.priors().context("lighting environment priors")?;
-    params.lighting.sky_sh = environment_light(scene, map, &priors, exposure, heading).0.sky_sh;
+    params.lighting.sky_sh = environment_light(scene, map, &priors, exposure, heading)?.0.sky_sh;
     Ok(())
 }
 

@@ -168,6 +168,7 @@ fn run_lod(a: LodArgs) -> Result<()> {
 fn run_frame(a: FrameArgs) -> Result<()> {
     let Bench { scene, inputs, gpu, bar } = Bench::set_up(&a.scene, a.frames)?;
     let rows = frame::run(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
+    let profile = frame::profile(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     if let Some(path) = &a.csv {
         crate::output::write_atomic(path, frame::csv(&rows).as_bytes())?;
@@ -186,6 +187,8 @@ fn run_frame(a: FrameArgs) -> Result<()> {
             a.warmup
         );
         print!("{}", frame::markdown(&rows));
+        println!("\nWhere the time goes (the same paths again, each pass timed alone):\n");
+        print!("{}", frame::profile_markdown(&profile));
     }
     Ok(())
 }

@@ -20,10 +20,12 @@ pub enum What {
     /// all in one run: the scene as drawn by default against its full-detail, full-shadow
     /// reference (mean FLIP), the same at a quarter of the fill, every lighting method, each
     /// colour correction, and 1x/2x/4x MSAA and FXAA (FLIP of the model's edges against a
-    /// 16-sample render); then issue 11's goals, met or not.
+    /// 16-sample render); then issue 11's goals, met or not; then where the main paths' time
+    /// goes (the same frames with each pass timed alone; not in --json or --csv).
     Frame(FrameArgs),
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
-    /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames.
+    /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames; then as
+    /// many frames again with each pass timed alone (the profile rows).
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model

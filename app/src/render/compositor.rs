@@ -6,7 +6,9 @@
 
 use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment, EnvironmentTextures};
-use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level, sky_square};
+use super::frame::{
+    FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, ground_mesh, light_uniforms, lod_level, sky_square,
+};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
 use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
@@ -296,8 +298,9 @@ impl Compositor {
         self.pass_timing = on;
     }
 
-    /// Draw the shadow into the largest map instead of the one its footprint on screen needs:
-    /// for the full-shadow references that measure what the smaller maps cost in accuracy.
+    /// Draw the shadow into the largest map instead of the one its footprint on screen needs,
+    /// and look it up over the whole ground quad instead of only where it can fall: for the
+    /// full-shadow references that measure what the smaller maps and the split cost in accuracy.
     pub fn set_full_shadow(&mut self, on: bool) {
         self.full_shadow = on;
     }
@@ -315,6 +318,12 @@ impl Compositor {
     /// Side of the shadow map the last rendered frame drew into (texels).
     pub fn shadow_map_size(&self) -> u32 {
         self.shadow.sizes()[self.shadow_index]
+    }
+
+    /// The ground triangles' vertices the last frame drew with the sun's shadow lookup and
+    /// without it (render::frame::GroundMesh).
+    pub fn ground_vertices(&self) -> (u32, u32) {
+        self.ground.counts()
     }
 
     /// Which optional passes the last rendered frame ran.
@@ -382,7 +391,19 @@ impl Compositor {
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
         let ground_pass = (shadow.needed && p.lighting.shadow_opacity > 0.0) || (shadow_pass && p.lighting.sky_occlusion > 0.0);
-        Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass, shadow_map_size: shadow.map_size })
+        let ground_mesh = ground_mesh(p, &context, &shadow, self.full_shadow);
+        Ok(FrameData {
+            frame,
+            instance,
+            ground,
+            colour,
+            light,
+            level,
+            shadow_pass,
+            ground_pass,
+            shadow_map_size: shadow.map_size,
+            ground_mesh,
+        })
     }
 
     /// Render one image of `layer` and read it back.
@@ -512,7 +533,7 @@ impl Compositor {
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
-        self.ground.write(queue, &data.ground);
+        self.ground.write(queue, &data.ground, &data.ground_mesh);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
         self.shadow_index = shadow_index;
@@ -553,40 +574,38 @@ impl Compositor {
         // 2-3a. The shadow map and the background texture.
         self.encode_shadow_and_env_view(encoder, model, true)?;
 
-        // 3b-5. Background, ground shadow and model into the composite target: one render pass,
-        // or (pass timing) one pass per step, each timed alone.
+        // 3b-5. Model, background and ground shadow into the composite target: one render pass,
+        // or (pass timing) one pass per step, each timed alone. The model is opaque (alpha 1),
+        // so the order changes no pixel, only the work: drawn first, its depth keeps the
+        // background (at the far plane) and the ground (depth-tested, no depth write) from
+        // shading the pixels it covers.
         let first = !self.background.from_env();
         let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
         let steps = self.composite_steps(layer);
         let draw_step = |pass: &mut wgpu::RenderPass<'_>, step: usize| -> Result<()> {
             match step {
-                // 3b. Background pass: the camera image fills the target.
+                // 3b. Background pass: the camera image fills the target around the model.
                 0 => in_group(pass, "background pass", |pass| self.background.draw(pass)),
                 // 5. Model pass: shading, reflection/refraction and colour correction.
                 1 => in_group(pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?,
                 // 4. Ground pass: the shadow catcher darkens the background under the model.
-                // Drawn after the model and depth-tested against it (no depth write), so the
-                // ground hidden behind the model is never shaded; the model is opaque, so the
-                // image is the same as drawing the ground first.
                 _ => in_group(pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index)),
             }
             Ok(())
         };
+        let order = [1, 0, 2].into_iter().filter(|&i| steps[i]);
         if self.pass_timing {
             let slots = [BACKGROUND_SLOT, MODEL_SLOT, GROUND_SLOT];
-            let run: Vec<usize> = (0..3).filter(|&i| steps[i]).collect();
+            let run: Vec<usize> = order.collect();
             for (k, &step) in run.iter().enumerate() {
                 let last = k + 1 == run.len();
-                // The environment view pass (when there is no photograph) wrote the
-                // background's start.
-                let begin = step != 0 || first;
-                let timestamps = self.timer.as_ref().and_then(|t| t.render_pass(slots[step], begin, true));
+                let timestamps = self.timer.as_ref().and_then(|t| t.render_pass(slots[step], true, true));
                 let mut pass = self.targets.begin_composite_part(encoder, (k == 0).then_some(clear), last, timestamps);
                 draw_step(&mut pass, step)?;
             }
         } else {
             let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));
-            for step in (0..3).filter(|&i| steps[i]) {
+            for step in order {
                 draw_step(&mut pass, step)?;
             }
         }
@@ -602,8 +621,7 @@ impl Compositor {
         Ok(())
     }
 
-    /// Which of the composite's steps a frame of `layer` draws, in order: background, model,
-    /// ground.
+    /// Which of the composite's steps a frame of `layer` draws: background, model, ground.
     fn composite_steps(&self, layer: Layer) -> [bool; 3] {
         [layer != Layer::Model, layer != Layer::Background, self.passes_run.ground]
     }
@@ -620,8 +638,10 @@ impl Compositor {
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
         if self.background.from_env() {
-            let slot = if self.pass_timing { BACKGROUND_SLOT } else { REST_SLOT };
-            let mut pass = self.background.begin_env_view(encoder, stamp(slot, false));
+            // With pass timing the environment view is not timed (the background step is).
+            let timed = timed && !self.pass_timing;
+            let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
+            let mut pass = self.background.begin_env_view(encoder, stamp(REST_SLOT, false));
             in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
         }
         Ok(())

@@ -46,7 +46,7 @@ struct VertexIn {
 };
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @invariant @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
@@ -171,4 +171,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         colour = mix(colour, live, frame.reflection);
     }
     return vec4<f32>(colour, 1.0);
+}
+
+// The depth pre-pass: the model's depth alone (colour writes masked), so the shading pass then
+// shades each pixel once.
+@fragment
+fn fs_depth() -> @location(0) vec4<f32> {
+    return vec4<f32>(0.0);
 }

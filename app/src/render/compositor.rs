@@ -587,7 +587,11 @@ impl Compositor {
                 // 3b. Background pass: the camera image fills the target around the model.
                 0 => in_group(pass, "background pass", |pass| self.background.draw(pass)),
                 // 5. Model pass: shading, reflection/refraction and colour correction.
-                1 => in_group(pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?,
+                // Its depth first (a pre-pass), so each pixel is shaded once.
+                1 => in_group(pass, "model pass", |pass| {
+                    self.model_pass.draw_prepass(pass, model, (self.level, self.shadow_index))?;
+                    self.model_pass.draw(pass, model, method, (self.level, self.shadow_index))
+                })?,
                 // 4. Ground pass: the shadow catcher darkens the background under the model.
                 _ => in_group(pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index)),
             }

@@ -37,6 +37,9 @@ pub struct ModelPipelines {
     /// The same without colour correction (`COLOUR_CORRECTION` false: no correction code at
     /// all), for frames that ask for none.
     pub uncorrected: Vec<wgpu::RenderPipeline>,
+    /// The depth pre-pass: the model's depth alone, so that the shading pipelines (depth test
+    /// less-or-equal) shade each pixel once, not every surface behind the nearest.
+    pub prepass: wgpu::RenderPipeline,
 }
 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
@@ -69,7 +72,8 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
     );
     let by_method = pipelines_for(device, (&layout, &material_layout), (COLOR_FORMAT, samples), true);
     let uncorrected = pipelines_for(device, (&layout, &material_layout), (COLOR_FORMAT, samples), false);
-    ModelPipelines { layout, material_layout, by_method, uncorrected }
+    let prepass = prepass_pipeline(device, (&layout, &material_layout), samples);
+    ModelPipelines { layout, material_layout, by_method, uncorrected, prepass }
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
@@ -115,6 +119,46 @@ pub fn pipelines_for(
             )
         })
         .collect()
+}
+
+/// The depth pre-pass pipeline: the model pass's vertex stage (its position `@invariant`, so
+/// both passes compute the same depth), colour writes masked, depth written, `samples` per
+/// pixel into the composite's targets.
+fn prepass_pipeline(
+    device: &wgpu::Device,
+    (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    samples: u32,
+) -> wgpu::RenderPipeline {
+    let module = build::shader(device, "model depth pre-pass", source(Technique::Model));
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("model depth pre-pass"),
+        bind_group_layouts: &[Some(layout), Some(material_layout)],
+        immediate_size: 0,
+    });
+    let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
+    let options = wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() };
+    let targets = [Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() })];
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("model depth pre-pass"),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: options.clone(),
+            buffers: &[Some(vertex_layout())],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
+        multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_depth"),
+            compilation_options: options,
+            targets: &targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 /// The model's depth seen by the camera, single-sampled and without colour: the model pass's
@@ -211,6 +255,7 @@ pub struct ModelPass {
     by_method: Vec<wgpu::RenderPipeline>,
     /// The same without the colour correction's code.
     uncorrected: Vec<wgpu::RenderPipeline>,
+    prepass: wgpu::RenderPipeline,
     /// Whether this frame corrects the model's colour (its `ColourCorrection` is not "none").
     corrected: bool,
     layout: wgpu::BindGroupLayout,
@@ -236,6 +281,7 @@ impl ModelPass {
         ModelPass {
             by_method: pipelines.model.by_method.clone(),
             uncorrected: pipelines.model.uncorrected.clone(),
+            prepass: pipelines.model.prepass.clone(),
             corrected: false,
             layout: pipelines.model.layout.clone(),
             material_layout: pipelines.model.material_layout.clone(),
@@ -379,6 +425,12 @@ impl ModelPass {
     ) -> Result<()> {
         let pipelines = if self.corrected { &self.by_method } else { &self.uncorrected };
         self.draw_with(pass, &pipelines[method.shader_id() as usize], model, lod_and_shadow)
+    }
+
+    /// The depth pre-pass of `model` at level of detail `level` (the shadow map index only
+    /// picks the bind group).
+    pub fn draw_prepass(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, lod_and_shadow: (usize, usize)) -> Result<()> {
+        self.draw_with(pass, &self.prepass, model, lod_and_shadow)
     }
 
     /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from

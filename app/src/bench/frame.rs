@@ -108,8 +108,9 @@ pub fn run(
     // is drawn every frame.
     paths.push(PathSpec { sun_turns: true, ..path(SUN_MOVING, 0, Layer::Composite, base, false) });
     // Profiling: the default frame without its ground pass (what the shadow catcher costs).
+    // (No sun shadow and no sky occlusion: with either the ground pass runs.)
     let mut no_ground = base;
-    no_ground.lighting.shadow_opacity = 0.0;
+    (no_ground.lighting.shadow_opacity, no_ground.lighting.sky_occlusion) = (0.0, 0.0);
     paths.push(path(NO_GROUND, 0, Layer::Composite, no_ground, false));
     // The same model at a quarter of the fill (placed by the same rule, farther away).
     let quarter_scene = Scene {

@@ -5,7 +5,11 @@
 
 @vertex
 fn vs_main(@builtin(vertex_index) index: u32) -> FullScreen {
-    return full_screen(index);
+    // At the far plane: drawn after the opaque model (render::compositor), the depth test keeps
+    // it off the pixels the model covers.
+    var out = full_screen(index);
+    out.clip.z = 1.0;
+    return out;
 }
 
 @fragment

@@ -2,6 +2,12 @@
 // where the model shadows the sun or hides the sky and leaves it untouched elsewhere. The output
 // is what the ground loses per channel; the pipeline multiplies the background by 1 − that
 // (render::passes::ground), so a shadow keeps the colour of the light left in it.
+//
+// SUN_SHADOW is a pipeline-override constant: the ground is drawn in two parts that do not
+// overlap (render::frame::ground_mesh), where the sun's shadow can fall with the shadow lookup
+// (true) and the rest without it (false: no lookup compiled in; lavapipe runs every branch of
+// a runtime test, so only leaving the code out saves its cost there).
+override SUN_SHADOW: bool = true;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> plane: Instance;
@@ -21,13 +27,10 @@ struct GroundOut {
 };
 
 @vertex
-fn vs_main(@builtin(vertex_index) index: u32) -> GroundOut {
-    // Two triangles covering the unit square [-1, 1]^2 at z = 0, placed by plane.model.
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
-    );
-    let world = plane.model * vec4<f32>(corners[index], 0.0, 1.0);
+fn vs_main(@location(0) corner: vec2<f32>) -> GroundOut {
+    // Triangles inside the unit square [-1, 1]^2 at z = 0 (render::frame::GroundMesh), placed by
+    // plane.model on the ground quad.
+    let world = plane.model * vec4<f32>(corner, 0.0, 1.0);
     var out: GroundOut;
     out.world = world.xyz;
     out.clip = frame.view_proj * world;
@@ -43,9 +46,11 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     // The sun's shadow removes the sun's share of the ground's light: shadow_opacity is that
     // share (measured from the environment by setup::light), none when there is no sunlight.
     var sun_lost = 0.0;
-    if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
-        let visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
-        sun_lost = frame.shadow_opacity * (1.0 - visibility);
+    if (SUN_SHADOW) {
+        if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
+            let visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
+            sun_lost = frame.shadow_opacity * (1.0 - visibility);
+        }
     }
     // The model hides part of the sky: the sky's share of the ground's light times the share of
     // the (cosine-weighted) sky hidden here. Outside the square the sky is whole.

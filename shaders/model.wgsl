@@ -6,6 +6,9 @@
 // METHOD is a pipeline-override constant: each method has its own pipeline, which compiles only
 // its own branches (measured faster on lavapipe than a uniform switch: docs/PERFORMANCE.md).
 override METHOD: u32;
+// COLOUR_CORRECTION is one too: false for frames without a correction, whose pipelines then
+// hold no correction code (lavapipe runs every case of a runtime switch).
+override COLOUR_CORRECTION: bool = true;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -43,7 +46,7 @@ struct VertexIn {
 };
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    @invariant @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
@@ -69,9 +72,18 @@ fn surface_albedo(uv: vec2<f32>) -> vec3<f32> {
     let albedo = material.albedo.rgb;
     if (material.albedo.a > 0.5) {
         let texel = textureSample(diffuse_tex, diffuse_smp, uv).rgb;
-        return albedo * min(colour_correct(texel, colour_cc), vec3<f32>(1.0));
+        return albedo * min(corrected_colour(texel), vec3<f32>(1.0));
     }
-    return min(colour_correct(albedo, colour_cc), vec3<f32>(1.0));
+    return min(corrected_colour(albedo), vec3<f32>(1.0));
+}
+
+// The colour correction of a reflectance, or the reflectance itself in the pipelines without
+// correction (what the identity correction gives: strength 0).
+fn corrected_colour(rgb: vec3<f32>) -> vec3<f32> {
+    if (COLOUR_CORRECTION) {
+        return colour_correct(rgb, colour_cc);
+    }
+    return rgb;
 }
 
 // Eq. 6: blend factor of the upper hemisphere for a normal (1 = facing straight up; world up
@@ -159,4 +171,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         colour = mix(colour, live, frame.reflection);
     }
     return vec4<f32>(colour, 1.0);
+}
+
+// The depth pre-pass: the model's depth alone (colour writes masked), so the shading pass then
+// shades each pixel once.
+@fragment
+fn fs_depth() -> @location(0) vec4<f32> {
+    return vec4<f32>(0.0);
 }

@@ -96,23 +96,44 @@ fill = 0.8
     let inputs = Inputs { model, env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
     let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
     assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
+    // A colour correction (the first asks for the model's statistics) and the sun up, so the
+    // ground is drawn in two parts.
+    let corrected = previz::render::ColourSettings { method: previz::colour::transfer::TransferMethod::TRANSFERS[0], strength: 1.0 };
+    let mut params = params;
+    params.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
+    (params.lighting.sunlight, params.lighting.shadow_opacity, params.lighting.sky_occlusion) = (1.0, 0.6, 0.5);
+    compositor.render(gpu(), &previz::render::FrameParams { colour: corrected, ..params }, Layer::Composite).unwrap();
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
     let before = settled_counters();
-    let (mut levels, mut maps) = (Vec::new(), Vec::new());
+    let (mut levels, mut maps, mut grounds) = (Vec::new(), Vec::new(), Vec::new());
     for i in -2..8 {
         let mut p = params;
         let toward = p.placement.position - p.camera.position;
         p.placement.position = p.camera.position + toward * 2f32.powi(i);
+        // Every other frame corrected (its own pipelines), every third with the sun down (the
+        // ground without the shadow lookup), every fourth with each pass timed alone.
+        if i % 2 == 0 {
+            p.colour = corrected;
+        }
+        if i % 3 == 0 {
+            p.lighting.sun_dir.z = -0.2;
+        }
+        compositor.set_pass_timing(i % 4 == 0);
         compositor.render(gpu(), &p, Layer::Composite).unwrap();
         levels.push(compositor.lod_level());
         maps.push(compositor.shadow_map_size());
+        grounds.push(compositor.ground_vertices());
     }
+    compositor.set_pass_timing(false);
     let after = settled_counters();
     levels.dedup();
     maps.dedup();
+    grounds.sort_unstable();
+    grounds.dedup();
     assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
     assert!(maps.len() >= 2, "the shadow map did not follow the footprint: {maps:?}");
-    assert_unchanged(&before, &after, &["buffers", "textures", "texture views", "bind groups"], "level and shadow-map switches");
+    assert!(grounds.len() >= 2 && grounds.iter().any(|g| g.0 == 0), "the ground's split did not follow the sun: {grounds:?}");
+    assert_unchanged(&before, &after, &FRAME_RESOURCES, "level, shadow-map, ground-split, colour-correction and pass-timing switches");
 }
 
 /// Called from the one test: the counters are per device and tests run in parallel.

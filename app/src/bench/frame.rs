@@ -108,8 +108,9 @@ pub fn run(
     // is drawn every frame.
     paths.push(PathSpec { sun_turns: true, ..path(SUN_MOVING, 0, Layer::Composite, base, false) });
     // Profiling: the default frame without its ground pass (what the shadow catcher costs).
+    // (No sun shadow and no sky occlusion: with either the ground pass runs.)
     let mut no_ground = base;
-    no_ground.lighting.shadow_opacity = 0.0;
+    (no_ground.lighting.shadow_opacity, no_ground.lighting.sky_occlusion) = (0.0, 0.0);
     paths.push(path(NO_GROUND, 0, Layer::Composite, no_ground, false));
     // The same model at a quarter of the fill (placed by the same rule, farther away).
     let quarter_scene = Scene {
@@ -222,6 +223,118 @@ pub fn run(
         r.wall_ratio = r.wall_ms / floor_wall;
     }
     Ok(rows)
+}
+
+/// Where a path's frame time goes: each pass timed alone (`Compositor::set_pass_timing`),
+/// medians over the measured frames (NaN: the pass did not run).
+#[derive(Clone, Debug, Serialize)]
+pub struct PassRow {
+    pub path: String,
+    pub frames: usize,
+    /// The passes' sum (a little more than the frame drawn in one render pass costs).
+    pub total_ms: f64,
+    /// Over the frames that drew the map.
+    pub shadow_ms: f64,
+    pub background_ms: f64,
+    pub model_ms: f64,
+    pub ground_ms: f64,
+    pub fxaa_ms: f64,
+}
+
+/// The profile of [`run`]'s main paths: the floor, the default frame (its shadow map kept and
+/// drawn every frame), its full-detail, full-shadow reference and the quarter fill, each pass
+/// timed alone, interleaved frame by frame as in [`run`]. Each path has its own compositor, so
+/// a path's shadow map is kept or drawn as it would be alone.
+pub fn profile(
+    gpu: &Gpu,
+    scene: &Scene,
+    inputs: &Inputs,
+    frames: usize,
+    warmup: usize,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<PassRow>> {
+    let aa = Antialiasing::for_adapter(&gpu.adapter.get_info());
+    let (c, base) = prepare_antialiased(gpu, scene, inputs, aa)?;
+    let quarter_scene = Scene {
+        placement: crate::setup::scene_file::PlacementSection { fill: scene.placement.fill * 0.25, ..scene.placement.clone() },
+        ..scene.clone()
+    };
+    let bounds = c.model_bounds().ok_or_else(|| anyhow!("no model"))?;
+    let quarter = FrameParams { placement: camera_and_placement(&quarter_scene, bounds).1, ..base };
+    // (name, layer, params, full detail and shadow, sun turning)
+    let paths = [
+        (FLOOR, Layer::Background, base, false, false),
+        (DEFAULT, Layer::Composite, base, false, false),
+        (SUN_MOVING, Layer::Composite, base, false, true),
+        (REFERENCE, Layer::Composite, base, true, false),
+        (QUARTER, Layer::Composite, quarter, false, false),
+    ];
+    let mut compositors = vec![c];
+    for _ in 1..paths.len() {
+        compositors.push(prepare_antialiased(gpu, scene, inputs, aa)?.0);
+    }
+    progress.set_length(((frames + warmup) * paths.len()) as u64);
+    progress.set_position(0);
+    let mut samples = vec![Vec::new(); paths.len()];
+    for i in 0..frames + warmup {
+        for (k, &(_, layer, params, full, sun_turns)) in paths.iter().enumerate() {
+            let c = &mut compositors[k];
+            c.set_pass_timing(true);
+            let mut p = params;
+            p.camera.pose *= glam::Quat::from_rotation_y(1e-4 * i as f32);
+            if sun_turns {
+                p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir;
+            }
+            c.set_full_detail(full);
+            c.set_full_shadow(full);
+            let r = c.render(gpu, &p, layer)?;
+            if i >= warmup {
+                samples[k].push(r.timings.passes.ok_or_else(|| anyhow!("no GPU timestamps on this adapter: nothing to profile"))?);
+            }
+            progress.inc(1);
+        }
+    }
+    Ok(paths
+        .iter()
+        .zip(samples)
+        .map(|(&(name, ..), s)| {
+            let of = |f: fn(&crate::render::PassTimes) -> Option<f64>| {
+                let v: Vec<f64> = s.iter().filter_map(f).collect();
+                median(&v)
+            };
+            PassRow {
+                path: name.into(),
+                frames,
+                total_ms: median(&s.iter().map(|p| p.total()).collect::<Vec<_>>()),
+                shadow_ms: of(|p| p.shadow),
+                background_ms: of(|p| p.background),
+                model_ms: of(|p| p.model),
+                ground_ms: of(|p| p.ground),
+                fxaa_ms: of(|p| p.fxaa),
+            }
+        })
+        .collect())
+}
+
+/// The profile as a markdown table.
+pub fn profile_markdown(rows: &[PassRow]) -> String {
+    let mut s = String::from(
+        "| path (each pass timed alone) | sum GPU ms | shadow | background | model | ground | FXAA |\n|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    let num = |v: f64| if v.is_nan() { "–".to_string() } else { format!("{v:.3}") };
+    for r in rows {
+        s += &format!(
+            "| {} | {:.3} | {} | {} | {} | {} | {} |\n",
+            r.path,
+            r.total_ms,
+            num(r.shadow_ms),
+            num(r.background_ms),
+            num(r.model_ms),
+            num(r.ground_ms),
+            num(r.fxaa_ms)
+        );
+    }
+    s
 }
 
 /// The frame `p` of `scene` rendered at twice the resolution each way with 4× MSAA, full detail

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 /// The stages, in the order of a frame, then the floor: the same frame's background alone
 /// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
-pub const STAGES: [&str; 8] = [
+pub const STAGES: [&str; 13] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
@@ -21,12 +21,20 @@ pub const STAGES: [&str; 8] = [
     "floor: background only (GPU)",
     "environment fold: frame's thread (fold, readback, writes; when applied)",
     "environment fold: its own thread (prefilter, priors, SH9)",
+    "profile: compositor with each pass timed alone (GPU, sum)",
+    "profile: shadow pass (when drawn)",
+    "profile: background pass",
+    "profile: model pass",
+    "profile: ground pass",
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
 pub const FLOOR: usize = 5;
 pub const FOLD: usize = 6;
 pub const FOLD_THREAD: usize = 7;
+/// Index of the profile's first row: after the measured frames, as many again with each pass
+/// timed alone (`Compositor::set_pass_timing`), then the passes one by one.
+pub const PROFILE: usize = 8;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug)]
@@ -53,14 +61,14 @@ pub fn run(
         lon_deg: -2.5879,
         start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00")?.with_timezone(&chrono::Utc),
         frame_hz: 30.0,
-        duration_s: ((frames + warmup) as f64 / 30.0).ceil() + 1.0,
+        duration_s: ((2 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
         noise: NoiseLevel::Phone,
         seed: 1,
     };
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
     session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 8] = Default::default();
+    let mut samples: [Vec<f64>; 13] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let folds = session.fold_refreshes().map_or(0, |r| r.0);
@@ -81,6 +89,20 @@ pub fn run(
         }
         progress.inc(1);
     }
+    // The profile: the same session going on, each pass timed alone.
+    session.set_pass_timing(true);
+    progress.set_length((2 * frames + warmup) as u64);
+    for _ in 0..frames {
+        session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
+        let r = session.render(gpu)?;
+        if let Some(p) = r.timings.passes {
+            for (v, x) in samples[PROFILE..].iter_mut().zip([Some(p.total()), p.shadow, p.background, p.model, p.ground]) {
+                v.extend(x);
+            }
+        }
+        progress.inc(1);
+    }
+    session.set_pass_timing(false);
     Ok(STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect())
 }
 

@@ -20,10 +20,12 @@ pub enum What {
     /// all in one run: the scene as drawn by default against its full-detail, full-shadow
     /// reference (mean FLIP), the same at a quarter of the fill, every lighting method, each
     /// colour correction, and 1x/2x/4x MSAA and FXAA (FLIP of the model's edges against a
-    /// 16-sample render); then issue 11's goals, met or not.
+    /// 16-sample render); then issue 11's goals, met or not; then where the main paths' time
+    /// goes (the same frames with each pass timed alone; not in --json or --csv).
     Frame(FrameArgs),
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
-    /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames.
+    /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames; then as
+    /// many frames again with each pass timed alone (the profile rows).
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model
@@ -172,6 +174,7 @@ fn run_lod(a: LodArgs) -> Result<()> {
 fn run_frame(a: FrameArgs) -> Result<()> {
     let Bench { scene, inputs, gpu, bar } = Bench::set_up(&a.scene, a.frames)?;
     let rows = frame::run(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
+    let profile = frame::profile(&gpu, &scene, &inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     if let Some(path) = &a.csv {
         crate::output::write_atomic(path, frame::csv(&rows).as_bytes())?;
@@ -190,6 +193,8 @@ fn run_frame(a: FrameArgs) -> Result<()> {
             a.warmup
         );
         print!("{}", frame::markdown(&rows));
+        println!("\nWhere the time goes (the same paths again, each pass timed alone):\n");
+        print!("{}", frame::profile_markdown(&profile));
     }
     Ok(())
 }

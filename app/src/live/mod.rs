@@ -530,6 +530,12 @@ impl LiveSession {
         &self.compositor
     }
 
+    /// Time each pass of the following frames alone (`Compositor::set_pass_timing`: a profile
+    /// for `previz bench live`).
+    pub fn set_pass_timing(&mut self, on: bool) {
+        self.compositor.set_pass_timing(on);
+    }
+
     /// The parameters the current frame is drawn with.
     pub fn params(&self) -> &FrameParams {
         &self.params

@@ -6,7 +6,9 @@
 
 use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment, EnvironmentTextures};
-use super::frame::{FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, light_uniforms, lod_level, sky_square};
+use super::frame::{
+    FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, ground_mesh, light_uniforms, lod_level, sky_square,
+};
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
 use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
@@ -25,10 +27,15 @@ use glam::Vec3;
 use std::sync::Arc;
 use std::time::Instant;
 
-/// Timer slots: the shadow pass, and the passes after it.
+/// Timer slots: the shadow pass, and the passes after it; with pass timing on
+/// ([`Compositor::set_pass_timing`]) the passes after it one by one instead.
 const SHADOW_SLOT: u32 = 0;
 const REST_SLOT: u32 = 1;
-const TIMER_SLOTS: u32 = 2;
+const BACKGROUND_SLOT: u32 = 2;
+const MODEL_SLOT: u32 = 3;
+const GROUND_SLOT: u32 = 4;
+const FXAA_SLOT: u32 = 5;
+const TIMER_SLOTS: u32 = 6;
 
 /// Milliseconds spent in each stage of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -42,6 +49,29 @@ pub struct Timings {
     pub shadow_gpu_ms: Option<f64>,
     /// CPU wall time from submit until the pixels are in memory.
     pub readback_ms: f64,
+    /// GPU: each pass alone, with pass timing on ([`Compositor::set_pass_timing`]; None
+    /// otherwise or without timestamp queries).
+    pub passes: Option<PassTimes>,
+}
+
+/// GPU milliseconds of each pass of one frame (None: the pass did not run). With pass timing on
+/// the composite's steps are separate render passes, so their sum is a little more than the
+/// frame drawn in one pass costs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PassTimes {
+    pub shadow: Option<f64>,
+    /// The camera image (or the environment seen by the camera) filling the target.
+    pub background: Option<f64>,
+    pub model: Option<f64>,
+    pub ground: Option<f64>,
+    pub fxaa: Option<f64>,
+}
+
+impl PassTimes {
+    /// The passes' sum.
+    pub fn total(&self) -> f64 {
+        [self.shadow, self.background, self.model, self.ground, self.fxaa].iter().flatten().sum()
+    }
 }
 
 /// A rendered RGBA8 image (sRGB-encoded; the model layer is premultiplied in linear light).
@@ -91,6 +121,8 @@ pub struct Compositor {
     shadow_index: usize,
     /// Whether the last prepared frame ran the shadow and ground passes.
     passes_run: PassesRun,
+    /// Time each pass alone (the composite's steps as separate render passes): profiling.
+    pass_timing: bool,
     /// What each shadow map holds (in the order of `ShadowPass::sizes`; None: nothing yet): a
     /// frame whose shadow would come out the same keeps the map instead of drawing it again.
     shadow_held: Vec<Option<ShadowDrawn>>,
@@ -164,6 +196,7 @@ impl Compositor {
             level: 0,
             shadow_index: 0,
             passes_run: PassesRun::default(),
+            pass_timing: false,
             shadow_held,
             ground_sky_uploaded: None,
             ground_sky_updates: 0,
@@ -257,8 +290,17 @@ impl Compositor {
         self.full_detail = on;
     }
 
-    /// Draw the shadow into the largest map instead of the one its footprint on screen needs:
-    /// for the full-shadow references that measure what the smaller maps cost in accuracy.
+    /// Time each pass of the following frames alone ([`Timings::passes`]): the composite's
+    /// background, model and ground steps become separate render passes, each with its own
+    /// timestamps (a profile: on a tile GPU the split costs memory traffic; lavapipe stores and
+    /// loads the target between them).
+    pub fn set_pass_timing(&mut self, on: bool) {
+        self.pass_timing = on;
+    }
+
+    /// Draw the shadow into the largest map instead of the one its footprint on screen needs,
+    /// and look it up over the whole ground quad instead of only where it can fall: for the
+    /// full-shadow references that measure what the smaller maps and the split cost in accuracy.
     pub fn set_full_shadow(&mut self, on: bool) {
         self.full_shadow = on;
     }
@@ -276,6 +318,12 @@ impl Compositor {
     /// Side of the shadow map the last rendered frame drew into (texels).
     pub fn shadow_map_size(&self) -> u32 {
         self.shadow.sizes()[self.shadow_index]
+    }
+
+    /// The ground triangles' vertices the last frame drew with the sun's shadow lookup and
+    /// without it (render::frame::GroundMesh).
+    pub fn ground_vertices(&self) -> (u32, u32) {
+        self.ground.counts()
     }
 
     /// Which optional passes the last rendered frame ran.
@@ -343,7 +391,19 @@ impl Compositor {
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
         let ground_pass = (shadow.needed && p.lighting.shadow_opacity > 0.0) || (shadow_pass && p.lighting.sky_occlusion > 0.0);
-        Ok(FrameData { frame, instance, ground, colour, light, level, shadow_pass, ground_pass, shadow_map_size: shadow.map_size })
+        let ground_mesh = ground_mesh(p, &context, &shadow, self.full_shadow);
+        Ok(FrameData {
+            frame,
+            instance,
+            ground,
+            colour,
+            light,
+            level,
+            shadow_pass,
+            ground_pass,
+            shadow_map_size: shadow.map_size,
+            ground_mesh,
+        })
     }
 
     /// Render one image of `layer` and read it back.
@@ -390,16 +450,29 @@ impl Compositor {
         let t1 = Instant::now();
         gpu.queue.submit([encoder.finish()]);
         let rgba = self.targets.read(gpu)?;
-        let (gpu_ms, shadow_gpu_ms) = match &self.timer {
+        let (gpu_ms, shadow_gpu_ms, passes) = match &self.timer {
             Some(timer) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
                 let shadow = self.passes_run.shadow_drawn.then_some(ms[SHADOW_SLOT as usize]);
-                (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow)
+                if self.pass_timing {
+                    let steps = self.composite_steps(layer);
+                    let ran = |on: bool, slot: u32| on.then_some(ms[slot as usize]);
+                    let passes = PassTimes {
+                        shadow,
+                        background: ran(steps[0], BACKGROUND_SLOT),
+                        model: ran(steps[1], MODEL_SLOT),
+                        ground: ran(steps[2], GROUND_SLOT),
+                        fxaa: ran(self.fxaa.is_some(), FXAA_SLOT),
+                    };
+                    (Some(passes.total()), shadow, Some(passes))
+                } else {
+                    (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow, None)
+                }
             }
-            None => (None, None),
+            None => (None, None, None),
         };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
-        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms };
+        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms, passes };
         Ok(Rendered { width: self.width, height: self.height, rgba, timings })
     }
 
@@ -460,7 +533,7 @@ impl Compositor {
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
-        self.ground.write(queue, &data.ground);
+        self.ground.write(queue, &data.ground, &data.ground_mesh);
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
         self.shadow_index = shadow_index;
@@ -504,32 +577,60 @@ impl Compositor {
         // 2-3a. The shadow map and the background texture.
         self.encode_shadow_and_env_view(encoder, model, true)?;
 
-        // 3b-5. Background, ground shadow and model into the composite target.
+        // 3b-5. Model, background and ground shadow into the composite target: one render pass,
+        // or (pass timing) one pass per step, each timed alone. The model is opaque (alpha 1),
+        // so the order changes no pixel, only the work: drawn first, its depth keeps the
+        // background (at the far plane) and the ground (depth-tested, no depth write) from
+        // shading the pixels it covers.
         let first = !self.background.from_env();
         let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
-        let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));
-        // 3b. Background pass: the camera image fills the target.
-        if layer != Layer::Model {
-            in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
+        let steps = self.composite_steps(layer);
+        let draw_step = |pass: &mut wgpu::RenderPass<'_>, step: usize| -> Result<()> {
+            match step {
+                // 3b. Background pass: the camera image fills the target around the model.
+                0 => in_group(pass, "background pass", |pass| self.background.draw(pass)),
+                // 5. Model pass: shading, reflection/refraction and colour correction.
+                // Its depth first (a pre-pass), so each pixel is shaded once.
+                1 => in_group(pass, "model pass", |pass| {
+                    self.model_pass.draw_prepass(pass, model, (self.level, self.shadow_index))?;
+                    self.model_pass.draw(pass, model, method, (self.level, self.shadow_index))
+                })?,
+                // 4. Ground pass: the shadow catcher darkens the background under the model.
+                _ => in_group(pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index)),
+            }
+            Ok(())
+        };
+        let order = [1, 0, 2].into_iter().filter(|&i| steps[i]);
+        if self.pass_timing {
+            let slots = [BACKGROUND_SLOT, MODEL_SLOT, GROUND_SLOT];
+            let run: Vec<usize> = order.collect();
+            for (k, &step) in run.iter().enumerate() {
+                let last = k + 1 == run.len();
+                let timestamps = self.timer.as_ref().and_then(|t| t.render_pass(slots[step], true, true));
+                let mut pass = self.targets.begin_composite_part(encoder, (k == 0).then_some(clear), last, timestamps);
+                draw_step(&mut pass, step)?;
+            }
+        } else {
+            let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));
+            for step in order {
+                draw_step(&mut pass, step)?;
+            }
         }
-        // 5. Model pass: shading, reflection/refraction and colour correction.
-        if layer != Layer::Background {
-            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?;
-        }
-        // 4. Ground pass: the shadow catcher darkens the background under the model. Drawn after
-        // the model and depth-tested against it (no depth write), so the ground hidden behind
-        // the model is never shaded; the model is opaque, so the image is the same as drawing
-        // the ground first.
-        if self.passes_run.ground {
-            in_group(&mut pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index));
-        }
-        drop(pass);
         // 5b. Post-process antialiasing into the frame.
         if let Some(fxaa) = &self.fxaa {
-            let mut pass = self.targets.begin_fxaa(encoder, stamp(false, true));
+            let timestamps = match self.pass_timing {
+                true => self.timer.as_ref().and_then(|t| t.render_pass(FXAA_SLOT, true, true)),
+                false => stamp(false, true),
+            };
+            let mut pass = self.targets.begin_fxaa(encoder, timestamps);
             in_group(&mut pass, "fxaa pass", |pass| fxaa.draw(pass));
         }
         Ok(())
+    }
+
+    /// Which of the composite's steps a frame of `layer` draws: background, model, ground.
+    fn composite_steps(&self, layer: Layer) -> [bool; 3] {
+        [layer != Layer::Model, layer != Layer::Background, self.passes_run.ground]
     }
 
     /// Step 2, the shadow pass: the model's depth seen from the sun (not needed for the
@@ -544,6 +645,9 @@ impl Compositor {
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
         if self.background.from_env() {
+            // With pass timing the environment view is not timed (the background step is).
+            let timed = timed && !self.pass_timing;
+            let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
             let mut pass = self.background.begin_env_view(encoder, stamp(REST_SLOT, false));
             in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
         }

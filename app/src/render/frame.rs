@@ -51,6 +51,44 @@ pub struct FrameData {
     pub ground_pass: bool,
     /// Side of the shadow map this frame draws into (one of `FrameContext::shadow_map_sizes`).
     pub shadow_map_size: u32,
+    /// The ground quad's triangles: with the sun's shadow lookup where it can fall, without
+    /// elsewhere.
+    pub ground_mesh: GroundMesh,
+}
+
+/// Most vertices the ground pass draws (its vertex buffer, made once).
+pub const GROUND_VERTICES: usize = 128;
+
+/// The ground pass's triangles, in the ground quad's unit square ([-1, 1]², z = 0, placed by the
+/// ground's instance matrix): first `shadowed` vertices where the sun's shadow can fall (drawn
+/// with the shadow lookup), then `sky_only` vertices over the rest of the quad where the sky's
+/// occlusion darkens it (drawn without). The two parts share their edges exactly and do not
+/// overlap, so every ground pixel is shaded once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundMesh {
+    pub vertices: [[f32; 2]; GROUND_VERTICES],
+    pub shadowed: u32,
+    pub sky_only: u32,
+}
+
+impl GroundMesh {
+    pub const EMPTY: GroundMesh = GroundMesh { vertices: [[0.0; 2]; GROUND_VERTICES], shadowed: 0, sky_only: 0 };
+
+    /// The mesh of `shadowed` then `sky_only` triangle lists (world x/y), in `quad`'s unit
+    /// square.
+    pub fn new(quad: &GroundRect, shadowed: &[Vec2], sky_only: &[Vec2]) -> GroundMesh {
+        let c = 0.5 * (quad.min + quad.max);
+        let h = (0.5 * (quad.max - quad.min)).max(Vec2::splat(1e-12));
+        let mut mesh = GroundMesh::EMPTY;
+        // split_rect gives at most 12 rays (8 clipped outline vertices and 4 corners): 36 + 72.
+        let all = shadowed.iter().chain(sky_only).take(GROUND_VERTICES);
+        for (v, p) in mesh.vertices.iter_mut().zip(all) {
+            *v = ((*p - c) / h).to_array();
+        }
+        mesh.shadowed = shadowed.len().min(GROUND_VERTICES) as u32;
+        mesh.sky_only = (shadowed.len() + sky_only.len()).min(GROUND_VERTICES) as u32 - mesh.shadowed;
+        mesh
+    }
 }
 
 fn mat(m: Mat4) -> [[f32; 4]; 4] {
@@ -78,9 +116,8 @@ pub fn frame_uniforms(p: &FrameParams, c: &FrameContext) -> (FrameUniforms, Inst
     let light = shadow.light_view_proj;
     // The ground plane: where the sun's shadow can fall and the sky's occlusion darkens it
     // (nothing when neither does).
-    let sky = (p.lighting.sky_occlusion > 0.0).then(|| sky_square(bounds, &p.placement));
-    let ground = ground_quad(shadow.receiver, sky)
-        .map_or(Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::ZERO), |r| r.matrix());
+    let ground =
+        ground_rect(p, bounds, &shadow).map_or(Mat4::from_translation(p.placement.position) * Mat4::from_scale(Vec3::ZERO), |r| r.matrix());
     let (hs, hc) = c.env_heading.sin_cos();
     let priors = &c.priors;
     let frame = FrameUniforms {
@@ -134,6 +171,45 @@ pub fn light_uniforms(l: &Lighting, (min, max): (Vec2, Vec2)) -> LightUniforms {
 pub fn sky_square(bounds: (Vec3, Vec3), placement: &view::Placement) -> GroundRect {
     let (min, max, z) = occlusion::ground_square(bounds, view::model_matrix(bounds, placement));
     GroundRect { min, max, z }
+}
+
+/// The ground quad of a frame: the sun's receiver and, when the sky's occlusion is on, the
+/// sky's square.
+fn ground_rect(p: &FrameParams, bounds: (Vec3, Vec3), shadow: &shadow_fit::ShadowFit) -> Option<GroundRect> {
+    let sky = (p.lighting.sky_occlusion > 0.0).then(|| sky_square(bounds, &p.placement));
+    ground_quad(shadow.receiver, sky)
+}
+
+/// The ground pass's triangles for a frame whose shadow is `shadow` ([`fit_shadow`]): where
+/// the sun's shadow lookup can find the sun blocked (`shadow_fit::shadow_outline` within the
+/// ground quad) with the lookup, the rest of the quad without it — or not at all when the
+/// sky's occlusion is off (nothing to darken there). All of the quad without the lookup when
+/// the ground has no sun shadow (sun down, no sunlight, no shadow opacity). `everywhere`: all
+/// of the quad with the lookup (the full-shadow reference; the shader then skips the lookup
+/// itself where the ground has no sun shadow, as it did before the split).
+pub fn ground_mesh(p: &FrameParams, c: &FrameContext, shadow: &shadow_fit::ShadowFit, everywhere: bool) -> GroundMesh {
+    let Some(quad) = ground_rect(p, c.bounds, shadow) else {
+        return GroundMesh::EMPTY;
+    };
+    if everywhere {
+        return GroundMesh::new(&quad, &shadow_fit::split_rect(&[], quad.min, quad.max).1, &[]);
+    }
+    let sky = p.lighting.sky_occlusion > 0.0;
+    let (min, max) = (quad.min, quad.max);
+    if !(shadow.needed && p.lighting.shadow_opacity > 0.0) {
+        let (_, all) = shadow_fit::split_rect(&[], min, max);
+        return GroundMesh::new(&quad, &[], if sky { &all } else { &[] });
+    }
+    let bounds = c.bounds;
+    let model = view::model_matrix(bounds, &p.placement);
+    let centre = model.transform_point3(0.5 * (bounds.0 + bounds.1));
+    let radius = (0.5 * (bounds.1 - bounds.0).length() * p.placement.scale).max(1e-4);
+    let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
+    let corners = shadow_fit::box_corners(bounds, model);
+    let outline =
+        shadow_fit::shadow_outline(sun, &corners, (centre, radius), quad.z, (shadow.map_size, p.lighting.sun_angular_radius.tan()));
+    let (shadowed, rest) = shadow_fit::split_rect(&outline, min, max);
+    GroundMesh::new(&quad, &shadowed, if sky { &rest } else { &[] })
 }
 
 /// The ground quad the ground pass draws: where the sun's shadow can fall (`receiver`) and,
@@ -385,6 +461,42 @@ mod tests {
         // The sun below the horizon: the sky's square alone; neither: nothing.
         assert_eq!(ground_quad(None, Some(sky)), Some(sky));
         assert_eq!(ground_quad(None, None), None);
+    }
+
+    #[test]
+    fn the_ground_mesh_looks_up_the_shadow_only_where_it_can_fall() {
+        // The 4 m cube under a sun 30° up in the South-East, the sky's occlusion on: the quad
+        // (the unit square, area 4) is split into the shadow's outline and the rest.
+        let (mut p, c) = scene(2.0);
+        p.camera.position = Vec3::new(0.0, -30.0, 10.0);
+        p.camera.pose = view::camera_pose(0.0, -0.3, 0.0);
+        let (el, az) = (30f32.to_radians(), 135f32.to_radians());
+        p.lighting.sun_dir = Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+        p.lighting.sky_occlusion = 0.5;
+        let shadow = fit_shadow(&p, &c);
+        assert!(shadow.needed, "{shadow:?}");
+        let area = |v: &[[f32; 2]]| -> f32 {
+            v.chunks_exact(3).map(|t| 0.5 * (Vec2::from(t[1]) - Vec2::from(t[0])).perp_dot(Vec2::from(t[2]) - Vec2::from(t[0])).abs()).sum()
+        };
+        let m = ground_mesh(&p, &c, &shadow, false);
+        let (lit, rest) = (m.shadowed as usize, (m.shadowed + m.sky_only) as usize);
+        let (a_lit, a_rest) = (area(&m.vertices[..lit]), area(&m.vertices[lit..rest]));
+        assert!((a_lit + a_rest - 4.0).abs() < 1e-3, "{a_lit} + {a_rest}");
+        // The sky's square is the cube's footprint widened by 8 m on every side (20 m wide); the
+        // shadow (the cube and 4 m / tan 30° = 6.9 m of shadow to the North-West) is a small
+        // part of it.
+        assert!(a_lit > 0.05 && a_lit < 1.0, "{a_lit}");
+        // Without the sky's occlusion only the outline is drawn; the sun down: only the rest;
+        // the reference: all of it with the lookup.
+        p.lighting.sky_occlusion = 0.0;
+        let m = ground_mesh(&p, &c, &fit_shadow(&p, &c), false);
+        assert!(m.shadowed > 0 && m.sky_only == 0, "{} {}", m.shadowed, m.sky_only);
+        p.lighting.sky_occlusion = 0.5;
+        let all = ground_mesh(&p, &c, &shadow, true);
+        assert!(all.sky_only == 0 && (area(&all.vertices[..all.shadowed as usize]) - 4.0).abs() < 1e-4);
+        p.lighting.sun_dir = Vec3::new(0.0, 0.9, -0.1);
+        let m = ground_mesh(&p, &c, &fit_shadow(&p, &c), false);
+        assert!(m.shadowed == 0 && (area(&m.vertices[..m.sky_only as usize]) - 4.0).abs() < 1e-4);
     }
 
     #[test]

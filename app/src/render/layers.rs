@@ -64,12 +64,12 @@ impl LayerPipelines {
             let device = &gpu.device;
             Ok(LayerPipelines {
                 background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, LAYER_SAMPLES),
-                ground: ground::pipeline_for(device, &pipelines.ground.layout, LAYER_FORMAT, LAYER_SAMPLES),
+                ground: ground::pipeline_for(device, &pipelines.ground.layout, (LAYER_FORMAT, LAYER_SAMPLES), true),
                 model: model::pipelines_for(
                     device,
                     (&pipelines.model.layout, &pipelines.model.material_layout),
-                    LAYER_FORMAT,
-                    LAYER_SAMPLES,
+                    (LAYER_FORMAT, LAYER_SAMPLES),
+                    true,
                 ),
                 depth: model::depth_pipeline(device, &pipelines.model),
             })

@@ -17,7 +17,7 @@ pub mod uniforms;
 pub mod view;
 
 pub use antialiasing::Antialiasing;
-pub use compositor::{Compositor, PassesRun, Rendered, Timings};
+pub use compositor::{Compositor, PassTimes, PassesRun, Rendered, Timings};
 pub use frame::FrameData;
 pub use method::LightingMethod;
 pub use params::{Camera, ColourSettings, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms};

@@ -105,7 +105,7 @@ pub struct Pipelines {
     pub env_view: PassPipeline,
     pub background: PassPipeline,
     pub shadow: PassPipeline,
-    pub ground: PassPipeline,
+    pub ground: ground::GroundPipelines,
     pub model: model::ModelPipelines,
     /// The post-process antialiasing pass (render/antialiasing.rs).
     pub fxaa: PassPipeline,

@@ -85,6 +85,15 @@ pub fn receiver(corners: &[Vec3; 8], sun: Vec3, ground_z: f32, base: Vec2, radiu
 /// bounding sphere (centre, radius) along the sun as before, so the depth bias keeps its size
 /// in metres.
 pub fn light_view_proj(sun: Vec3, corners: &[Vec3; 8], centre: Vec3, radius: f32) -> Mat4 {
+    let (view, lo, hi) = light_frame(sun, corners, centre, radius);
+    let proj = glam::camera::rh::proj::directx::orthographic(lo.x, hi.x, lo.y, hi.y, radius, 3.0 * radius);
+    proj * view
+}
+
+/// The sun camera's view (from 2 radii out along `sun`, looking at `centre`) and the rectangle
+/// its map covers across the sun (view x/y, metres): the box's extent, never wider than the
+/// sphere, never degenerate.
+fn light_frame(sun: Vec3, corners: &[Vec3; 8], centre: Vec3, radius: f32) -> (Mat4, Vec2, Vec2) {
     let up = if sun.z.abs() > 0.99 { Vec3::Y } else { Vec3::Z };
     let eye = centre + sun * (2.0 * radius);
     let view = glam::camera::rh::view::look_at_mat4(eye, centre, up);
@@ -94,11 +103,137 @@ pub fn light_view_proj(sun: Vec3, corners: &[Vec3; 8], centre: Vec3, radius: f32
         lo = lo.min(l);
         hi = hi.max(l);
     }
-    // Never wider than the sphere, never degenerate.
     let lo = lo.max(Vec2::splat(-radius)).min(Vec2::splat(-1e-6));
     let hi = hi.min(Vec2::splat(radius)).max(Vec2::splat(1e-6));
-    let proj = glam::camera::rh::proj::directx::orthographic(lo.x, hi.x, lo.y, hi.y, radius, 3.0 * radius);
-    proj * view
+    (view, lo, hi)
+}
+
+/// How far (metres across the sun) beyond the shadow map's rectangle the ground's soft shadow
+/// lookup (shaders/frame.wgsl `sun_visibility_soft`) can still see the model, for a `size`²
+/// map over `extent` metres (its rectangle's sides), a model of bounding `radius` (the map's
+/// depth range is 2 radii, so no blocker is farther than that from a receiver) and a sun of
+/// angular radius tan = `tan_radius`. The lookup's comparison taps reach 5/6 of the penumbra
+/// (3×3 taps over 2.5 penumbrae) plus one texel of bilinear footprint from the point; this
+/// allows 1.25 penumbrae plus two texels.
+pub fn lookup_reach(size: u32, extent: Vec2, radius: f32, tan_radius: f32) -> f32 {
+    let texel = extent.max_element() / size.max(1) as f32;
+    let penumbra = (2.0 * radius * tan_radius.max(0.0)).max(texel);
+    1.25 * penumbra + 2.0 * texel
+}
+
+/// Where on the ground z = `ground_z` the ground's sun-shadow lookup can find the sun blocked:
+/// the `size`² shadow map's rectangle across the sun ([`light_view_proj`]'s) widened on every
+/// side by what the lookup reaches ([`lookup_reach`], a sun of angular radius tan =
+/// `tan_radius`), swept along the sun onto the ground — a parallelogram,
+/// counter-clockwise seen from above. Outside it every comparison tap reads a texel the model
+/// does not cover (or lies off the map), so the lookup returns "lit": the ground pass skips it
+/// there. `sun.z` must be positive.
+pub fn shadow_outline(
+    sun: Vec3,
+    corners: &[Vec3; 8],
+    (centre, radius): (Vec3, f32),
+    ground_z: f32,
+    (size, tan_radius): (u32, f32),
+) -> [Vec2; 4] {
+    let (view, lo, hi) = light_frame(sun, corners, centre, radius);
+    let reach = lookup_reach(size, hi - lo, radius, tan_radius);
+    let (lo, hi) = (lo - Vec2::splat(reach), hi + Vec2::splat(reach));
+    let to_world = view.inverse();
+    let outline = [(lo.x, lo.y), (hi.x, lo.y), (hi.x, hi.y), (lo.x, hi.y)].map(|(x, y)| {
+        // Along the sun through this point of the map, down (or up) to the ground.
+        let p = to_world.transform_point3(Vec3::new(x, y, 0.0));
+        (p - sun * ((p.z - ground_z) / sun.z)).xy()
+    });
+    if signed_area(&outline) < 0.0 { [outline[0], outline[3], outline[2], outline[1]] } else { outline }
+}
+
+/// Twice the signed area of a polygon (positive: counter-clockwise).
+fn signed_area(poly: &[Vec2]) -> f32 {
+    (0..poly.len()).map(|i| poly[i].perp_dot(poly[(i + 1) % poly.len()])).sum()
+}
+
+/// The convex polygon `poly` (counter-clockwise) clipped to the rectangle `min`..`max`
+/// (Sutherland-Hodgman); empty when they do not overlap.
+pub fn clip_to_rect(poly: &[Vec2], min: Vec2, max: Vec2) -> Vec<Vec2> {
+    // Each side as (axis, bound, keep the side above the bound).
+    let sides = [(0, min.x, true), (0, max.x, false), (1, min.y, true), (1, max.y, false)];
+    let mut out = poly.to_vec();
+    for (axis, bound, above) in sides {
+        let inside = |p: Vec2| if above { p[axis] >= bound } else { p[axis] <= bound };
+        let input = std::mem::take(&mut out);
+        for (i, &a) in input.iter().enumerate() {
+            let b = input[(i + 1) % input.len()];
+            if inside(a) {
+                out.push(a);
+            }
+            if inside(a) != inside(b) {
+                let t = (bound - a[axis]) / (b[axis] - a[axis]);
+                let mut q = a + (b - a) * t;
+                q[axis] = bound;
+                out.push(q);
+            }
+        }
+    }
+    out
+}
+
+/// The rectangle `min`..`max` split into the part inside the convex polygon `inner`
+/// (counter-clockwise) and the rest, as triangle lists (three points each). Both share every
+/// edge exactly (no T-junctions), so together they cover the rectangle once: a fan around the
+/// inner part's centroid, and the ring between its boundary and the rectangle's cut along the
+/// same rays (each ray through a vertex of either), one convex quad per sector.
+pub fn split_rect(inner: &[Vec2], min: Vec2, max: Vec2) -> (Vec<Vec2>, Vec<Vec2>) {
+    let inner = clip_to_rect(inner, min, max);
+    let rect = [min, Vec2::new(max.x, min.y), max, Vec2::new(min.x, max.y)];
+    if inner.len() < 3 || signed_area(&inner) <= 1e-9 * (max - min).element_product() {
+        return (Vec::new(), vec![rect[0], rect[1], rect[2], rect[0], rect[2], rect[3]]);
+    }
+    let c = inner.iter().copied().sum::<Vec2>() / inner.len() as f32;
+    // Each ray's points on the inner boundary and on the rectangle, in angle order.
+    let angle = |p: Vec2| (p - c).y.atan2((p - c).x);
+    let mut rays: Vec<(f32, Vec2, Vec2)> = Vec::with_capacity(inner.len() + 4);
+    for &p in &inner {
+        rays.push((angle(p), p, ray_exit_rect(c, p - c, min, max)));
+    }
+    for &r in &rect {
+        rays.push((angle(r), ray_exit_convex(c, r - c, &inner), r));
+    }
+    rays.sort_by(|a, b| a.0.total_cmp(&b.0));
+    rays.dedup_by(|b, a| (b.0 - a.0).abs() < 1e-6);
+    let (mut fan, mut ring) = (Vec::new(), Vec::new());
+    for k in 0..rays.len() {
+        let (_, p0, r0) = rays[k];
+        let (_, p1, r1) = rays[(k + 1) % rays.len()];
+        fan.extend([c, p0, p1]);
+        ring.extend([p0, r0, r1, p0, r1, p1]);
+    }
+    (fan, ring)
+}
+
+/// Where the ray from `c` along `d` leaves the rectangle `min`..`max` (`c` inside).
+fn ray_exit_rect(c: Vec2, d: Vec2, min: Vec2, max: Vec2) -> Vec2 {
+    let t = |axis: usize| match d[axis] {
+        v if v > 0.0 => (max[axis] - c[axis]) / v,
+        v if v < 0.0 => (min[axis] - c[axis]) / v,
+        _ => f32::INFINITY,
+    };
+    (c + d * t(0).min(t(1))).clamp(min, max)
+}
+
+/// Where the ray from `c` along `d` leaves the convex polygon `poly` (counter-clockwise, `c`
+/// inside).
+fn ray_exit_convex(c: Vec2, d: Vec2, poly: &[Vec2]) -> Vec2 {
+    let mut t = f32::INFINITY;
+    for (i, &a) in poly.iter().enumerate() {
+        let b = poly[(i + 1) % poly.len()];
+        // Outward normal of a counter-clockwise edge.
+        let n = Vec2::new(b.y - a.y, a.x - b.x);
+        let along = n.dot(d);
+        if along > 0.0 {
+            t = t.min(n.dot(a - c) / along);
+        }
+    }
+    if t.is_finite() { c + d * t } else { c }
 }
 
 /// The pixel rectangle (min, max) that the convex hull of `points` covers on a `size` image
@@ -350,6 +485,108 @@ mod tests {
         // Another level of detail or a moved model always draws again.
         assert!(!map_still_valid(&held, &drawn(135.0, Mat4::IDENTITY, 3), &corners, 1024));
         assert!(!map_still_valid(&held, &drawn(135.0, Mat4::from_translation(Vec3::X * 1e-3), 2), &corners, 1024));
+    }
+
+    /// Area of a triangle list (three points each), by the shoelace formula.
+    fn triangles_area(t: &[Vec2]) -> f32 {
+        t.chunks_exact(3).map(|t| 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs()).sum()
+    }
+
+    /// Whether `q` lies strictly inside triangle `t` (not on an edge).
+    fn strictly_inside(t: &[Vec2], q: Vec2) -> bool {
+        let s: Vec<f32> = (0..3).map(|i| (t[(i + 1) % 3] - t[i]).perp_dot(q - t[i])).collect();
+        (s.iter().all(|&v| v > 1e-6)) || (s.iter().all(|&v| v < -1e-6))
+    }
+
+    #[test]
+    fn the_lookups_reach_is_its_penumbra_and_two_texels() {
+        // A 512² map over 1 x 2 m: a texel is 2/512 = 3.906 mm. A model of radius 1 m under the
+        // sun (angular radius 0.2665°, tan 0.004651): the widest penumbra, a blocker 2 m away, is
+        // 9.30 mm; reach = 1.25 * 9.30 + 2 * 3.906 = 19.44 mm.
+        let tan_sun = 0.2665f32.to_radians().tan();
+        let r = lookup_reach(512, Vec2::new(1.0, 2.0), 1.0, tan_sun);
+        assert!((r - (1.25 * 2.0 * tan_sun + 2.0 * 2.0 / 512.0)).abs() < 1e-6 && (r - 0.019_44).abs() < 1e-4, "{r}");
+        // A point sun: the penumbra is at least a texel.
+        assert!((lookup_reach(512, Vec2::new(1.0, 2.0), 1.0, 0.0) - 3.25 * 2.0 / 512.0).abs() < 1e-7);
+    }
+
+    #[test]
+    fn the_outline_is_the_maps_rectangle_swept_onto_the_ground() {
+        let corners = cube();
+        let sphere = (Vec3::new(0.0, 0.0, 0.5), 0.75f32.sqrt());
+        // The sun overhead: the map covers the cube's 1 x 1 m footprint, so the outline is that
+        // square widened by the reach on every side.
+        let reach = lookup_reach(1024, Vec2::ONE, sphere.1, 0.01);
+        let o = shadow_outline(Vec3::Z, &corners, sphere, 0.0, (1024, 0.01));
+        let (lo, hi) = o.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        assert!(close2(lo, Vec2::splat(-0.5 - reach)) && close2(hi, Vec2::splat(0.5 + reach)), "{o:?} reach {reach}");
+        assert!(signed_area(&o) > 0.0, "counter-clockwise: {o:?}");
+        // The sun 45° up in the south: the cube and its shadow cover x in [-0.5, 0.5], y in
+        // [-0.5, 1.5]. Across the sun the map's x is world x (reach r on the ground), its y
+        // rises towards the sun at 45°, so r across the sun is r·√2 along the ground.
+        let sun = Vec3::new(0.0, -1.0, 1.0).normalize();
+        let o = shadow_outline(sun, &corners, sphere, 0.0, (1024, 0.0));
+        let (lo, hi) = o.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        // The map's extent across the sun: x 1 m; y: the cube's corners project onto the
+        // map's up axis (0, 1, 1)/√2 from -0.5/√2 to 1.5/√2, √2 m.
+        let reach = lookup_reach(1024, Vec2::new(1.0, 2f32.sqrt()), sphere.1, 0.0);
+        let want_lo = Vec2::new(-0.5 - reach, -0.5 - reach * 2f32.sqrt());
+        let want_hi = Vec2::new(0.5 + reach, 1.5 + reach * 2f32.sqrt());
+        assert!((lo - want_lo).abs().max_element() < 1e-4 && (hi - want_hi).abs().max_element() < 1e-4, "{lo} {hi} vs {want_lo} {want_hi}");
+    }
+
+    #[test]
+    fn clipping_a_polygon_to_a_rectangle() {
+        // A diamond of half-diagonal 2 clipped to the unit square [-1, 1]²: all of the square
+        // (the diamond contains it): area 4.
+        let diamond = [Vec2::new(2.0, 0.0), Vec2::new(0.0, 2.0), Vec2::new(-2.0, 0.0), Vec2::new(0.0, -2.0)];
+        let c = clip_to_rect(&diamond, Vec2::splat(-1.0), Vec2::splat(1.0));
+        assert!((0.5 * signed_area(&c) - 4.0).abs() < 1e-5, "{c:?}");
+        // Shifted right by 2: the triangle x + |y| <= 2 ... inside the square: x from 0 to 1,
+        // |y| <= x: area 1.
+        let shifted = diamond.map(|p| p + Vec2::new(2.0, 0.0));
+        let c = clip_to_rect(&shifted, Vec2::splat(-1.0), Vec2::splat(1.0));
+        assert!((0.5 * signed_area(&c) - 1.0).abs() < 1e-5, "{c:?}");
+        // Apart: nothing.
+        let far = diamond.map(|p| p + Vec2::new(10.0, 0.0));
+        assert!(clip_to_rect(&far, Vec2::splat(-1.0), Vec2::splat(1.0)).is_empty());
+    }
+
+    #[test]
+    fn the_split_covers_the_rectangle_once() {
+        let (min, max) = (Vec2::new(-1.0, -2.0), Vec2::new(3.0, 1.0));
+        // A square inside, one across the edge, a parallelogram across a corner, one apart.
+        let inside = [Vec2::new(0.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
+        let across = inside.map(|p| p + Vec2::new(2.5, 0.0));
+        let corner = [Vec2::new(2.0, 0.0), Vec2::new(4.0, 0.5), Vec2::new(4.5, 2.0), Vec2::new(2.5, 1.5)];
+        let apart = inside.map(|p| p + Vec2::new(10.0, 0.0));
+        // The inner parts' areas by hand: 1; 0.5 x 1 (x from 2.5 to 3); the corner parallelogram
+        // within x <= 3, y <= 1: its edge from (2, 0) to (4, 0.5) and from (2, 0) to (2.5,
+        // 1.5) bound it: the part is the quadrilateral (2, 0), (3, 0.25), (3, 1), (2.333, 1)
+        // (shoelace: 0.7917); none.
+        let corner_area = {
+            let q = [Vec2::new(2.0, 0.0), Vec2::new(3.0, 0.25), Vec2::new(3.0, 1.0), Vec2::new(2.0 + 1.0 / 3.0, 1.0)];
+            0.5 * signed_area(&q)
+        };
+        for (poly, area) in [(&inside[..], 1.0), (&across[..], 0.5), (&corner[..], corner_area), (&apart[..], 0.0)] {
+            let (fan, ring) = split_rect(poly, min, max);
+            assert!((triangles_area(&fan) - area).abs() < 1e-4, "{poly:?}: fan {}", triangles_area(&fan));
+            assert!((triangles_area(&fan) + triangles_area(&ring) - 12.0).abs() < 1e-4, "{poly:?}: ring {}", triangles_area(&ring));
+            assert!(fan.len() + ring.len() <= 108, "{}", fan.len() + ring.len());
+            // Every point of a grid (none on an edge by construction of the odd offsets) lies
+            // in exactly one triangle of the two lists.
+            for i in 0..40 {
+                for j in 0..30 {
+                    let q = min + Vec2::new((i as f32 + 0.437) * 0.1, (j as f32 + 0.291) * 0.1);
+                    let hits = fan.chunks_exact(3).chain(ring.chunks_exact(3)).filter(|t| strictly_inside(t, q)).count();
+                    let on_edge = fan
+                        .chunks_exact(3)
+                        .chain(ring.chunks_exact(3))
+                        .any(|t| (0..3).any(|k| (t[(k + 1) % 3] - t[k]).perp_dot(q - t[k]).abs() <= 1e-6));
+                    assert!(hits == 1 || on_edge, "{poly:?}: {q} in {hits} triangles");
+                }
+            }
+        }
     }
 
     #[test]

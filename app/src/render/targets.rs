@@ -74,22 +74,39 @@ impl Targets {
         clear: wgpu::Color,
         timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
     ) -> wgpu::RenderPass<'e> {
+        self.begin_composite_part(encoder, Some(clear), true, timestamps)
+    }
+
+    /// One of several passes into the composite's targets (the frame's passes timed one by one,
+    /// `Compositor::set_pass_timing`): the first clears (`clear`: Some), later ones load what
+    /// the earlier stored; only the `last` resolves and lets the multisampled colour and the
+    /// depth go.
+    pub fn begin_composite_part<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        clear: Option<wgpu::Color>,
+        last: bool,
+        timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> wgpu::RenderPass<'e> {
         let single = self.aa_input.as_ref().unwrap_or(&self.resolve_view);
+        let kept = if last { wgpu::StoreOp::Discard } else { wgpu::StoreOp::Store };
         let (view, resolve_target, store) = match &self.msaa {
-            Some(msaa) => (msaa, Some(single), wgpu::StoreOp::Discard),
+            Some(msaa) => (msaa, last.then_some(single), kept),
             None => (single, None, wgpu::StoreOp::Store),
         };
+        let load = clear.map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear);
+        let depth_load = if clear.is_some() { wgpu::LoadOp::Clear(1.0) } else { wgpu::LoadOp::Load };
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                 view,
                 depth_slice: None,
                 resolve_target,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store },
+                ops: wgpu::Operations { load, store },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &self.depth,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                depth_ops: Some(wgpu::Operations { load: depth_load, store: kept }),
                 stencil_ops: None,
             }),
             timestamp_writes: timestamps,

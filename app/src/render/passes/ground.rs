@@ -6,15 +6,24 @@
 
 use super::super::uniforms::InstanceUniforms;
 use crate::gpu::build;
-use crate::render::pipelines::{COLOR_FORMAT, PassPipeline, Pipelines, screen_pipeline};
-use crate::render::shaders::Technique;
+use crate::render::frame::{GROUND_VERTICES, GroundMesh};
+use crate::render::pipelines::{COLOR_FORMAT, Pipelines, depth_state};
+use crate::render::shaders::{Technique, source};
 use crate::scene::occlusion::{self, GroundSky};
 use anyhow::{Result, bail};
 use wgpu::ShaderStages;
 
-/// The ground pipeline: six vertices from the vertex index; the background is multiplied by one
-/// minus the shader's output per channel ([`DARKEN`]).
-pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
+/// The ground's pipelines: with the sun's shadow lookup (where the shadow can fall) and without
+/// (the rest of the ground), one bind-group layout.
+pub struct GroundPipelines {
+    pub layout: wgpu::BindGroupLayout,
+    pub shadowed: wgpu::RenderPipeline,
+    pub sky_only: wgpu::RenderPipeline,
+}
+
+/// The ground pipelines: triangles of [`GroundMesh`] corners; the background is multiplied by
+/// one minus the shader's output per channel ([`DARKEN`]).
+pub fn pipeline(device: &wgpu::Device, samples: u32) -> GroundPipelines {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
@@ -31,19 +40,39 @@ pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
             build::sampler_entry(7, fs, wgpu::SamplerBindingType::NonFiltering),
         ],
     );
-    let pipeline = pipeline_for(device, &layout, COLOR_FORMAT, samples);
-    PassPipeline { layout, pipeline }
+    let shadowed = pipeline_for(device, &layout, (COLOR_FORMAT, samples), true);
+    let sky_only = pipeline_for(device, &layout, (COLOR_FORMAT, samples), false);
+    GroundPipelines { layout, shadowed, sky_only }
 }
 
 /// The ground pipeline with bind-group `layout`, drawing into `format` targets of `samples` per
-/// pixel.
+/// pixel, with the sun's shadow lookup or without (`sun_shadow`, the shader's `SUN_SHADOW`).
 pub fn pipeline_for(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
-    format: wgpu::TextureFormat,
-    samples: u32,
+    (format, samples): (wgpu::TextureFormat, u32),
+    sun_shadow: bool,
 ) -> wgpu::RenderPipeline {
-    screen_pipeline(device, (Technique::Ground, layout), (format, samples), Some(DARKEN))
+    let module = build::shader(device, "ground", source(Technique::Ground));
+    const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x2];
+    let vertices = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<[f32; 2]>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &ATTRIBUTES,
+    };
+    build::render_pipeline(
+        device,
+        build::PipelineSpec {
+            label: if sun_shadow { "ground" } else { "ground, sky only" },
+            module: &module,
+            layouts: &[layout],
+            vertex_buffers: &[Some(vertices)],
+            colour: Some(wgpu::ColorTargetState { format, blend: Some(DARKEN), write_mask: wgpu::ColorWrites::ALL }),
+            depth: depth_state(false, wgpu::DepthBiasState::default()),
+            samples,
+            constants: &[("SUN_SHADOW", if sun_shadow { 1.0 } else { 0.0 })],
+        },
+    )
 }
 
 /// The ground's blend: `dst · (1 − src)` per colour channel (src = what the ground loses there,
@@ -63,6 +92,11 @@ pub const DARKEN: wgpu::BlendState = wgpu::BlendState {
 
 pub struct GroundPass {
     pipeline: wgpu::RenderPipeline,
+    sky_only: wgpu::RenderPipeline,
+    /// The frame's [`GroundMesh`] corners ([`GROUND_VERTICES`], written each frame).
+    vertices: wgpu::Buffer,
+    /// Of them, drawn with the shadow lookup, then without.
+    counts: (u32, u32),
     /// One per shadow map (in the order of `ShadowPass::maps`).
     bind_groups: Vec<wgpu::BindGroup>,
     /// The plane's transform (`InstanceUniforms`).
@@ -116,7 +150,18 @@ impl GroundPass {
                 )
             })
             .collect();
-        GroundPass { pipeline: pipelines.ground.pipeline.clone(), bind_groups, instance, sky }
+        let size = (GROUND_VERTICES * std::mem::size_of::<[f32; 2]>()) as u64;
+        let usage = wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST;
+        let vertices = build::buffer(device, "ground triangles", size, usage);
+        GroundPass {
+            pipeline: pipelines.ground.shadowed.clone(),
+            sky_only: pipelines.ground.sky_only.clone(),
+            vertices,
+            counts: (0, 0),
+            bind_groups,
+            instance,
+            sky,
+        }
     }
 
     /// The ground's sky visibility under the model as placed now (once per placement). A map of
@@ -129,21 +174,44 @@ impl GroundPass {
         Ok(())
     }
 
-    /// This frame's plane transform.
-    pub fn write(&self, queue: &wgpu::Queue, plane: &InstanceUniforms) {
+    /// This frame's plane transform and triangles.
+    pub fn write(&mut self, queue: &wgpu::Queue, plane: &InstanceUniforms, mesh: &GroundMesh) {
         queue.write_buffer(&self.instance, 0, bytemuck::bytes_of(plane));
+        let used = (mesh.shadowed + mesh.sky_only) as usize;
+        if used > 0 {
+            queue.write_buffer(&self.vertices, 0, bytemuck::cast_slice(&mesh.vertices[..used]));
+        }
+        self.counts = (mesh.shadowed, mesh.sky_only);
     }
 
-    /// Draw the plane, sampling shadow map `shadow_index`.
+    /// The vertices drawn with the shadow lookup and without.
+    pub fn counts(&self) -> (u32, u32) {
+        self.counts
+    }
+
+    /// Draw the ground, sampling shadow map `shadow_index`: the part where the sun's shadow can
+    /// fall with the shadow lookup, the rest without.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, shadow_index: usize) {
-        self.draw_with(pass, &self.pipeline, shadow_index);
+        let (shadowed, sky_only) = self.counts;
+        pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        if shadowed > 0 {
+            pass.set_pipeline(&self.pipeline);
+            pass.draw(0..shadowed, 0..1);
+        }
+        if sky_only > 0 {
+            pass.set_pipeline(&self.sky_only);
+            pass.draw(shadowed..shadowed + sky_only, 0..1);
+        }
     }
 
-    /// Draw with `pipeline` (this pass's, or its float twin in render/layers.rs), sampling
-    /// shadow map `shadow_index`.
+    /// Draw all of the ground with `pipeline` (the float twin of the shadowed pipeline in
+    /// render/layers.rs), sampling shadow map `shadow_index`.
     pub fn draw_with(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline, shadow_index: usize) {
+        let (shadowed, sky_only) = self.counts;
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
-        pass.draw(0..6, 0..1);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.draw(0..shadowed + sky_only, 0..1);
     }
 }

@@ -34,6 +34,12 @@ pub struct ModelPipelines {
     /// One pipeline per method, indexed by [`LightingMethod::shader_id`]: the shader's `METHOD` is a
     /// pipeline-override constant, so each compiles only its own branches.
     pub by_method: Vec<wgpu::RenderPipeline>,
+    /// The same without colour correction (`COLOUR_CORRECTION` false: no correction code at
+    /// all), for frames that ask for none.
+    pub uncorrected: Vec<wgpu::RenderPipeline>,
+    /// The depth pre-pass: the model's depth alone, so that the shading pipelines (depth test
+    /// less-or-equal) shade each pixel once, not every surface behind the nearest.
+    pub prepass: wgpu::RenderPipeline,
 }
 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
@@ -64,8 +70,10 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
         "material",
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
-    let by_method = pipelines_for(device, (&layout, &material_layout), COLOR_FORMAT, samples);
-    ModelPipelines { layout, material_layout, by_method }
+    let by_method = pipelines_for(device, (&layout, &material_layout), (COLOR_FORMAT, samples), true);
+    let uncorrected = pipelines_for(device, (&layout, &material_layout), (COLOR_FORMAT, samples), false);
+    let prepass = prepass_pipeline(device, (&layout, &material_layout), samples);
+    ModelPipelines { layout, material_layout, by_method, uncorrected, prepass }
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
@@ -79,18 +87,19 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
 }
 
 /// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
-/// layouts (`layout`, `material_layout`), drawing into `format` targets of `samples` per pixel.
+/// layouts (`layout`, `material_layout`), drawing into `format` targets of `samples` per pixel,
+/// with the colour correction (the shader's `COLOUR_CORRECTION`: `corrected`) or without.
 pub fn pipelines_for(
     device: &wgpu::Device,
     (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
-    format: wgpu::TextureFormat,
-    samples: u32,
+    (format, samples): (wgpu::TextureFormat, u32),
+    corrected: bool,
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
     LightingMethod::ALL
         .iter()
         .map(|m| {
-            let constants = [("METHOD", f64::from(m.shader_id()))];
+            let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", if corrected { 1.0 } else { 0.0 })];
             build::render_pipeline(
                 device,
                 build::PipelineSpec {
@@ -112,6 +121,46 @@ pub fn pipelines_for(
         .collect()
 }
 
+/// The depth pre-pass pipeline: the model pass's vertex stage (its position `@invariant`, so
+/// both passes compute the same depth), colour writes masked, depth written, `samples` per
+/// pixel into the composite's targets.
+fn prepass_pipeline(
+    device: &wgpu::Device,
+    (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    samples: u32,
+) -> wgpu::RenderPipeline {
+    let module = build::shader(device, "model depth pre-pass", source(Technique::Model));
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("model depth pre-pass"),
+        bind_group_layouts: &[Some(layout), Some(material_layout)],
+        immediate_size: 0,
+    });
+    let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
+    let options = wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() };
+    let targets = [Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() })];
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("model depth pre-pass"),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: options.clone(),
+            buffers: &[Some(vertex_layout())],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
+        multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_depth"),
+            compilation_options: options,
+            targets: &targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 /// The model's depth seen by the camera, single-sampled and without colour: the model pass's
 /// vertex stage (so the same surface), for the depth layer (render/layers.rs).
 pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines) -> wgpu::RenderPipeline {
@@ -126,7 +175,7 @@ pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines) -> wgpu
             colour: None,
             depth: depth_state(true, wgpu::DepthBiasState::default()),
             samples: 1,
-            constants: &[("METHOD", 0.0)],
+            constants: &[("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)],
         },
     )
 }
@@ -204,6 +253,11 @@ impl ModelGpu {
 pub struct ModelPass {
     /// Indexed by [`LightingMethod::shader_id`].
     by_method: Vec<wgpu::RenderPipeline>,
+    /// The same without the colour correction's code.
+    uncorrected: Vec<wgpu::RenderPipeline>,
+    prepass: wgpu::RenderPipeline,
+    /// Whether this frame corrects the model's colour (its `ColourCorrection` is not "none").
+    corrected: bool,
     layout: wgpu::BindGroupLayout,
     material_layout: wgpu::BindGroupLayout,
     linear_sampler: wgpu::Sampler,
@@ -226,6 +280,9 @@ impl ModelPass {
         let device = &gpu.device;
         ModelPass {
             by_method: pipelines.model.by_method.clone(),
+            uncorrected: pipelines.model.uncorrected.clone(),
+            prepass: pipelines.model.prepass.clone(),
+            corrected: false,
             layout: pipelines.model.layout.clone(),
             material_layout: pipelines.model.material_layout.clone(),
             linear_sampler: pipelines.linear_sampler.clone(),
@@ -347,9 +404,11 @@ impl ModelPass {
         Ok(ModelGpu { meshes, materials, prepared })
     }
 
-    /// This frame's colour correction and material terms.
-    pub fn write(&self, queue: &wgpu::Queue, model: &ModelGpu, colour: &ColourCorrection, terms: &MaterialTerms) {
+    /// This frame's colour correction and material terms; a frame without correction draws
+    /// with the pipelines that have no correction code.
+    pub fn write(&mut self, queue: &wgpu::Queue, model: &ModelGpu, colour: &ColourCorrection, terms: &MaterialTerms) {
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
+        self.corrected = colour.method != crate::colour::transfer::TransferMethod::None.shader_id();
         for (buf, base) in &model.materials {
             queue.write_buffer(buf, 0, bytemuck::bytes_of(&material_uniforms(base, terms)));
         }
@@ -364,7 +423,14 @@ impl ModelPass {
         method: LightingMethod,
         lod_and_shadow: (usize, usize),
     ) -> Result<()> {
-        self.draw_with(pass, &self.by_method[method.shader_id() as usize], model, lod_and_shadow)
+        let pipelines = if self.corrected { &self.by_method } else { &self.uncorrected };
+        self.draw_with(pass, &pipelines[method.shader_id() as usize], model, lod_and_shadow)
+    }
+
+    /// The depth pre-pass of `model` at level of detail `level` (the shadow map index only
+    /// picks the bind group).
+    pub fn draw_prepass(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, lod_and_shadow: (usize, usize)) -> Result<()> {
+        self.draw_with(pass, &self.prepass, model, lod_and_shadow)
     }
 
     /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from

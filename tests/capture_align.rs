@@ -362,8 +362,10 @@ fn quality_errors() {
                 .iter()
                 .map(|s| {
                     let truth = trace.orientation_at(s.t).as_quat();
-                    let frames: Vec<_> =
-                        BRACKET_EV.iter().map(|&ev| (phone.render_with(truth, settings.with_ev(ev)).unwrap(), settings.with_ev(ev))).collect();
+                    let frames: Vec<_> = BRACKET_EV
+                        .iter()
+                        .map(|&ev| (phone.render_with(truth, settings.with_ev(ev)).unwrap(), settings.with_ev(ev)))
+                        .collect();
                     merge_brackets(&frames.iter().map(|(f, s)| (f, *s)).collect::<Vec<_>>()).unwrap()
                 })
                 .collect()
@@ -371,7 +373,8 @@ fn quality_errors() {
             Vec::new()
         };
         let clip = clip_radiance(&BRACKET_EV.map(|ev| settings.with_ev(ev)));
-        let mut line = format!("seed {seed}: {} shots, turns {t_turns:.1} s, refine {t_refine:.1} s ({} pairs) |", taken.len(), refinement.pairs);
+        let mut line =
+            format!("seed {seed}: {} shots, turns {t_turns:.1} s, refine {t_refine:.1} s ({} pairs) |", taken.len(), refinement.pairs);
         let mut maps = Vec::new();
         for (vi, poses) in variants.iter().enumerate() {
             let (db, flip) = stitch_scores(&env, &trace, &r, &cfg, poses);
@@ -386,7 +389,8 @@ fn quality_errors() {
                 let (mut ok, mut n) = (0usize, 0usize);
                 for face in Face::ALL {
                     for (i, got) in faces[face.layer()].iter().enumerate() {
-                        let d = w_tf.as_quat() * face_pixel_dir_local(face.layer(), i as u32 % face_size, i as u32 / face_size, face_size, 1.0);
+                        let d =
+                            w_tf.as_quat() * face_pixel_dir_local(face.layer(), i as u32 % face_size, i as u32 / face_size, face_size, 1.0);
                         let src = env.sample_enu(d);
                         let want = luminance_bt709([0, 1, 2].map(|c| src[c].min(clip[c])));
                         ok += usize::from((luminance_bt709(*got) / want.max(1e-12) - 1.0).abs() <= 0.10);
@@ -421,7 +425,8 @@ fn quality_errors() {
                     let p = |v: &[u8]| image::Rgb([v[3 * i], v[3 * i + 1], v[3 * i + 2]]);
                     img.put_pixel(x, y, p(want));
                     img.put_pixel(x + face_size, y, p(got));
-                    let d: [u8; 3] = std::array::from_fn(|c| ((i32::from(want[3 * i + c]) - i32::from(got[3 * i + c])).abs() * 4).min(255) as u8);
+                    let d: [u8; 3] =
+                        std::array::from_fn(|c| ((i32::from(want[3 * i + c]) - i32::from(got[3 * i + c])).abs() * 4).min(255) as u8);
                     img.put_pixel(x + 2 * face_size, y, image::Rgb(d));
                 }
             }

@@ -317,7 +317,9 @@ fn the_live_app_takes_a_short_frame_of_the_sun_and_corrects_the_compass() {
 #[ignore]
 fn live_sun_study() {
     let w = world();
-    println!("| hard-iron offset (µT, 1σ per axis) | seeds | RMS compass (°) | RMS with the live sun (°) | worst seed (°) | short frames measured |");
+    println!(
+        "| hard-iron offset (µT, 1σ per axis) | seeds | RMS compass (°) | RMS with the live sun (°) | worst seed (°) | short frames measured |"
+    );
     println!("|---|---|---|---|---|---|");
     for hard_iron in [1.0, 4.0] {
         let runs: Vec<_> = (0..10).map(|seed| live_sun_run(&w, seed, hard_iron, 40.0, 10.0)).collect();

@@ -618,16 +618,40 @@ mod tests {
         // The same ten shots, each estimate off by a heading error and a tilt error (world x
         // and y turns, up to 0.8°, summing to zero over the shots: the accelerometer's tilt
         // errs per shot, the capture's vertical is their mean).
-        let aims = [(0.0, 0.0), (45.0, 0.0), (90.0, 0.0), (135.0, 0.0), (180.0, 0.0), (225.0, 0.0), (270.0, 0.0), (315.0, 0.0), (20.0, 40.0), (60.0, 40.0)];
+        let aims = [
+            (0.0, 0.0),
+            (45.0, 0.0),
+            (90.0, 0.0),
+            (135.0, 0.0),
+            (180.0, 0.0),
+            (225.0, 0.0),
+            (270.0, 0.0),
+            (315.0, 0.0),
+            (20.0, 40.0),
+            (60.0, 40.0),
+        ];
         let yaw = [0.0, 1.0, -1.5, 0.5, 1.5, -1.0, 0.5, -0.5, 1.0, -1.0];
-        let tilt = [(0.4, -0.3), (-0.6, 0.2), (0.3, 0.5), (-0.2, -0.8), (0.7, 0.1), (-0.5, 0.4), (0.2, -0.2), (-0.4, 0.6), (0.6, -0.3), (-0.5, -0.2)];
-        let truths: Vec<Quat> = aims.iter().map(|&(h, p): &(f64, f64)| from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.02).as_quat()).collect();
+        let tilt = [
+            (0.4, -0.3),
+            (-0.6, 0.2),
+            (0.3, 0.5),
+            (-0.2, -0.8),
+            (0.7, 0.1),
+            (-0.5, 0.4),
+            (0.2, -0.2),
+            (-0.4, 0.6),
+            (0.6, -0.3),
+            (-0.5, -0.2),
+        ];
+        let truths: Vec<Quat> =
+            aims.iter().map(|&(h, p): &(f64, f64)| from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.02).as_quat()).collect();
         let shots: Vec<Shot> = truths
             .iter()
             .enumerate()
             .map(|(i, truth)| {
                 let (tx, ty) = tilt[i];
-                let error = turn(yaw[i]) * Quat::from_rotation_x((tx as f32).to_radians()) * Quat::from_rotation_y((ty as f32).to_radians());
+                let error =
+                    turn(yaw[i]) * Quat::from_rotation_x((tx as f32).to_radians()) * Quat::from_rotation_y((ty as f32).to_radians());
                 Shot { target: i, t: i as f64, pose: (error * *truth).normalize(), image: Arc::new(render(&cam, *truth)) }
             })
             .collect();

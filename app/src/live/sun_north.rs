@@ -104,11 +104,10 @@ impl SunNorth {
         let Some(frame) = camera.exposure_frame(SUN_FRAME_EXPOSURE)? else { return Ok(SunNorthState::NoShortExposure) };
         self.frames += 1;
         let tilt_sigma = f64::from(pose.tilt_accuracy_deg).to_radians();
-        let measured =
-            sight_sun(&frame.image, vfov_deg, pose.q)?.and_then(|s| heading_measurement(&s, sun_enu, tilt_sigma)).filter(|m| {
-                // The filter takes it (it has a heading to correct).
-                filter.sun_heading(t, m.error, m.sigma).is_some()
-            });
+        let measured = sight_sun(&frame.image, vfov_deg, pose.q)?.and_then(|s| heading_measurement(&s, sun_enu, tilt_sigma)).filter(|m| {
+            // The filter takes it (it has a heading to correct).
+            filter.sun_heading(t, m.error, m.sigma).is_some()
+        });
         Ok(match measured {
             Some(m) => {
                 self.measurements += 1;

@@ -2,6 +2,8 @@
 //! sensors at `phone` noise (hard-iron offset, disturbances), the fusion filter with and without
 //! the sun heading measurements. Docs: docs/pose.md "True north from the sun".
 
+mod common;
+
 use glam::DQuat;
 use previz::capture::guided_path::simulate_capture_path;
 use previz::capture::replay::{ReplayConfig, replay};
@@ -328,4 +330,47 @@ fn live_sun_study() {
         let (m, f) = runs.iter().fold((0, 0), |(m, f), r| (m + r.3, f + r.2));
         println!("| {hard_iron} | 10 | {:.2} | {:.2} | {worst:.2} | {m}/{f} |", rms(|r| r.0), rms(|r| r.1));
     }
+}
+
+#[test]
+fn the_live_session_calibrates_its_heading_from_the_sun_in_its_camera_frame() {
+    // The app's one call (LiveSession::advance -> live::sun_north): the simulated session looks
+    // 10° left of the quarry map's sun (the virtual phone's world is the map, so the map's sun
+    // stands in for SPA's), sensors at `phone` noise.
+    use previz::live::{LiveConfig, LiveSession};
+    use previz::setup::load_inputs;
+    let toml = "width = 240\nheight = 160\nenvironment = \"hdri/polyhaven_1k/quarry_01_1k.hdr\"\nmodel = \"meshes/stanford-bunny.obj\"\n";
+    let inputs = load_inputs(&common::scene(toml), false).unwrap();
+    let sun = previz::light::sun_finder::find_sun(&previz::light::samples::from_cube(&inputs.env), &Default::default()).unwrap().dir;
+    let (az, el) = azimuth_elevation(sun);
+    let (az, el) = (f64::from(az).to_degrees(), f64::from(el).to_degrees());
+    let s = common::scene(&format!("{toml}[camera]\nheading = {}\npitch = {}\nvfov = 50.0\n", az - 10.0, el - 3.0));
+    let cfg = LiveConfig { duration_s: 12.0, noise: NoiseLevel::Phone, seed: 3, ..LiveConfig::on_phone(afternoon()) };
+    let mut session = LiveSession::simulated(common::gpu(), Arc::new(inputs.env.clone()), &inputs.model, &s, cfg).unwrap();
+    let mut last = None;
+    let mut errors = Vec::new();
+    while let Some(f) = session.advance(common::gpu()).unwrap() {
+        if f.t >= 2.0 {
+            errors.push(f.pose_error_deg.unwrap());
+        }
+        last = Some(f);
+    }
+    let f = last.unwrap();
+    let n = session.sun_north();
+    eprintln!(
+        "{} short frames, {} measured, last {:?}; pose error at 2 s {:.2}°, at the end {:.2}°",
+        n.frames,
+        n.measurements,
+        n.last,
+        errors[0],
+        errors[errors.len() - 1]
+    );
+    assert!(n.measurements >= 5 && n.measurements * 2 >= n.frames, "{} of {}", n.measurements, n.frames);
+    assert_eq!(f.pose.unwrap().heading_source, HeadingSource::Sun);
+    assert!(f.pose_error_deg.unwrap() < 1.0, "{:?}", f.pose_error_deg);
+}
+
+/// Any afternoon instant: the simulated session's sun is the map's, whatever the clock.
+fn afternoon() -> chrono::DateTime<chrono::Utc> {
+    chrono::DateTime::parse_from_rfc3339("2026-11-21T14:00:00Z").unwrap().with_timezone(&chrono::Utc)
 }

@@ -266,8 +266,9 @@ fn quality_errors() {
     let face_size: u32 = env_or("FACE", "128").parse().unwrap();
     let hdr = std::env::var("HDR").is_ok();
     let vfov = if case == "random50" { 50.0 } else { 100.0 };
-    const NAMES: [&str; 5] = ["turns", "turns+refine", "turns, yaw error only", "turns, tilt error only", "true poses"];
-    let mut totals = [[0.0f64; 3]; 5];
+    const NAMES: [&str; 6] =
+        ["turns", "turns+refine", "turns, yaw error only", "turns, tilt error only", "true poses", "refined, common tilt off"];
+    let mut totals = [[0.0f64; 3]; 6];
     let mut runs = 0;
     for seed in a..=b {
         let seed = if case == "six" { 2000 + seed } else { seed };
@@ -350,6 +351,19 @@ fn quality_errors() {
                     .collect(),
             );
         }
+        // The refined poses with the capture's common tilt (the mean over the shots of their
+        // tilt error: the refinement's gauge) taken off: what a better vertical would give.
+        let common = refined.iter().fold(glam::DVec3::ZERO, |acc, s| {
+            let (err, _, _, _) = split(s.pose, s.t);
+            let v = err.to_scaled_axis();
+            acc + glam::DVec3::new(v.x, v.y, 0.0)
+        }) / refined.len() as f64;
+        variants.push(
+            refined
+                .iter()
+                .map(|s| (w_href * DQuat::from_scaled_axis(-common) * w_href.inverse() * s.pose.as_dquat()).normalize().as_quat())
+                .collect(),
+        );
         let ideal: Vec<Vec<u8>> = Face::ALL.iter().map(|&f| ideal_face(&env, tf, f, face_size, settings)).collect();
         // HDR: every shot's bracket at its true pose, merged.
         let merged: Vec<_> = if hdr {

@@ -2,9 +2,9 @@
 //! shots then correct them, so seams disappear even when the pose estimate was a few degrees
 //! off.
 //!
-//! Gravity is kept: the accelerometer's tilt is good to about half a degree, while the heading
-//! (magnetometer and gyroscope) carries errors of several degrees that change between shots.
-//! So each shot gets one unknown, a turn `h_i` about the world vertical (corrected pose
+//! First, gravity is kept: the accelerometer's tilt is good to about half a degree, while the
+//! heading (magnetometer and gyroscope) carries errors of several degrees that change between
+//! shots. So each shot gets one unknown, a turn `h_i` about the world vertical (corrected pose
 //! `Rz(h_i)·R_i`). For two shots turned about the same axis the photometric mismatch of their
 //! overlap depends only on `h_j − h_i`, so:
 //!
@@ -16,7 +16,11 @@
 //!    shot's turn fixed at 0 (it defines the reference heading) and a weak pull of every turn
 //!    towards 0 (the sensor pose), a small linear least-squares problem; pairs whose match
 //!    disagrees with the joint solution by more than [`OUTLIER_DEG`] are dropped and the system
-//!    solved again.
+//!    solved again;
+//! 3. then every shot's whole orientation (tilt too: the accelerometer's per-shot tilt error of
+//!    a few tenths of a degree cost the faces more than the yaw left after step 2), refined
+//!    jointly to a fraction of a pixel by direct photometric alignment of all overlaps
+//!    ([`refine_shots`]); the capture's vertical is the mean of the sensor tilts.
 
 use super::projection::Pinhole;
 use super::reproject::{Shot, sample_linear};

@@ -300,9 +300,9 @@ const PHOTO_SIGMA: f64 = 0.01;
 /// Residuals beyond this many σ weigh less (Huber): moving things, a reflection.
 const HUBER_K: f64 = 3.0;
 /// Gauss–Newton iterations on the half-resolution level, then at full resolution.
-const REFINE_ITERATIONS: [usize; 2] = [4, 3];
+const REFINE_ITERATIONS: [usize; 2] = [8, 4];
 /// Directions laid over each shot's frame for the refinement's overlaps.
-const REFINE_GRID: (u32, u32) = (48, 36);
+const REFINE_GRID: (u32, u32) = (64, 48);
 /// Overlap directions keep this far inside both frames (normalised units).
 const REFINE_INSET: f32 = 0.02;
 /// Largest change (degrees) one refinement step may make to a shot; a larger step is halved.

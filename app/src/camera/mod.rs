@@ -85,4 +85,15 @@ pub trait FrameSource {
         let _ = lock;
         Ok(false)
     }
+
+    /// One frame taken now, between the stream's frames, at `relative_exposure` times the
+    /// current exposure (same white balance): the short exposure in which only the sun's disc
+    /// clips ([`crate::pose::sun_heading::SUN_FRAME_EXPOSURE`], for true north from the sun,
+    /// [`crate::live::sun_north`]). `Ok(None)` from a source that cannot take one: files, and
+    /// for now the phone cameras (a single manual-exposure request, Camera2's
+    /// `SENSOR_EXPOSURE_TIME` / AVFoundation's custom exposure, is not wired yet).
+    fn exposure_frame(&mut self, relative_exposure: f32) -> Result<Option<Frame>> {
+        let _ = relative_exposure;
+        Ok(None)
+    }
 }

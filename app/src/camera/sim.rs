@@ -237,6 +237,8 @@ impl VirtualPhone {
 pub struct SimSequence {
     phone: VirtualPhone,
     poses: std::vec::IntoIter<(f64, Quat)>,
+    /// The last frame's time and pose (a short exposure frame is taken there).
+    last: Option<(f64, Quat)>,
 }
 
 impl SimSequence {
@@ -251,7 +253,7 @@ impl SimSequence {
             }
             pose_matrix(*q).map_err(|e| e.context(format!("pose {i} at {t} s")))?;
         }
-        Ok(SimSequence { phone, poses: poses.into_iter() })
+        Ok(SimSequence { phone, poses: poses.into_iter(), last: None })
     }
 
     pub fn phone(&self) -> &VirtualPhone {
@@ -263,8 +265,18 @@ impl FrameSource for SimSequence {
     fn next_frame(&mut self) -> Result<Option<Frame>> {
         match self.poses.next() {
             None => Ok(None),
-            Some((t, pose)) => self.phone.render(pose, t).map(Some),
+            Some((t, pose)) => {
+                self.last = Some((t, pose));
+                self.phone.render(pose, t).map(Some)
+            }
         }
+    }
+
+    /// At the last frame's pose and time, with its white balance.
+    fn exposure_frame(&mut self, relative_exposure: f32) -> Result<Option<Frame>> {
+        let (Some((t, pose)), Some(s)) = (self.last, self.phone.settings()) else { return Ok(None) };
+        let settings = CameraSettings { exposure: s.exposure * relative_exposure, ..s };
+        Ok(Some(Frame { image: self.phone.render_with(pose, settings)?, t }))
     }
 
     fn lock_exposure(&mut self, lock: bool) -> Result<bool> {

@@ -177,6 +177,9 @@ pub struct ReplayResult {
     pub shot_t: Vec<Option<f64>>,
     /// Shots whose image matched an earlier shot's and corrected the guidance's heading drift.
     pub drift_fixes: usize,
+    /// The shots as taken (pose before the alignment), in the assistant's target order (the
+    /// front first), for studies of the alignment.
+    pub taken_shots: Vec<super::reproject::Shot>,
     /// Repair targets the assistant added for holes in the coverage and that were not taken
     /// (the guidance then points at them).
     pub repairs: Vec<Target>,
@@ -372,6 +375,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         shot_t,
         repairs,
         drift_fixes: aim.drift_fixes(),
+        taken_shots: (0..targets).filter_map(|i| assistant.shot(i).cloned()).collect(),
         reference_heading_deg: assistant.reference_heading_deg(),
         reference_heading_error_deg: tapped
             .zip(assistant.reference_heading_deg())

@@ -24,6 +24,7 @@ pub mod export;
 #[cfg(target_os = "ios")]
 pub mod ios;
 pub mod phone;
+pub mod sun_north;
 pub mod window;
 
 #[cfg(test)]
@@ -289,6 +290,8 @@ pub struct LiveSession {
     /// The model is still where the scene's camera heading and pitch put it, to be placed in
     /// front of where the phone points at its first pose (the scene gives no position).
     place_at_first_pose: bool,
+    /// True north from the sun in the camera frame (short exposure frames, fused into `filter`).
+    sun_north: sun_north::SunNorth,
 }
 
 /// Face size (texels) of the environment folded from the camera frame.
@@ -368,6 +371,7 @@ impl LiveSession {
             last_t: None,
             fold: None,
             place_at_first_pose: scene.placement.position.is_none(),
+            sun_north: sun_north::SunNorth::new(),
         })
     }
 
@@ -427,6 +431,11 @@ impl LiveSession {
         let t2 = std::time::Instant::now();
         let instant = self.cfg.start + chrono::Duration::microseconds((t * 1e6).round() as i64);
         let sun = position(&SunInput::new(instant, self.location.0, self.location.1), Algorithm::Spa)?;
+        // True north from the sun in the camera frame. The virtual phone's world is the map,
+        // whose sun is the map's, not where SPA has it for the clock.
+        let sky_sun = if self.sources.truth.is_some() { self.map_sun_dir } else { sun.direction_enu() };
+        let (size, vfov) = ((self.scene.width, self.scene.height), self.scene.camera.vfov as f32);
+        self.sun_north.frame(t, pose.as_ref(), sky_sun, size, vfov, &mut *self.sources.camera, &mut self.filter)?;
         let t3 = std::time::Instant::now();
         // SPA's sun for a capture of this place and moment; otherwise the map's own sun (the
         // demo's picture, a downloaded HDR), whatever the clock says.
@@ -503,6 +512,11 @@ impl LiveSession {
 
     pub fn is_suspended(&self) -> bool {
         self.suspended
+    }
+
+    /// True north from the sun in the camera frame: short frames taken, measurements, the last.
+    pub fn sun_north(&self) -> &sun_north::SunNorth {
+        &self.sun_north
     }
 
     /// Draw the current frame into [`Compositor::target_view`] (no readback). Returns the CPU

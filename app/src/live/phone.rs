@@ -107,6 +107,10 @@ impl FrameSource for OpeningCamera {
         self.camera.as_mut().map_or(Ok(()), |c| c.pause())
     }
 
+    fn exposure_frame(&mut self, relative_exposure: f32) -> Result<Option<Frame>> {
+        self.camera.as_mut().map_or(Ok(None), |c| c.exposure_frame(relative_exposure))
+    }
+
     fn resume(&mut self) -> Result<()> {
         self.paused = false;
         // A camera refused before the pause is tried again at once (the user may have allowed

@@ -196,7 +196,9 @@ impl Transfer {
     /// clamps each ray's weight at 0 (`max(0, L)`), this sums the SH radiance unclamped, so the
     /// two agree to rounding wherever the sky's SH9 is ≥ 0 along the rays (tested), and where it
     /// rings below 0 (a strong lobe opposite a dark part of the sky) this one counts those rays
-    /// as negative light: the share is clamped to 0..=1 and tested against the clamped one.
+    /// as negative light: the share is clamped to 0..=1 and tested against the clamped one
+    /// (here and render::model_cache: on the courtyard reference scene's sky, negative over 19 %
+    /// of the upper hemisphere, texels differ by 0.12 at most and 0.006 on average).
     pub fn visibility(&self, coeffs: &[f32; TERMS]) -> f32 {
         let dot = |v: &[f32; TERMS]| v.iter().zip(coeffs).map(|(a, c)| a * c).sum::<f32>();
         let total = dot(&self.total);

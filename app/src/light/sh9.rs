@@ -42,9 +42,10 @@ pub fn irradiance_colour(c: &[[f32; 3]; 9], n: Vec3) -> [f32; 3] {
 
 /// The shape of a sky's radiance (luminance) as SH9 coefficients in the environment map's own
 /// frame, with the map's heading: what weights the ground's sky-visibility rays
-/// (scene::occlusion::ground_sky), so that the model hides a directional sky by the light the
+/// (render::model_cache PreparedModel::ground_sky, which recombines the rays' SH9 transfer with
+/// [`SkyShape::world_coeffs`]), so that the model hides a directional sky by the light the
 /// hidden part gives. Normalised to L00 = 1 and rounded to 1/32, so that a sky of the same shape
-/// (the live view's camera frame folded again) keeps the ground map.
+/// (the live view's camera frame folded again) keeps the uploaded map.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SkyShape {
     pub coeffs: [f32; 9],
@@ -71,6 +72,23 @@ impl SkyShape {
         let (s, c) = self.heading.sin_cos();
         let m = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
         basis(m).iter().zip(self.coeffs).map(|(y, c)| y * c).sum::<f32>().max(0.0)
+    }
+
+    /// The coefficients turned into the world frame: Σ w_i Y_i(d) = Σ c_i Y_i(Rz(heading)·d)
+    /// for every world direction d — the radiance before [`SkyShape::radiance`]'s clamp at 0.
+    /// A turn about z by h moves each harmonic's azimuth by h: within band 1 the pair (Y1−1, Y11)
+    /// ∝ (sin φ, cos φ) and within band 2 (Y2−1, Y21) ∝ z (sin φ, cos φ) turn by h, the pair
+    /// (Y2−2, Y22) ∝ (sin 2φ, cos 2φ) by 2h; Y00, Y10 and Y20 stay.
+    pub fn world_coeffs(&self) -> [f32; 9] {
+        let c = self.coeffs;
+        let (s1, c1) = self.heading.sin_cos();
+        let (s2, c2) = (2.0 * self.heading).sin_cos();
+        // Σ a sin(φ + h) + b cos(φ + h) = sin φ (a cos h − b sin h) + cos φ (a sin h + b cos h).
+        let turn = |a: f32, b: f32, s: f32, co: f32| (a * co - b * s, a * s + b * co);
+        let (w1, w3) = turn(c[1], c[3], s1, c1);
+        let (w5, w7) = turn(c[5], c[7], s1, c1);
+        let (w4, w8) = turn(c[4], c[8], s2, c2);
+        [c[0], w1, c[2], w3, w4, w5, c[6], w7, w8]
     }
 }
 
@@ -198,6 +216,34 @@ mod tests {
         assert!((turned.radiance(Vec3::X) - up).abs() < 1e-5, "{}", turned.radiance(Vec3::X));
         // No light: uniform.
         assert_eq!(SkyShape::from_irradiance(&[[0.0; 3]; 9], 0.3), SkyShape::UNIFORM);
+    }
+
+    #[test]
+    fn a_sky_shape_turned_into_the_world_is_the_same_radiance() {
+        // Every coefficient non-zero, at headings in each quadrant: the world coefficients give
+        // the map's radiance towards Rz(heading)·d (unclamped) at directions all over the sphere.
+        let coeffs = [1.0, 0.3, -0.2, 0.5, 0.25, -0.4, 0.15, 0.35, -0.3];
+        for heading in [0.0, 0.4, 2.0, -2.7, 5.5] {
+            let shape = SkyShape { coeffs, heading };
+            let w = shape.world_coeffs();
+            for i in 0..200 {
+                let z = 1.0 - (i as f32 + 0.5) / 100.0;
+                let phi = 2.39996 * i as f32;
+                let r = (1.0 - z * z).sqrt();
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let (s, c) = heading.sin_cos();
+                let m = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+                let want: f32 = basis(m).iter().zip(coeffs).map(|(y, c)| y * c).sum();
+                let got: f32 = basis(d).iter().zip(w).map(|(y, c)| y * c).sum();
+                assert!((got - want).abs() < 1e-5, "heading {heading}, {d}: {got} vs {want}");
+                assert!((shape.radiance(d) - want.max(0.0)).abs() < 1e-6);
+            }
+        }
+        // By hand: a map brighter towards its East (Y11) turned by 90° is brighter towards the
+        // world's South (−Y1−1), as a_sky_shape_is_its_radiance_and_turns_with_the_map says.
+        let east = SkyShape { coeffs: [1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0], heading: std::f32::consts::FRAC_PI_2 };
+        let w = east.world_coeffs();
+        assert!((w[1] + 1.0).abs() < 1e-6 && w[3].abs() < 1e-6, "{w:?}");
     }
     use crate::colour::luminance_bt709;
     use crate::light::samples::{from_cube, from_equirect};

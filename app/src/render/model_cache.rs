@@ -1,6 +1,7 @@
 //! Work done once per model, not once per compositor: the vertices with their ambient occlusion,
 //! the level-of-detail chain, and — only when a colour correction first asks — the model's colour
-//! statistics; and per placement, the ground's sky visibility under the model.
+//! statistics; and per placement, the ground's sky transfer under the model, from which each
+//! sky's visibility map is recombined without casting a ray.
 //!
 //! Entries are keyed by the model's content (every position, normal, uv, index, material value
 //! and texel), so a second compositor, a second scene or the live view's model picker going back
@@ -13,7 +14,7 @@ use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
 use crate::light::sh9::SkyShape;
 use crate::scene::lod::LodChain;
-use crate::scene::occlusion::{self, GroundSky, Occluders};
+use crate::scene::occlusion::{self, GroundSky, GroundTransfer, Occluders};
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::{Mat4, Vec3};
@@ -56,8 +57,13 @@ impl ModelKey {
     }
 }
 
-/// The last ground map's key (the model matrix's bits and the sky's shape) and the map.
-type GroundKeyAndMap = ([u32; 16], SkyShape, Arc<GroundSky>);
+/// The last placement's ground: the model matrix's bits, its transfer, and the last sky's shape
+/// with its map.
+struct Ground {
+    bits: [u32; 16],
+    transfer: GroundTransfer,
+    map: Option<(SkyShape, Arc<GroundSky>)>,
+}
 
 /// What a model's upload needs, computed once per model content.
 pub struct PreparedModel {
@@ -71,9 +77,10 @@ pub struct PreparedModel {
     model: Model,
     colour: OnceLock<std::result::Result<ColourStats, String>>,
     occluders: OnceLock<Occluders>,
-    /// The ground under the last placement and sky asked for: the model matrix's bits, the
-    /// sky's shape and its map.
-    ground: Mutex<Option<GroundKeyAndMap>>,
+    /// The ground under the last placement and sky asked for.
+    ground: Mutex<Option<Ground>>,
+    /// Ground transfers cast and maps recombined.
+    ground_cast: std::sync::atomic::AtomicUsize,
     ground_computed: std::sync::atomic::AtomicUsize,
 }
 
@@ -111,6 +118,7 @@ impl PreparedModel {
             colour: OnceLock::new(),
             occluders: OnceLock::from(occluders),
             ground: Mutex::new(None),
+            ground_cast: Default::default(),
             ground_computed: Default::default(),
         })
     }
@@ -127,31 +135,52 @@ impl PreparedModel {
     }
 
     /// The ground's sky visibility under the model placed by `placement` (model space → world)
-    /// under a sky of shape `light` (its rays weighted by the sky's radiance):
-    /// [`occlusion::ground_sky`] over [`occlusion::GROUND_TEXELS`]² texels, computed when the
-    /// placement or the sky's shape differs from the last one asked for. The same `Arc` comes
-    /// back while both stay, so `Arc::ptr_eq` with the one uploaded says whether to upload.
+    /// under a sky of shape `light` (its rays weighted by the sky's radiance) over
+    /// [`occlusion::GROUND_TEXELS`]² texels. The rays ([`occlusion::GROUND_RAYS`] a texel) are
+    /// cast once per placement into a transfer ([`occlusion::ground_transfer`] onto the SH9
+    /// basis); a new sky only recombines it with the shape's coefficients turned into the world
+    /// ([`SkyShape::world_coeffs`]; no ray, ~10 products a texel). The same `Arc` comes back
+    /// while the placement and the shape stay, so `Arc::ptr_eq` with the one uploaded says
+    /// whether to upload.
     pub fn ground_sky(&self, placement: Mat4, light: SkyShape) -> Arc<GroundSky> {
+        use std::sync::atomic::Ordering::Relaxed;
         let bits = placement.to_cols_array().map(f32::to_bits);
         let mut last = self.ground.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some((b, shape, sky)) = last.as_ref()
-            && *b == bits
+        let ground = match last.take() {
+            Some(g) if g.bits == bits => last.insert(g),
+            _ => {
+                let occluders = self.occluders.get_or_init(|| Occluders::of_model(&self.model));
+                let transfer = occlusion::ground_transfer(
+                    occluders,
+                    self.bounds,
+                    placement,
+                    occlusion::GROUND_TEXELS,
+                    occlusion::GROUND_RAYS,
+                    &crate::light::sh9::basis,
+                );
+                self.ground_cast.fetch_add(1, Relaxed);
+                last.insert(Ground { bits, transfer, map: None })
+            }
+        };
+        if let Some((shape, sky)) = &ground.map
             && *shape == light
         {
             return sky.clone();
         }
-        let occluders = self.occluders.get_or_init(|| Occluders::of_model(&self.model));
-        let radiance = |d: Vec3| light.radiance(d);
-        let sky =
-            Arc::new(occlusion::ground_sky(occluders, self.bounds, placement, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS, &radiance));
-        self.ground_computed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        *last = Some((bits, light, sky.clone()));
+        let sky = Arc::new(ground.transfer.map(&light.world_coeffs()));
+        self.ground_computed.fetch_add(1, Relaxed);
+        ground.map = Some((light, sky.clone()));
         sky
     }
 
-    /// How many times [`PreparedModel::ground_sky`] computed a map.
+    /// How many times [`PreparedModel::ground_sky`] made a map (for a new placement or sky).
     pub fn ground_sky_computed(&self) -> usize {
         self.ground_computed.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// How many times [`PreparedModel::ground_sky`] cast the ground's rays (for a new placement).
+    pub fn ground_rays_cast(&self) -> usize {
+        self.ground_cast.load(std::sync::atomic::Ordering::Relaxed)
     }
 }
 
@@ -400,5 +429,70 @@ mod tests {
         let east = SkyShape { coeffs: [1.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0], heading: 0.0 };
         let e = prepared.ground_sky(here, east);
         assert!(Arc::ptr_eq(&e, &prepared.ground_sky(here, east)) && prepared.ground_sky_computed() == 4);
+        // Each placement cast its rays once; the sky's change recombined them without a ray.
+        assert_eq!(prepared.ground_rays_cast(), 3);
+        assert_ne!(e.visibility, d.visibility);
+        // Another sky and the first one again: two more maps, no more rays.
+        let turned = SkyShape { heading: 1.0, ..east };
+        assert_ne!(prepared.ground_sky(here, turned).visibility, e.visibility);
+        assert_eq!(*prepared.ground_sky(here, SkyShape::UNIFORM), *a);
+        assert_eq!((prepared.ground_sky_computed(), prepared.ground_rays_cast()), (6, 3));
+    }
+
+    #[test]
+    fn the_recombined_ground_map_is_the_one_each_sky_would_cast() {
+        // A non-uniform sky (≥ 0 over every direction: brighter towards the zenith, the map's
+        // East and North, with band-2 terms), at two headings, under a turned and scaled
+        // tetrahedron: the map made from the transfer against the map cast directly with the
+        // shape's radiance (scene::occlusion::ground_sky_direct), every texel.
+        let model = tetrahedron();
+        let prepared = PreparedModel::new(&model).unwrap();
+        let occluders = Occluders::of_model(&model);
+        let placement = Mat4::from_rotation_z(0.5) * Mat4::from_scale(Vec3::splat(2.0));
+        let coeffs = [1.0, 0.1, 0.3, 0.25, 0.0, 0.0, 0.1, 0.0, 0.1];
+        let mut maps = Vec::new();
+        for heading in [0.0, 2.0] {
+            let shape = SkyShape { coeffs, heading };
+            let map = prepared.ground_sky(placement, shape);
+            let direct = occlusion::ground_sky_direct(
+                &occluders,
+                prepared.bounds,
+                placement,
+                occlusion::GROUND_TEXELS,
+                occlusion::GROUND_RAYS,
+                &|d| shape.radiance(d),
+            );
+            let diff = map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            assert!(diff < 1e-5, "heading {heading}: {diff}");
+            assert!(map.visibility.iter().copied().fold(1.0, f32::min) < 0.5, "the tetrahedron hides the sky near it");
+            maps.push(map);
+        }
+        assert_eq!(prepared.ground_rays_cast(), 1);
+        // The heading matters: the sky's bright side moved.
+        let moved = maps[0].visibility.iter().zip(&maps[1].visibility).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(moved > 0.01, "{moved}");
+        // A real sky whose SH9 rings below 0 over 19 % of the upper hemisphere: the shape of
+        // tests/reference/scenes/courtyard_dragon.toml's sky (printed by a probe in
+        // PreparedModel::ground_sky). The direct map clamps those rays' radiance at 0, the
+        // recombined one counts it negative. Measured on this map: largest difference 0.114 and
+        // 0.116 (headings 0 and 2), mean 0.0045 and 0.0040; bounded at 0.15 and 0.01 (on the
+        // courtyard scene's own 64² map: 0.12 and 0.006, its ROI FLIP unchanged to three
+        // decimals, tests/accuracy_reference.rs).
+        let courtyard = [1.0, 0.59375, 0.28125, -0.25, -0.5625, 0.5, -0.6875, 0.15625, -0.25];
+        for heading in [0.0, 2.0] {
+            let shape = SkyShape { coeffs: courtyard, heading };
+            let map = prepared.ground_sky(placement, shape);
+            let direct = occlusion::ground_sky_direct(
+                &occluders,
+                prepared.bounds,
+                placement,
+                occlusion::GROUND_TEXELS,
+                occlusion::GROUND_RAYS,
+                &|d| shape.radiance(d),
+            );
+            let diffs: Vec<f32> = map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).collect();
+            let (max, mean) = (diffs.iter().copied().fold(0.0f32, f32::max), diffs.iter().sum::<f32>() / diffs.len() as f32);
+            assert!(max < 0.15 && mean < 0.01, "heading {heading}: largest {max}, mean {mean}");
+        }
     }
 }

@@ -1,8 +1,9 @@
 //! The ground pass (step 4 of DESIGN.md "One frame"): an invisible shadow-catcher plane under the
 //! model darkens the background where the shadow map says the sun is blocked, with a penumbra
 //! that follows the sun's size (frame.wgsl `sun_visibility_soft`), and where the model hides its
-//! sky: the ground's sky visibility under the placed model (scene::occlusion::ground_sky) is a
-//! small texture written once per placement, never per frame.
+//! sky: the ground's sky visibility under the placed model (render::model_cache
+//! PreparedModel::ground_sky) is a small texture written once per placement and sky shape, never
+//! per frame.
 
 use super::super::uniforms::InstanceUniforms;
 use crate::gpu::build;

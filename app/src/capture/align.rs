@@ -571,24 +571,27 @@ mod tests {
         super::super::reproject::render_synthetic(camera, pose, &world)
     }
 
+    /// (heading, pitch) in degrees: eight shots around the horizon and two at 40° pitch.
+    const TEN_AIMS: [(f64, f64); 10] = [
+        (0.0, 0.0),
+        (45.0, 0.0),
+        (90.0, 0.0),
+        (135.0, 0.0),
+        (180.0, 0.0),
+        (225.0, 0.0),
+        (270.0, 0.0),
+        (315.0, 0.0),
+        (20.0, 40.0),
+        (60.0, 40.0),
+    ];
+
     #[test]
     fn heading_errors_between_shots_are_recovered_from_the_overlaps() {
         let cam = Pinhole::from_vfov(160, 120, 50.0).unwrap();
         // Eight shots around the horizon and two at ±45° pitch; the images are taken at the true
         // poses, the "estimated" poses carry heading errors of up to 3.5° (the front's is the
         // reference and stays).
-        let aims = [
-            (0.0, 0.0),
-            (45.0, 0.0),
-            (90.0, 0.0),
-            (135.0, 0.0),
-            (180.0, 0.0),
-            (225.0, 0.0),
-            (270.0, 0.0),
-            (315.0, 0.0),
-            (20.0, 40.0),
-            (60.0, 40.0),
-        ];
+        let aims = TEN_AIMS;
         let errors = [0.0, 2.0, -3.5, 1.0, 3.0, -2.5, 0.5, -1.5, 2.5, -3.0];
         let shots: Vec<Shot> = aims
             .iter()
@@ -622,18 +625,7 @@ mod tests {
         // The same ten shots, each estimate off by a heading error and a tilt error (world x
         // and y turns, up to 0.8°, summing to zero over the shots: the accelerometer's tilt
         // errs per shot, the capture's vertical is their mean).
-        let aims = [
-            (0.0, 0.0),
-            (45.0, 0.0),
-            (90.0, 0.0),
-            (135.0, 0.0),
-            (180.0, 0.0),
-            (225.0, 0.0),
-            (270.0, 0.0),
-            (315.0, 0.0),
-            (20.0, 40.0),
-            (60.0, 40.0),
-        ];
+        let aims = TEN_AIMS;
         let yaw = [0.0, 1.0, -1.5, 0.5, 1.5, -1.0, 0.5, -0.5, 1.0, -1.0];
         let tilt = [
             (0.4, -0.3),

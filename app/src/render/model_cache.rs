@@ -450,18 +450,17 @@ mod tests {
         let occluders = Occluders::of_model(&model);
         let placement = Mat4::from_rotation_z(0.5) * Mat4::from_scale(Vec3::splat(2.0));
         let coeffs = [1.0, 0.1, 0.3, 0.25, 0.0, 0.0, 0.1, 0.0, 0.1];
+        // The map casting its rays under `shape` directly, to compare the recombined one with.
+        let direct = |shape: SkyShape| {
+            occlusion::ground_sky_direct(&occluders, prepared.bounds, placement, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS, &|d| {
+                shape.radiance(d)
+            })
+        };
         let mut maps = Vec::new();
         for heading in [0.0, 2.0] {
             let shape = SkyShape { coeffs, heading };
             let map = prepared.ground_sky(placement, shape);
-            let direct = occlusion::ground_sky_direct(
-                &occluders,
-                prepared.bounds,
-                placement,
-                occlusion::GROUND_TEXELS,
-                occlusion::GROUND_RAYS,
-                &|d| shape.radiance(d),
-            );
+            let direct = direct(shape);
             let diff = map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
             assert!(diff < 1e-5, "heading {heading}: {diff}");
             assert!(map.visibility.iter().copied().fold(1.0, f32::min) < 0.5, "the tetrahedron hides the sky near it");
@@ -482,14 +481,7 @@ mod tests {
         for heading in [0.0, 2.0] {
             let shape = SkyShape { coeffs: courtyard, heading };
             let map = prepared.ground_sky(placement, shape);
-            let direct = occlusion::ground_sky_direct(
-                &occluders,
-                prepared.bounds,
-                placement,
-                occlusion::GROUND_TEXELS,
-                occlusion::GROUND_RAYS,
-                &|d| shape.radiance(d),
-            );
+            let direct = direct(shape);
             let diffs: Vec<f32> = map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).collect();
             let (max, mean) = (diffs.iter().copied().fold(0.0f32, f32::max), diffs.iter().sum::<f32>() / diffs.len() as f32);
             assert!(max < 0.15 && mean < 0.01, "heading {heading}: largest {max}, mean {mean}");

@@ -19,11 +19,9 @@ fn rgb(rgba: &[u8]) -> Vec<u8> {
     rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect()
 }
 
-#[test]
-fn an_exported_frame_is_reproduced_by_previz_composite() {
-    let s = scene(SCENE);
-    let inp = inputs(&s);
-    let cfg = LiveConfig {
+/// Three noiseless seconds at 10 Hz in Bristol on a June afternoon.
+fn bristol_afternoon() -> LiveConfig {
+    LiveConfig {
         lat_deg: 51.4545,
         lon_deg: -2.5879,
         start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00").unwrap().with_timezone(&chrono::Utc),
@@ -31,7 +29,14 @@ fn an_exported_frame_is_reproduced_by_previz_composite() {
         duration_s: 3.0,
         noise: NoiseLevel::None,
         seed: 3,
-    };
+    }
+}
+
+#[test]
+fn an_exported_frame_is_reproduced_by_previz_composite() {
+    let s = scene(SCENE);
+    let inp = inputs(&s);
+    let cfg = bristol_afternoon();
     let mut session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, cfg).unwrap();
     // Until the filter settles there is no model to export; two seconds in, there is.
     while session.advance(gpu()).unwrap().is_some_and(|f| f.t < 2.0) {}
@@ -93,15 +98,7 @@ fn a_fold_lit_export_is_reproduced_with_the_fold_not_the_map() {
         world.display().to_string()
     ));
     let inp = inputs(&s);
-    let cfg = LiveConfig {
-        lat_deg: 51.4545,
-        lon_deg: -2.5879,
-        start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00").unwrap().with_timezone(&chrono::Utc),
-        frame_hz: 10.0,
-        duration_s: 3.0,
-        noise: NoiseLevel::None,
-        seed: 3,
-    };
+    let cfg = bristol_afternoon();
     let mut session = LiveSession::simulated(gpu(), Arc::new(inp.env), &inp.model, &s, cfg).unwrap();
     session.fold_camera_into_environment();
     while session.advance(gpu()).unwrap().is_some_and(|f| f.t < 2.0) {

@@ -438,12 +438,19 @@ pub fn save_capture(capture: &CubeCapture, dir: &Path) -> Result<()> {
     result
 }
 
+/// A capture folder's metadata ([`META_FILE`]), parsed; errors name the file. [`load_capture`]
+/// checks it further.
+pub fn read_meta(dir: &Path) -> Result<CaptureMeta> {
+    let meta_path = dir.join(META_FILE);
+    let text = std::fs::read_to_string(&meta_path).with_context(|| format!("cannot read the capture metadata {}", meta_path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not valid capture metadata", meta_path.display()))
+}
+
 /// Read a capture folder written by [`save_capture`]. A missing or unreadable face, a face of
 /// the wrong size or bad metadata is an error naming the file.
 pub fn load_capture(dir: &Path) -> Result<CubeCapture> {
     let meta_path = dir.join(META_FILE);
-    let text = std::fs::read_to_string(&meta_path).with_context(|| format!("cannot read the capture metadata {}", meta_path.display()))?;
-    let meta: CaptureMeta = serde_json::from_str(&text).with_context(|| format!("{}: not valid capture metadata", meta_path.display()))?;
+    let meta = read_meta(dir)?;
     if meta.format != FORMAT {
         bail!("{}: format is {:?}, expected {FORMAT:?}", meta_path.display(), meta.format);
     }

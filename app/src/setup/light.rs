@@ -16,7 +16,7 @@ use crate::light::sun_finder;
 use crate::render::{HemispherePriors, LightingMethod};
 use crate::scene::CubeMap;
 use crate::setup::scene_file::Scene;
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use glam::Vec3;
 use std::path::Path;
 
@@ -61,10 +61,7 @@ pub fn hdr_capture_clip(path: &Path) -> Result<Option<f32>> {
     if !path.is_dir() || !meta.is_file() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&meta).with_context(|| format!("cannot read the capture metadata {}", meta.display()))?;
-    let parsed: crate::capture::CaptureMeta =
-        serde_json::from_str(&text).with_context(|| format!("{}: not valid capture metadata", meta.display()))?;
-    let Some(hdr) = parsed.hdr else { return Ok(None) };
+    let Some(hdr) = crate::capture::folder::read_meta(path)?.hdr else { return Ok(None) };
     let clip = hdr.clip_radiance.into_iter().fold(f32::INFINITY, f32::min);
     if !(clip.is_finite() && clip > 0.0) {
         bail!("{}: hdr.clip_radiance {:?} is not a positive radiance", meta.display(), hdr.clip_radiance);

@@ -22,6 +22,7 @@
 //!    jointly to a fraction of a pixel by direct photometric alignment of all overlaps
 //!    ([`refine_shots`]); the capture's vertical is the mean of the sensor tilts.
 
+use super::dense_solve::solve_dense;
 use super::projection::Pinhole;
 use super::reproject::{Shot, sample_linear};
 use glam::{Quat, Vec2, Vec3};
@@ -208,7 +209,7 @@ fn solve(n: usize, fixed: usize, pairs: &[PairMatch]) -> Vec<f64> {
     a.iter_mut().for_each(|row| row[fixed] = 0.0);
     a[fixed][fixed] = 1.0;
     b[fixed] = 0.0;
-    solve_dense(a, b)
+    solve_dense(a, b).0
 }
 
 /// What the alignment did.
@@ -369,7 +370,7 @@ pub fn refine_shots(camera: &Pinhole, shots: &[Shot], fixed: usize) -> (Vec<Shot
                     eq.g[3 * k + m] += p[m] * a[m];
                 }
             }
-            let step = solve_dense(eq.h, eq.g.iter().map(|v| -v).collect());
+            let step = solve_dense(eq.h, eq.g.iter().map(|v| -v).collect()).0;
             let largest = step.iter().fold(0.0f64, |m, v| m.max(v.abs())).to_degrees();
             let scale = if largest > REFINE_MAX_STEP_DEG { REFINE_MAX_STEP_DEG / largest } else { 1.0 };
             for k in 0..n {
@@ -518,38 +519,6 @@ fn normal_equations(
         }
     }
     Normal { h, g, rms: if count > 0 { PHOTO_SIGMA * (sq / count as f64).sqrt() } else { 0.0 } }
-}
-
-/// Solve the symmetric positive definite system `a x = b` (Gaussian elimination with partial
-/// pivoting; a few dozen unknowns). A singular column gives 0.
-fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
-    let n = b.len();
-    for c in 0..n {
-        let p = (c..n).max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs())).unwrap_or(c);
-        a.swap(c, p);
-        b.swap(c, p);
-        let d = a[c][c];
-        if d.abs() < 1e-12 {
-            continue;
-        }
-        let (pivot_rows, rest) = a.split_at_mut(c + 1);
-        let pivot = &pivot_rows[c];
-        for (k, row) in rest.iter_mut().enumerate() {
-            let f = row[c] / d;
-            if f != 0.0 {
-                for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
-                    *x -= f * p;
-                }
-                b[c + 1 + k] -= f * b[c];
-            }
-        }
-    }
-    let mut x = vec![0.0; n];
-    for c in (0..n).rev() {
-        let s: f64 = (c + 1..n).map(|k| a[c][k] * x[k]).sum();
-        x[c] = if a[c][c].abs() < 1e-12 { 0.0 } else { (b[c] - s) / a[c][c] };
-    }
-    x
 }
 
 #[cfg(test)]

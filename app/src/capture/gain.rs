@@ -129,43 +129,14 @@ pub fn solve_gains(shots: usize, pairs: &[PairOffset], reference: usize) -> Vec<
         a[reference] = vec![0.0; shots];
         a[reference][reference] = 1.0;
         b[reference] = 0.0;
-        if let Some(x) = solve_spd(a, b) {
+        let (x, full_rank) = super::dense_solve::solve_dense(a, b);
+        if full_rank && x.iter().all(|v| v.is_finite()) {
             for (o, xk) in out.iter_mut().zip(x) {
                 o[c] = xk.exp() as f32;
             }
         }
     }
     out
-}
-
-/// Gaussian elimination with partial pivoting; None for a singular system.
-fn solve_spd(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
-    let n = b.len();
-    for col in 0..n {
-        let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[pivot][col].abs() < 1e-12 {
-            return None;
-        }
-        a.swap(col, pivot);
-        b.swap(col, pivot);
-        let (top, rest) = a.split_at_mut(col + 1);
-        let pivot_row = &top[col];
-        for (r, row) in rest.iter_mut().enumerate() {
-            let f = row[col] / pivot_row[col];
-            if f != 0.0 {
-                for (x, p) in row[col..].iter_mut().zip(&pivot_row[col..]) {
-                    *x -= f * p;
-                }
-                b[col + 1 + r] -= f * b[col];
-            }
-        }
-    }
-    let mut x = vec![0.0; n];
-    for row in (0..n).rev() {
-        let s: f64 = (row + 1..n).map(|k| a[row][k] * x[k]).sum();
-        x[row] = (b[row] - s) / a[row][row];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Every shot's gain relative to shot `reference`, from the overlaps.

@@ -25,6 +25,7 @@
 pub mod aim_heading;
 pub mod align;
 pub mod assistant;
+pub mod dense_solve;
 pub mod folder;
 pub mod frame_fold;
 pub mod gain;

@@ -20,8 +20,26 @@
 //! ([`super::platform::stream_fov_deg`]). `SENSOR_ORIENTATION` and the display's rotation give
 //! the quarter turns that make the image upright on the screen
 //! ([`super::platform::back_camera_quarter_turns`]); the GPU pass turns it.
+//!
+//! **The short exposure frame** ([`FrameSource::request_exposure_frame`], the live sun frame):
+//! the repeating request's capture results (`onCaptureCompleted`) give the stream's
+//! `SENSOR_EXPOSURE_TIME` and `SENSOR_SENSITIVITY`; the short frame is one
+//! `ACameraCaptureSession_capture` (a one-shot request between the repeating ones, which go on
+//! by themselves) into the same reader with `CONTROL_AE_MODE` OFF and the time and sensitivity
+//! of [`super::short_exposure::plan_exposure`] within the characteristics'
+//! `SENSOR_INFO_EXPOSURE_TIME_RANGE` / `SENSOR_INFO_SENSITIVITY_RANGE` (cameras without
+//! `MANUAL_SENSOR` take none). Its `onCaptureStarted` timestamp is its image's timestamp: the
+//! frame loop reads every image in order (`AImageReader_acquireNextImage`), keeps the one with
+//! that timestamp aside (converted to RGBA on the CPU, turned upright, never lent as a preview
+//! frame) until its result says the exposure it really had, and lends the newest of the others.
+//! The request's states, timeouts and pause are [`super::short_exposure::OneShot`]'s. None of
+//! this has run on a phone yet (docs/mobile.md, the manual test).
 
 use super::platform::{CameraInfo, ChromaLayout, chroma_layout};
+use super::short_exposure::{
+    CAMERA2_AE_MODE_OFF, CAMERA2_CAPABILITY_MANUAL_SENSOR, ExposureLimits, OneShot, SensorExposure, ShortFrame, camera2_manual_limits,
+    camera2_result_exposure, plan_exposure,
+};
 use super::yuv::{Chroma, Plane, YuvFrame, YuvMatrix, YuvRange, to_rgba_cpu, turn_image};
 use super::{Frame, FrameImage, FrameSink, FrameSource};
 use crate::pose::DisplayRotation;
@@ -29,6 +47,7 @@ use anyhow::{Context, Result, bail};
 use ndk_sys as ffi;
 use std::ffi::{CStr, CString, c_void};
 use std::ptr::{NonNull, null_mut};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicI32, Ordering};
 
 // ndk-sys declares the Camera2 and media functions but links their libraries only with features;
@@ -70,6 +89,168 @@ unsafe extern "C" fn on_error(context: *mut c_void, _device: *mut ffi::ACameraDe
 
 unsafe extern "C" fn session_state(_context: *mut c_void, _session: *mut ffi::ACameraCaptureSession) {}
 
+// The Camera2 values the pure module declares are the NDK's.
+const _: () = assert!(ffi::acamera_metadata_enum_acamera_control_ae_mode::ACAMERA_CONTROL_AE_MODE_OFF.0 == CAMERA2_AE_MODE_OFF as u32);
+const _: () = assert!(
+    ffi::acamera_metadata_enum_acamera_request_available_capabilities::ACAMERA_REQUEST_AVAILABLE_CAPABILITIES_MANUAL_SENSOR.0
+        == CAMERA2_CAPABILITY_MANUAL_SENSOR as u32
+);
+
+/// What the capture callbacks (on the camera's threads) report to the frame loop.
+#[derive(Default)]
+struct CaptureReports {
+    /// The stream's exposure and frame duration (ns), from the repeating request's latest result.
+    stream: Option<SensorExposure>,
+    frame_duration_ns: Option<i64>,
+    /// The one-shot request in flight (None: nothing asked, or it was given up).
+    short: Option<ShortReport>,
+}
+
+/// The one-shot request's reports.
+#[derive(Clone, Copy)]
+struct ShortReport {
+    id: u64,
+    /// `onCaptureStarted`'s timestamp: its image's.
+    timestamp_ns: Option<i64>,
+    /// Its result's exposure.
+    exposure: Option<SensorExposure>,
+    failed: bool,
+}
+
+type Reports = Mutex<CaptureReports>;
+
+/// A metadata entry, when it is there and not empty.
+///
+/// # Safety
+/// `meta` is a valid `ACameraMetadata`.
+unsafe fn const_entry(meta: *const ffi::ACameraMetadata, tag: ffi::acamera_metadata_tag) -> Option<ffi::ACameraMetadata_const_entry> {
+    // SAFETY: the caller's contract; the entry is written by the NDK before it is read.
+    unsafe {
+        let mut e: ffi::ACameraMetadata_const_entry = std::mem::zeroed();
+        (ffi::ACameraMetadata_getConstEntry(meta, tag.0, &mut e) == ffi::camera_status_t::ACAMERA_OK && e.count > 0).then_some(e)
+    }
+}
+
+/// An entry's values as a slice (empty when absent), valid while the metadata is.
+///
+/// # Safety
+/// `meta` is a valid `ACameraMetadata` outliving the slice; `T` is the tag's declared type.
+unsafe fn entry_slice<'a, T>(meta: *const ffi::ACameraMetadata, tag: ffi::acamera_metadata_tag) -> &'a [T] {
+    // SAFETY: the caller's contract; every member of the data union is a pointer to `count` values.
+    unsafe { const_entry(meta, tag).map_or(&[][..], |e| std::slice::from_raw_parts(e.data.u8_.cast::<T>(), e.count as usize)) }
+}
+
+/// The exposure a capture result reports.
+///
+/// # Safety
+/// `result` is a valid capture result.
+unsafe fn result_exposure(result: *const ffi::ACameraMetadata) -> Option<SensorExposure> {
+    use ffi::acamera_metadata_tag as Tag;
+    // SAFETY: the caller's contract; the tags' types are int64 and int32.
+    unsafe {
+        camera2_result_exposure(
+            entry_slice(result, Tag::ACAMERA_SENSOR_EXPOSURE_TIME),
+            entry_slice(result, Tag::ACAMERA_SENSOR_SENSITIVITY),
+        )
+    }
+}
+
+/// Run `f` on the reports behind a callback's context (a poisoned lock is taken as it is).
+///
+/// # Safety
+/// `context` is the `Box<Reports>` owned by the Camera2, alive while its sessions are.
+unsafe fn with_reports(context: *mut c_void, f: impl FnOnce(&mut CaptureReports)) {
+    // SAFETY: the caller's contract.
+    let reports = unsafe { &*context.cast::<Reports>() };
+    f(&mut reports.lock().unwrap_or_else(|e| e.into_inner()));
+}
+
+unsafe extern "C" fn on_stream_result(
+    context: *mut c_void,
+    _session: *mut ffi::ACameraCaptureSession,
+    _request: *mut ffi::ACaptureRequest,
+    result: *const ffi::ACameraMetadata,
+) {
+    // SAFETY: the NDK's result is valid during the callback; the context as in with_reports.
+    unsafe {
+        let exposure = result_exposure(result);
+        let duration = entry_slice::<i64>(result, ffi::acamera_metadata_tag::ACAMERA_SENSOR_FRAME_DURATION).first().copied();
+        with_reports(context, |r| {
+            if exposure.is_some() {
+                r.stream = exposure;
+            }
+            if duration.is_some_and(|d| d > 0) {
+                r.frame_duration_ns = duration;
+            }
+        });
+    }
+}
+
+unsafe extern "C" fn on_short_started(
+    context: *mut c_void,
+    _session: *mut ffi::ACameraCaptureSession,
+    _request: *const ffi::ACaptureRequest,
+    timestamp: i64,
+) {
+    // SAFETY: as in with_reports.
+    unsafe {
+        with_reports(context, |r| {
+            if let Some(s) = r.short.as_mut() {
+                s.timestamp_ns = Some(timestamp);
+            }
+        })
+    };
+}
+
+unsafe extern "C" fn on_short_result(
+    context: *mut c_void,
+    _session: *mut ffi::ACameraCaptureSession,
+    _request: *mut ffi::ACaptureRequest,
+    result: *const ffi::ACameraMetadata,
+) {
+    // SAFETY: as in on_stream_result.
+    unsafe {
+        let exposure = result_exposure(result);
+        with_reports(context, |r| {
+            if let Some(s) = r.short.as_mut() {
+                s.exposure = exposure;
+            }
+        });
+    }
+}
+
+unsafe extern "C" fn on_short_failed(
+    context: *mut c_void,
+    _session: *mut ffi::ACameraCaptureSession,
+    _request: *mut ffi::ACaptureRequest,
+    _failure: *mut ffi::ACameraCaptureFailure,
+) {
+    // SAFETY: as in with_reports.
+    unsafe {
+        with_reports(context, |r| {
+            if let Some(s) = r.short.as_mut() {
+                s.failed = true;
+            }
+        })
+    };
+}
+
+/// Capture callbacks reporting into `reports`: the stream's results, or the one-shot request's
+/// start, result and failure.
+fn capture_callbacks(reports: &Reports, short: bool) -> Box<ffi::ACameraCaptureSession_captureCallbacks> {
+    let context = (reports as *const Reports).cast_mut().cast();
+    Box::new(ffi::ACameraCaptureSession_captureCallbacks {
+        context,
+        onCaptureStarted: if short { Some(on_short_started) } else { None },
+        onCaptureProgressed: None,
+        onCaptureCompleted: Some(if short { on_short_result } else { on_stream_result }),
+        onCaptureFailed: if short { Some(on_short_failed) } else { None },
+        onCaptureSequenceCompleted: None,
+        onCaptureSequenceAborted: None,
+        onCaptureBufferLost: None,
+    })
+}
+
 /// The open device, its capture session and request (closed on pause, made again on resume).
 /// Dropping it releases whatever exists, session before device (the NDK's order), so a start
 /// that fails half-way leaks nothing.
@@ -79,6 +260,8 @@ struct Streaming {
     output: Option<NonNull<ffi::ACaptureSessionOutput>>,
     target: Option<NonNull<ffi::ACameraOutputTarget>>,
     request: Option<NonNull<ffi::ACaptureRequest>>,
+    /// The one-shot short exposure request (same target, `CONTROL_AE_MODE` OFF).
+    short_request: Option<NonNull<ffi::ACaptureRequest>>,
     session: Option<NonNull<ffi::ACameraCaptureSession>>,
 }
 
@@ -90,7 +273,7 @@ impl Drop for Streaming {
                 ffi::ACameraCaptureSession_stopRepeating(s.as_ptr());
                 ffi::ACameraCaptureSession_close(s.as_ptr());
             }
-            if let Some(r) = self.request {
+            for r in [self.request, self.short_request].into_iter().flatten() {
                 ffi::ACaptureRequest_free(r.as_ptr());
             }
             if let Some(t) = self.target {
@@ -122,6 +305,16 @@ pub struct Camera2 {
     /// Auto-exposure and auto white balance locked ([`FrameSource::lock_exposure`]); applied
     /// again when the camera restarts after a pause.
     locked: bool,
+    /// The manual exposure's ranges; None: the camera cannot take a short exposure frame.
+    manual: Option<ExposureLimits>,
+    /// The capture callbacks' reports, and the callbacks of the repeating and one-shot requests.
+    reports: Box<Reports>,
+    stream_callbacks: Box<ffi::ACameraCaptureSession_captureCallbacks>,
+    short_callbacks: Box<ffi::ACameraCaptureSession_captureCallbacks>,
+    /// The short exposure frame's request state, and its frame kept until its result says its
+    /// exposure.
+    shot: OneShot,
+    held: Option<(u64, Frame)>,
 }
 
 impl Camera2 {
@@ -182,6 +375,8 @@ impl Camera2 {
                 onReady: Some(session_state),
                 onActive: Some(session_state),
             });
+            let reports: Box<Reports> = Box::default();
+            let (stream_callbacks, short_callbacks) = (capture_callbacks(&reports, false), capture_callbacks(&reports, true));
             let mut camera = Camera2 {
                 manager,
                 id,
@@ -194,6 +389,12 @@ impl Camera2 {
                 info,
                 t0_ns: None,
                 locked: false,
+                manual: optics.manual,
+                reports,
+                stream_callbacks,
+                short_callbacks,
+                shot: OneShot::new(),
+                held: None,
             };
             camera.start()?;
             Ok(camera)
@@ -220,7 +421,8 @@ impl Camera2 {
                 ffi::ACameraManager_openCamera(self.manager.as_ptr(), self.id.as_ptr(), &mut *self.device_callbacks, &mut device),
             )?;
             let device = NonNull::new(device).context("ACameraManager_openCamera returned null")?;
-            let mut s = Streaming { device, container: None, output: None, target: None, request: None, session: None };
+            let mut s =
+                Streaming { device, container: None, output: None, target: None, request: None, short_request: None, session: None };
             let mut container = null_mut();
             camera_ok("ACaptureSessionOutputContainer_create", ffi::ACaptureSessionOutputContainer_create(&mut container))?;
             let container = *s.container.insert(NonNull::new(container).context("null output container")?);
@@ -243,6 +445,24 @@ impl Camera2 {
             let request = *s.request.insert(NonNull::new(request).context("null capture request")?);
             camera_ok("ACaptureRequest_addTarget", ffi::ACaptureRequest_addTarget(request.as_ptr(), target.as_ptr()))?;
             set_controls_lock(request, self.locked)?;
+            if self.manual.is_some() {
+                let mut short = null_mut();
+                camera_ok(
+                    "ACameraDevice_createCaptureRequest (short exposure)",
+                    ffi::ACameraDevice_createCaptureRequest(
+                        device.as_ptr(),
+                        ffi::ACameraDevice_request_template::TEMPLATE_PREVIEW,
+                        &mut short,
+                    ),
+                )?;
+                let short = *s.short_request.insert(NonNull::new(short).context("null short exposure request")?);
+                camera_ok("ACaptureRequest_addTarget (short exposure)", ffi::ACaptureRequest_addTarget(short.as_ptr(), target.as_ptr()))?;
+                let off = [CAMERA2_AE_MODE_OFF];
+                camera_ok(
+                    "ACaptureRequest_setEntry_u8(CONTROL_AE_MODE)",
+                    ffi::ACaptureRequest_setEntry_u8(short.as_ptr(), ffi::acamera_metadata_tag::ACAMERA_CONTROL_AE_MODE.0, 1, off.as_ptr()),
+                )?;
+            }
             let mut session = null_mut();
             camera_ok(
                 "ACameraDevice_createCaptureSession",
@@ -252,7 +472,13 @@ impl Camera2 {
             let mut requests = [request.as_ptr()];
             camera_ok(
                 "ACameraCaptureSession_setRepeatingRequest",
-                ffi::ACameraCaptureSession_setRepeatingRequest(session.as_ptr(), null_mut(), 1, requests.as_mut_ptr(), null_mut()),
+                ffi::ACameraCaptureSession_setRepeatingRequest(
+                    session.as_ptr(),
+                    &mut *self.stream_callbacks,
+                    1,
+                    requests.as_mut_ptr(),
+                    null_mut(),
+                ),
             )?;
             self.streaming = Some(s);
         }
@@ -271,15 +497,103 @@ impl Camera2 {
             let mut requests = [request.as_ptr()];
             camera_ok(
                 "ACameraCaptureSession_setRepeatingRequest",
-                ffi::ACameraCaptureSession_setRepeatingRequest(session.as_ptr(), null_mut(), 1, requests.as_mut_ptr(), null_mut()),
+                ffi::ACameraCaptureSession_setRepeatingRequest(
+                    session.as_ptr(),
+                    &mut *self.stream_callbacks,
+                    1,
+                    requests.as_mut_ptr(),
+                    null_mut(),
+                ),
             )
         }
     }
 
     /// Stop the repeating request and close the session and the device (the camera is then
-    /// free for other apps and draws no power).
+    /// free for other apps and draws no power). A short exposure frame in flight is lost.
     fn stop(&mut self) {
         self.streaming = None;
+        self.shot.cancel();
+        self.held = None;
+        self.reports().short = None;
+    }
+
+    fn reports(&self) -> std::sync::MutexGuard<'_, CaptureReports> {
+        self.reports.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Submit the one-shot short exposure request at `relative_exposure` × the stream's last
+    /// reported exposure; false when the camera has no manual exposure, is paused, has reported
+    /// no exposure yet, or a request is not finished.
+    fn request_short(&mut self, relative_exposure: f32) -> Result<bool> {
+        let Some(limits) = self.manual else { return Ok(false) };
+        let Some((Some(session), Some(request))) = self.streaming.as_ref().map(|s| (s.session, s.short_request)) else { return Ok(false) };
+        let (stream, frame_duration_ns) = {
+            let r = self.reports();
+            (r.stream, r.frame_duration_ns)
+        };
+        let Some(stream) = stream else { return Ok(false) };
+        let plan = plan_exposure(stream, f64::from(relative_exposure), &limits)?;
+        let Some(id) = self.shot.request(plan) else { return Ok(false) };
+        self.reports().short = Some(ShortReport { id, timestamp_ns: None, exposure: None, failed: false });
+        let time_ns = [(plan.exposure.time_s * 1e9).round() as i64];
+        let iso = [plan.exposure.iso.round() as i32];
+        // SAFETY: the request and session are alive while `streaming` holds them; the entries
+        // are the tags' declared types and counts; the NDK copies the request at submission.
+        let submitted = unsafe {
+            use ffi::acamera_metadata_tag as Tag;
+            let r = request.as_ptr();
+            camera_ok(
+                "ACaptureRequest_setEntry_i64(SENSOR_EXPOSURE_TIME)",
+                ffi::ACaptureRequest_setEntry_i64(r, Tag::ACAMERA_SENSOR_EXPOSURE_TIME.0, 1, time_ns.as_ptr()),
+            )
+            .and_then(|()| {
+                camera_ok(
+                    "ACaptureRequest_setEntry_i32(SENSOR_SENSITIVITY)",
+                    ffi::ACaptureRequest_setEntry_i32(r, Tag::ACAMERA_SENSOR_SENSITIVITY.0, 1, iso.as_ptr()),
+                )
+            })
+            .and_then(|()| match frame_duration_ns {
+                // The stream's frame duration, so the short frame keeps its pace.
+                Some(d) => camera_ok(
+                    "ACaptureRequest_setEntry_i64(SENSOR_FRAME_DURATION)",
+                    ffi::ACaptureRequest_setEntry_i64(r, Tag::ACAMERA_SENSOR_FRAME_DURATION.0, 1, [d].as_ptr()),
+                ),
+                None => Ok(()),
+            })
+            .and_then(|()| {
+                let mut requests = [r];
+                camera_ok(
+                    "ACameraCaptureSession_capture",
+                    ffi::ACameraCaptureSession_capture(session.as_ptr(), &mut *self.short_callbacks, 1, requests.as_mut_ptr(), null_mut()),
+                )
+            })
+        };
+        if let Err(e) = submitted {
+            self.shot.failed(id);
+            self.reports().short = None;
+            return Err(e.context("the short exposure frame for the sun"));
+        }
+        Ok(true)
+    }
+
+    /// The frame loop's side of the one-shot request after the reader was drained: a failure
+    /// reported, the held short frame's exposure come in.
+    fn settle_short(&mut self) {
+        let report = self.reports().short;
+        let Some(report) = report else { return };
+        if report.failed {
+            self.shot.failed(report.id);
+        }
+        if let Some(exposure) = report.exposure
+            && self.held.as_ref().is_some_and(|(id, _)| *id == report.id)
+            && let Some((id, frame)) = self.held.take()
+        {
+            self.shot.arrived(id, frame, Some(exposure));
+        }
+        if self.shot.in_flight().is_none() {
+            self.held = None;
+            self.reports().short = None;
+        }
     }
 
     /// Call `f` with the newest image (seconds since the first image, planes) and release it;
@@ -293,18 +607,65 @@ impl Camera2 {
         if self.streaming.is_none() {
             bail!("the camera is paused");
         }
-        // SAFETY: the reader lives as long as self; the image is deleted on every path below,
-        // and the plane slices do not outlive it (they are only lent to `f`).
+        // SAFETY: the reader lives as long as self; every image acquired is deleted on every path
+        // below, and the plane slices do not outlive it (they are only lent to `f`).
         unsafe {
-            let mut image = null_mut();
-            let status = ffi::AImageReader_acquireLatestImage(self.reader.as_ptr(), &mut image);
-            if status == ffi::media_status_t::AMEDIA_IMGREADER_NO_BUFFER_AVAILABLE {
-                return Ok(None);
+            // Every image that came, in order: the short exposure frame is kept aside, the
+            // newest of the others is lent.
+            let mut newest: Option<NonNull<ffi::AImage>> = None;
+            let drained = loop {
+                let mut image = null_mut();
+                let status = ffi::AImageReader_acquireNextImage(self.reader.as_ptr(), &mut image);
+                if status == ffi::media_status_t::AMEDIA_IMGREADER_NO_BUFFER_AVAILABLE {
+                    break Ok(());
+                }
+                if let Err(e) = media_ok("AImageReader_acquireNextImage", status) {
+                    break Err(e);
+                }
+                let Some(image) = NonNull::new(image) else { break Err(anyhow::anyhow!("AImageReader_acquireNextImage returned null")) };
+                let mut ts = 0;
+                let ts = (ffi::AImage_getTimestamp(image.as_ptr(), &mut ts) == ffi::media_status_t::AMEDIA_OK).then_some(ts);
+                // The one-shot request's image: its `onCaptureStarted` timestamp (reported at the
+                // start of its exposure, before its image can be read out).
+                let short = self.reports().short.and_then(|s| s.timestamp_ns.map(|t| (s.id, t)));
+                match short {
+                    Some((id, short_ts)) if ts == Some(short_ts) => {
+                        let turns = self.info.quarter_turns;
+                        let frame =
+                            read_image(image, &mut self.t0_ns, |t, yuv| Ok(Frame { image: turn_image(&to_rgba_cpu(yuv)?, turns), t }));
+                        ffi::AImage_delete(image.as_ptr());
+                        match frame {
+                            Ok(frame) => self.held = Some((id, frame)),
+                            Err(_) => {
+                                self.shot.failed(id);
+                            }
+                        }
+                    }
+                    _ => {
+                        if let Some(old) = newest.replace(image) {
+                            ffi::AImage_delete(old.as_ptr());
+                        }
+                    }
+                }
+            };
+            self.settle_short();
+            if let Err(e) = drained {
+                if let Some(image) = newest {
+                    ffi::AImage_delete(image.as_ptr());
+                }
+                return Err(e);
             }
-            media_ok("AImageReader_acquireLatestImage", status)?;
-            let image = NonNull::new(image).context("AImageReader_acquireLatestImage returned null")?;
-            let result = read_image(image, &mut self.t0_ns, f);
+            let Some(image) = newest else { return Ok(None) };
+            let mut frame_t = None;
+            let result = read_image(image, &mut self.t0_ns, |t, frame| {
+                frame_t = Some(t);
+                f(t, frame)
+            });
             ffi::AImage_delete(image.as_ptr());
+            if let Some(t) = frame_t {
+                self.shot.stream_frame(t, true);
+                self.settle_short();
+            }
             result.map(Some)
         }
     }
@@ -378,6 +739,8 @@ struct Optics {
     focal: Option<(f64, f64, (f64, f64))>,
     /// `SENSOR_ORIENTATION`, degrees clockwise.
     sensor_orientation_deg: i32,
+    /// The manual exposure's ranges, when the camera takes a manual exposure.
+    manual: Option<ExposureLimits>,
 }
 
 /// The first back-facing camera's id and optics.
@@ -400,10 +763,7 @@ unsafe fn back_camera(manager: NonNull<ffi::ACameraManager>) -> Result<(CString,
             {
                 continue;
             }
-            let entry = |tag: ffi::acamera_metadata_tag| {
-                let mut e: ffi::ACameraMetadata_const_entry = std::mem::zeroed();
-                (ffi::ACameraMetadata_getConstEntry(meta, tag.0, &mut e) == ffi::camera_status_t::ACAMERA_OK && e.count > 0).then_some(e)
-            };
+            let entry = |tag: ffi::acamera_metadata_tag| const_entry(meta, tag);
             let back = entry(ffi::acamera_metadata_tag::ACAMERA_LENS_FACING)
                 .is_some_and(|e| u32::from(*e.data.u8_) == ffi::acamera_metadata_enum_acamera_lens_facing::ACAMERA_LENS_FACING_BACK.0);
             if !back {
@@ -437,8 +797,17 @@ unsafe fn back_camera(manager: NonNull<ffi::ACameraManager>) -> Result<(CString,
             });
             // Back cameras are mostly mounted at 90°; 0 when the camera does not say.
             let sensor_orientation_deg = entry(ffi::acamera_metadata_tag::ACAMERA_SENSOR_ORIENTATION).map_or(0, |e| *e.data.i32_);
+            let manual = {
+                use ffi::acamera_metadata_tag as Tag;
+                camera2_manual_limits(
+                    entry_slice(meta, Tag::ACAMERA_CONTROL_AE_AVAILABLE_MODES),
+                    entry_slice(meta, Tag::ACAMERA_REQUEST_AVAILABLE_CAPABILITIES),
+                    entry_slice(meta, Tag::ACAMERA_SENSOR_INFO_EXPOSURE_TIME_RANGE),
+                    entry_slice(meta, Tag::ACAMERA_SENSOR_INFO_SENSITIVITY_RANGE),
+                )
+            };
             ffi::ACameraMetadata_free(meta);
-            return Ok((id, Optics { focal, sensor_orientation_deg }));
+            return Ok((id, Optics { focal, sensor_orientation_deg, manual }));
         }
         bail!("this device has no back-facing camera")
     }
@@ -489,6 +858,15 @@ impl FrameSource for Camera2 {
     fn lock_exposure(&mut self, lock: bool) -> Result<bool> {
         self.set_locked(lock)?;
         Ok(lock)
+    }
+
+    /// One `ACameraCaptureSession_capture` with `CONTROL_AE_MODE` OFF (module docs).
+    fn request_exposure_frame(&mut self, relative_exposure: f32) -> Result<bool> {
+        self.request_short(relative_exposure)
+    }
+
+    fn take_exposure_frame(&mut self) -> Result<Option<ShortFrame>> {
+        Ok(self.shot.take())
     }
 }
 

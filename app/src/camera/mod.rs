@@ -7,6 +7,8 @@
 //! - `android`: the back camera through the NDK Camera2 API (Android only).
 //! - `ios`: the back camera through AVFoundation (iOS only).
 //! - [`platform`]: the phone cameras' chroma layout and field of view (pure, host-tested).
+//! - [`short_exposure`]: one short exposure frame between the stream's frames (the live sun
+//!   frame): the exposure arithmetic and the request's states (pure, host-tested).
 //!
 //! Phone backends implement the same trait.
 
@@ -18,6 +20,7 @@ pub mod file;
 #[cfg(target_os = "ios")]
 pub mod ios;
 pub mod platform;
+pub mod short_exposure;
 pub mod sim;
 pub mod white_balance;
 pub mod yuv;
@@ -86,14 +89,24 @@ pub trait FrameSource {
         Ok(false)
     }
 
-    /// One frame taken now, between the stream's frames, at `relative_exposure` times the
-    /// current exposure (same white balance): the short exposure in which only the sun's disc
-    /// clips ([`crate::pose::sun_heading::SUN_FRAME_EXPOSURE`], for true north from the sun,
-    /// [`crate::live::sun_north`]). `Ok(None)` from a source that cannot take one: files, and
-    /// for now the phone cameras (a single manual-exposure request, Camera2's
-    /// `SENSOR_EXPOSURE_TIME` / AVFoundation's custom exposure, is not wired yet).
-    fn exposure_frame(&mut self, relative_exposure: f32) -> Result<Option<Frame>> {
+    /// Ask for one frame between the stream's frames at `relative_exposure` times the current
+    /// exposure (same white balance): the short exposure in which only the sun's disc clips
+    /// ([`crate::pose::sun_heading::SUN_FRAME_EXPOSURE`], for true north from the sun,
+    /// [`crate::live::sun_north`]). Never waits: the frame comes with a later stream frame and
+    /// is taken with [`FrameSource::take_exposure_frame`]; the stream's frames go on meanwhile
+    /// and the short frame is never lent as one of them. False when the source cannot take one
+    /// (files; a phone camera without manual exposure) or a request is not finished yet. The
+    /// request's states and the exposure arithmetic are [`short_exposure`]'s.
+    fn request_exposure_frame(&mut self, relative_exposure: f32) -> Result<bool> {
         let _ = relative_exposure;
+        Ok(false)
+    }
+
+    /// How the last [`FrameSource::request_exposure_frame`] ended, once it has (polled after each
+    /// stream frame): the frame with the relative exposure it really had (the sensor's limits may
+    /// not reach the one asked for), or lost (timed out, failed, the camera paused). None while
+    /// it is in flight or when nothing was asked.
+    fn take_exposure_frame(&mut self) -> Result<Option<short_exposure::ShortFrame>> {
         Ok(None)
     }
 }

@@ -12,6 +12,7 @@
 
 use super::controls::{AutoCamera, CameraSettings, Metering};
 use super::exposure::{ExposureMode, ToneLut, log_average_luminance};
+use super::short_exposure::{ExposureLimits, OneShot, SensorExposure, ShortFrame, plan_exposure};
 use super::white_balance::{NEUTRAL, WhiteBalanceMode};
 use super::{Frame, FrameSource};
 use crate::scene::{CubeMap, Rgba8Image};
@@ -234,11 +235,16 @@ impl VirtualPhone {
 
 /// A [`FrameSource`] that renders the virtual phone along a list of timed poses (one frame
 /// per pose), adapting exposure from frame to frame.
+///
+/// A short exposure frame ([`FrameSource::request_exposure_frame`]) goes through the phones'
+/// request states ([`super::short_exposure::OneShot`]): it is rendered at the next pose and time,
+/// as a phone's one-shot request lands on a later frame of its stream, at the last frame's
+/// exposure × the factor (the exposure multiplier taken as the time, no sensor limits) and white
+/// balance; that pose's stream frame is rendered too (the virtual phone hides none).
 pub struct SimSequence {
     phone: VirtualPhone,
     poses: std::vec::IntoIter<(f64, Quat)>,
-    /// The last frame's time and pose (a short exposure frame is taken there).
-    last: Option<(f64, Quat)>,
+    shot: OneShot,
 }
 
 impl SimSequence {
@@ -253,7 +259,7 @@ impl SimSequence {
             }
             pose_matrix(*q).map_err(|e| e.context(format!("pose {i} at {t} s")))?;
         }
-        Ok(SimSequence { phone, poses: poses.into_iter(), last: None })
+        Ok(SimSequence { phone, poses: poses.into_iter(), shot: OneShot::new() })
     }
 
     pub fn phone(&self) -> &VirtualPhone {
@@ -266,17 +272,32 @@ impl FrameSource for SimSequence {
         match self.poses.next() {
             None => Ok(None),
             Some((t, pose)) => {
-                self.last = Some((t, pose));
-                self.phone.render(pose, t).map(Some)
+                if let (Some((id, plan)), Some(s)) = (self.shot.in_flight(), self.phone.settings()) {
+                    let settings = CameraSettings { exposure: plan.exposure.product() as f32, ..s };
+                    self.shot.arrived(id, Frame { image: self.phone.render_with(pose, settings)?, t }, None);
+                }
+                let frame = self.phone.render(pose, t)?;
+                self.shot.stream_frame(t, true);
+                Ok(Some(frame))
             }
         }
     }
 
-    /// At the last frame's pose and time, with its white balance.
-    fn exposure_frame(&mut self, relative_exposure: f32) -> Result<Option<Frame>> {
-        let (Some((t, pose)), Some(s)) = (self.last, self.phone.settings()) else { return Ok(None) };
-        let settings = CameraSettings { exposure: s.exposure * relative_exposure, ..s };
-        Ok(Some(Frame { image: self.phone.render_with(pose, settings)?, t }))
+    /// Asked after a frame (the exposure to shorten is that frame's).
+    fn request_exposure_frame(&mut self, relative_exposure: f32) -> Result<bool> {
+        let Some(s) = self.phone.settings() else { return Ok(false) };
+        let current = SensorExposure { time_s: f64::from(s.exposure), iso: 1.0 };
+        let plan = plan_exposure(current, f64::from(relative_exposure), &ExposureLimits::UNLIMITED)?;
+        Ok(self.shot.request(plan).is_some())
+    }
+
+    fn take_exposure_frame(&mut self) -> Result<Option<ShortFrame>> {
+        Ok(self.shot.take())
+    }
+
+    fn pause(&mut self) -> Result<()> {
+        self.shot.cancel();
+        Ok(())
     }
 
     fn lock_exposure(&mut self, lock: bool) -> Result<bool> {
@@ -429,6 +450,33 @@ mod tests {
         let expect = [0.4 * s.white_balance[0], 0.25, 0.15 * s.white_balance[2]].map(|c| tone_to_srgb8(c * s.exposure));
         assert!(close(ground_locked, expect), "{ground_locked:?} vs {expect:?}");
         assert!(ground_locked[0] > ground_locked[2] + 40, "the ground stays brown: {ground_locked:?}");
+    }
+
+    #[test]
+    fn a_short_exposure_frame_comes_with_the_next_frame_at_its_pose() {
+        let poses = vec![(0.0, level(0.0)), (0.1, level(FRAC_PI_2)), (0.2, level(PI)), (0.3, level(PI))];
+        let mut seq = SimSequence::new(phone(16, 12, 60.0), poses).unwrap();
+        assert!(!seq.request_exposure_frame(0.25).unwrap(), "no exposure to shorten before a frame");
+        seq.next_frame().unwrap().unwrap();
+        assert!(seq.request_exposure_frame(0.25).unwrap());
+        assert!(!seq.request_exposure_frame(0.25).unwrap(), "one at a time");
+        assert!(seq.take_exposure_frame().unwrap().is_none(), "in flight");
+        // The next frame (East): the stream's frame at the full exposure, and the short frame
+        // at the same pose and time at a quarter of it.
+        let stream = seq.next_frame().unwrap().unwrap();
+        assert!(close(pixel(&stream.image, 8, 6), expect(0)));
+        let Some(ShortFrame::Arrived(short)) = seq.take_exposure_frame().unwrap() else { panic!("no short frame") };
+        assert_eq!(short.frame.t, 0.1);
+        assert_eq!(short.relative_exposure, 0.25);
+        assert!(close(pixel(&short.frame.image, 8, 6), COLOURS[0].map(|c| tone_to_srgb8(c * 0.25))));
+        assert!(seq.take_exposure_frame().unwrap().is_none(), "taken once");
+        // Paused while one is in flight: lost, and the next frame brings none.
+        assert!(seq.request_exposure_frame(0.25).unwrap());
+        seq.pause().unwrap();
+        assert!(matches!(seq.take_exposure_frame().unwrap(), Some(ShortFrame::Lost)));
+        seq.next_frame().unwrap().unwrap();
+        assert!(seq.take_exposure_frame().unwrap().is_none());
+        assert!(seq.request_exposure_frame(0.25).unwrap(), "asked again");
     }
 
     #[test]

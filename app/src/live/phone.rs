@@ -3,6 +3,7 @@
 //! iOS's authorisation values as the app's answers ([`ios_authorization_answer`]). The answers
 //! the app reads while it runs come from the shells' [`super::app::PermissionSource`].
 
+use crate::camera::short_exposure::ShortFrame;
 use crate::camera::{Frame, FrameImage, FrameSink, FrameSource};
 use crate::scene::Rgba8Image;
 use crate::sensors::permissions::Answer;
@@ -107,8 +108,12 @@ impl FrameSource for OpeningCamera {
         self.camera.as_mut().map_or(Ok(()), |c| c.pause())
     }
 
-    fn exposure_frame(&mut self, relative_exposure: f32) -> Result<Option<Frame>> {
-        self.camera.as_mut().map_or(Ok(None), |c| c.exposure_frame(relative_exposure))
+    fn request_exposure_frame(&mut self, relative_exposure: f32) -> Result<bool> {
+        self.camera.as_mut().map_or(Ok(false), |c| c.request_exposure_frame(relative_exposure))
+    }
+
+    fn take_exposure_frame(&mut self) -> Result<Option<ShortFrame>> {
+        self.camera.as_mut().map_or(Ok(None), |c| c.take_exposure_frame())
     }
 
     fn resume(&mut self) -> Result<()> {

@@ -29,9 +29,10 @@
 //! of [`super::short_exposure::plan_exposure`] within the characteristics'
 //! `SENSOR_INFO_EXPOSURE_TIME_RANGE` / `SENSOR_INFO_SENSITIVITY_RANGE` (cameras without
 //! `MANUAL_SENSOR` take none). Its `onCaptureStarted` timestamp is its image's timestamp: the
-//! frame loop reads every image in order (`AImageReader_acquireNextImage`), keeps the one with
+//! frame loop reads every image in order (`AImageReader_acquireNextImage`), takes the one with
 //! that timestamp aside (converted to RGBA on the CPU, turned upright, never lent as a preview
-//! frame) until its result says the exposure it really had, and lends the newest of the others.
+//! frame; used once its result says the exposure it really had) and lends the newest of the
+//! others.
 //! The request's states, timeouts and pause are [`super::short_exposure::OneShot`]'s. None of
 //! this has run on a phone yet (docs/mobile.md, the manual test).
 
@@ -311,10 +312,8 @@ pub struct Camera2 {
     reports: Box<Reports>,
     stream_callbacks: Box<ffi::ACameraCaptureSession_captureCallbacks>,
     short_callbacks: Box<ffi::ACameraCaptureSession_captureCallbacks>,
-    /// The short exposure frame's request state, and its frame kept until its result says its
-    /// exposure.
+    /// The short exposure frame's request state.
     shot: OneShot,
-    held: Option<(u64, Frame)>,
 }
 
 impl Camera2 {
@@ -394,7 +393,6 @@ impl Camera2 {
                 stream_callbacks,
                 short_callbacks,
                 shot: OneShot::new(),
-                held: None,
             };
             camera.start()?;
             Ok(camera)
@@ -513,7 +511,6 @@ impl Camera2 {
     fn stop(&mut self) {
         self.streaming = None;
         self.shot.cancel();
-        self.held = None;
         self.reports().short = None;
     }
 
@@ -576,22 +573,19 @@ impl Camera2 {
         Ok(true)
     }
 
-    /// The frame loop's side of the one-shot request after the reader was drained: a failure
-    /// reported, the held short frame's exposure come in.
+    /// The frame loop's side of the one-shot request after the reader was drained: the failure
+    /// or the exposure its result reported (the frame is taken once both it and its exposure are
+    /// in, [`OneShot::frame_arrived`]).
     fn settle_short(&mut self) {
         let report = self.reports().short;
         let Some(report) = report else { return };
         if report.failed {
             self.shot.failed(report.id);
         }
-        if let Some(exposure) = report.exposure
-            && self.held.as_ref().is_some_and(|(id, _)| *id == report.id)
-            && let Some((id, frame)) = self.held.take()
-        {
-            self.shot.arrived(id, frame, Some(exposure));
+        if let Some(exposure) = report.exposure {
+            self.shot.exposure_reported(report.id, exposure);
         }
         if self.shot.in_flight().is_none() {
-            self.held = None;
             self.reports().short = None;
         }
     }
@@ -635,7 +629,9 @@ impl Camera2 {
                             read_image(image, &mut self.t0_ns, |t, yuv| Ok(Frame { image: turn_image(&to_rgba_cpu(yuv)?, turns), t }));
                         ffi::AImage_delete(image.as_ptr());
                         match frame {
-                            Ok(frame) => self.held = Some((id, frame)),
+                            Ok(frame) => {
+                                self.shot.frame_arrived(id, frame);
+                            }
                             Err(_) => {
                                 self.shot.failed(id);
                             }

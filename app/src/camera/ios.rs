@@ -358,7 +358,7 @@ impl IosCamera {
                 // SAFETY: the buffer is retained by `buffer` for the whole call.
                 let frame = unsafe { lend_planes(&buffer, |yuv| Ok(Frame { image: to_rgba_cpu(yuv)?, t })) };
                 let action = match frame {
-                    Ok(frame) => self.shot.arrived(id, frame, Some(exposure)),
+                    Ok(frame) => self.shot.arrived(id, frame, exposure),
                     Err(_) => self.shot.failed(id),
                 };
                 self.act(action)?;

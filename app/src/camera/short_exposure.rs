@@ -192,11 +192,15 @@ pub struct OneShot {
     phase: Phase,
     outcome: Option<ShortFrame>,
     next_id: u64,
+    /// The request in flight's frame and its reported exposure, whichever came first (Camera2
+    /// reports the exposure in a capture result that may come before or after the image).
+    frame: Option<Frame>,
+    exposure: Option<SensorExposure>,
 }
 
 impl Default for OneShot {
     fn default() -> Self {
-        OneShot { phase: Phase::Idle, outcome: None, next_id: 1 }
+        OneShot { phase: Phase::Idle, outcome: None, next_id: 1, frame: None, exposure: None }
     }
 }
 
@@ -214,6 +218,7 @@ impl OneShot {
         let id = self.next_id;
         self.next_id += 1;
         self.phase = Phase::InFlight { id, plan, since: None };
+        (self.frame, self.exposure) = (None, None);
         Some(id)
     }
 
@@ -225,17 +230,46 @@ impl OneShot {
         }
     }
 
-    /// The short frame of request `id` arrived, exposed at `exposure` (as the platform reports
-    /// it; None: as planned). [`Action::Restore`] when it is taken; a frame of a request that
-    /// timed out, was cancelled or is not the one in flight is dropped ([`Action::None`]).
-    pub fn arrived(&mut self, id: u64, frame: Frame, exposure: Option<SensorExposure>) -> Action {
-        let Phase::InFlight { id: current, plan, .. } = self.phase else { return Action::None };
-        if current != id {
+    /// The short frame of request `id` arrived, exposed at `exposure` as the platform reports
+    /// it: [`OneShot::frame_arrived`] and [`OneShot::exposure_reported`] at once.
+    pub fn arrived(&mut self, id: u64, frame: Frame, exposure: SensorExposure) -> Action {
+        self.frame_arrived(id, frame);
+        self.exposure_reported(id, exposure)
+    }
+
+    /// The short frame of request `id` arrived; it is taken once its exposure is reported too
+    /// ([`Action::Restore`] then). A frame of a request that timed out, was cancelled or is not
+    /// the one in flight is dropped ([`Action::None`]).
+    pub fn frame_arrived(&mut self, id: u64, frame: Frame) -> Action {
+        if !self.is_in_flight(id) {
             return Action::None;
         }
-        let exposure = exposure.filter(SensorExposure::is_valid).unwrap_or(plan.exposure);
+        self.frame = Some(frame);
+        self.complete()
+    }
+
+    /// The platform reports the exposure request `id`'s frame really had (a positive time and
+    /// sensitivity; anything else is ignored, and the request times out without it).
+    pub fn exposure_reported(&mut self, id: u64, exposure: SensorExposure) -> Action {
+        if !self.is_in_flight(id) || !exposure.is_valid() {
+            return Action::None;
+        }
+        self.exposure = Some(exposure);
+        self.complete()
+    }
+
+    fn is_in_flight(&self, id: u64) -> bool {
+        matches!(self.phase, Phase::InFlight { id: current, .. } if current == id)
+    }
+
+    /// The frame and its exposure both there: the outcome, the stream's exposure to restore.
+    fn complete(&mut self) -> Action {
+        let Phase::InFlight { plan, .. } = self.phase else { return Action::None };
+        let Some(exposure) = self.exposure else { return Action::None };
+        let Some(frame) = self.frame.take() else { return Action::None };
         let relative_exposure = exposure.product() / plan.stream.product();
         self.outcome = Some(ShortFrame::Arrived(ExposureFrame { frame, relative_exposure }));
+        self.exposure = None;
         self.phase = Phase::Resuming { since: None };
         Action::Restore
     }
@@ -250,6 +284,7 @@ impl OneShot {
     }
 
     fn lose(&mut self) -> Action {
+        (self.frame, self.exposure) = (None, None);
         self.outcome = Some(ShortFrame::Lost);
         self.phase = Phase::Resuming { since: None };
         Action::Restore
@@ -284,6 +319,7 @@ impl OneShot {
     pub fn cancel(&mut self) -> Action {
         let was = self.phase;
         self.phase = Phase::Idle;
+        (self.frame, self.exposure) = (None, None);
         match was {
             Phase::Idle => Action::None,
             Phase::InFlight { .. } => {
@@ -433,7 +469,7 @@ mod tests {
         // The short frame arrives, exposed 3 % longer than planned (a whole line): the real
         // factor is 1.03/16.
         let real = SensorExposure { time_s: 125e-6 * 1.03, iso: 100.0 };
-        assert_eq!(s.arrived(id, frame(10.1), Some(real)), Action::Restore);
+        assert_eq!(s.arrived(id, frame(10.1), real), Action::Restore);
         // A frame still dark keeps it resuming; the first at the stream's exposure ends it.
         assert_eq!(s.stream_frame(10.13, false), Action::None);
         assert_eq!(s.request(plan()), None, "not before the stream is back and the frame taken");
@@ -450,12 +486,23 @@ mod tests {
         // The next request gets a new id; a late frame of the old one is dropped.
         let next = s.request(plan()).unwrap();
         assert_ne!(next, id);
-        assert_eq!(s.arrived(id, frame(11.0), None), Action::None);
+        assert_eq!(s.arrived(id, frame(11.0), real), Action::None);
         assert_eq!(s.in_flight().map(|(i, _)| i), Some(next));
-        // Without a reported exposure, the plan's factor.
-        assert_eq!(s.arrived(next, frame(11.1), None), Action::Restore);
+        // The frame first, its exposure later (Camera2's capture result): taken when both are in.
+        assert_eq!(s.frame_arrived(next, frame(11.1)), Action::None);
+        assert!(s.take().is_none());
+        assert_eq!(s.exposure_reported(next, SensorExposure { time_s: 0.0, iso: 100.0 }), Action::None, "not an exposure");
+        assert_eq!(s.exposure_reported(next, plan().exposure), Action::Restore);
         let Some(ShortFrame::Arrived(f)) = s.take() else { panic!("no frame") };
+        assert_eq!(f.frame.t, 11.1);
         assert!((f.relative_exposure - 1.0 / 16.0).abs() < 1e-12);
+        // The exposure first, then the frame.
+        assert_eq!(s.stream_frame(11.2, true), Action::Resumed);
+        let id = s.request(plan()).unwrap();
+        assert_eq!(s.exposure_reported(id, real), Action::None);
+        assert_eq!(s.frame_arrived(id, frame(12.0)), Action::Restore);
+        let Some(ShortFrame::Arrived(f)) = s.take() else { panic!("no frame") };
+        assert!((f.relative_exposure - 1.03 / 16.0).abs() < 1e-12);
     }
 
     #[test]
@@ -468,9 +515,17 @@ mod tests {
         assert_eq!(s.stream_frame(3.0 + SHORT_FRAME_TIMEOUT_S + 0.04, true), Action::Restore);
         assert!(matches!(s.take(), Some(ShortFrame::Lost)));
         // Its frame arriving now is dropped; the next stream frame ends the request.
-        assert_eq!(s.arrived(id, frame(3.6), None), Action::None);
+        assert_eq!(s.arrived(id, frame(3.6), plan().exposure), Action::None);
         assert_eq!(s.stream_frame(3.6, true), Action::Resumed);
         assert!(s.is_idle());
+        // A frame whose exposure is never reported is lost at the timeout too.
+        let id = s.request(plan()).unwrap();
+        assert_eq!(s.frame_arrived(id, frame(4.0)), Action::None);
+        assert_eq!(s.stream_frame(4.0, true), Action::None);
+        assert_eq!(s.stream_frame(4.0 + SHORT_FRAME_TIMEOUT_S + 0.04, true), Action::Restore);
+        assert!(matches!(s.take(), Some(ShortFrame::Lost)));
+        assert_eq!(s.exposure_reported(id, plan().exposure), Action::None, "too late");
+        assert_eq!(s.stream_frame(4.6, true), Action::Resumed);
         // A failure reported by the platform loses it at once.
         let id = s.request(plan()).unwrap();
         assert_eq!(s.failed(id + 1), Action::None, "another request's failure");
@@ -491,10 +546,10 @@ mod tests {
         assert!(matches!(s.take(), Some(ShortFrame::Lost)));
         assert!(s.is_idle());
         // The paused camera's late frame is dropped.
-        assert_eq!(s.arrived(id, frame(1.0), None), Action::None);
+        assert_eq!(s.arrived(id, frame(1.0), plan().exposure), Action::None);
         // Paused while resuming after the frame: the frame is kept, the exposure restored.
         let id = s.request(plan()).unwrap();
-        assert_eq!(s.arrived(id, frame(2.0), None), Action::Restore);
+        assert_eq!(s.arrived(id, frame(2.0), plan().exposure), Action::Restore);
         assert_eq!(s.cancel(), Action::Restore);
         assert!(matches!(s.take(), Some(ShortFrame::Arrived(_))));
         assert!(s.is_idle());

@@ -274,7 +274,7 @@ impl FrameSource for SimSequence {
             Some((t, pose)) => {
                 if let (Some((id, plan)), Some(s)) = (self.shot.in_flight(), self.phone.settings()) {
                     let settings = CameraSettings { exposure: plan.exposure.product() as f32, ..s };
-                    self.shot.arrived(id, Frame { image: self.phone.render_with(pose, settings)?, t }, None);
+                    self.shot.arrived(id, Frame { image: self.phone.render_with(pose, settings)?, t }, plan.exposure);
                 }
                 let frame = self.phone.render(pose, t)?;
                 self.shot.stream_frame(t, true);

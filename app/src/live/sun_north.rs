@@ -256,11 +256,11 @@ mod tests {
     impl SlowCamera {
         /// The frame loop's stream frame at `t`.
         fn stream_frame(&mut self, t: f64) {
-            if let Some((id, _)) = self.shot.in_flight() {
+            if let Some((id, plan)) = self.shot.in_flight() {
                 self.frames_since += 1;
                 if Some(self.frames_since) == self.latency {
                     let frame = Frame { image: Rgba8Image { width: 32, height: 24, pixels: vec![40; 32 * 24 * 4] }, t };
-                    self.shot.arrived(id, frame, None);
+                    self.shot.arrived(id, frame, plan.exposure);
                 }
             }
             self.shot.stream_frame(t, true);

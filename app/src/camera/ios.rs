@@ -381,8 +381,8 @@ impl IosCamera {
         }
     }
 
-    /// Set the exposure mode under the configuration lock: `Some((duration, iso))` custom at
-    /// those values, None continuous auto-exposure (or locked at the current values while a
+    /// Set the exposure mode under the configuration lock: `Some(exposure)` custom at that
+    /// duration and ISO, None continuous auto-exposure (or locked at the current values while a
     /// capture holds the lock).
     fn set_exposure(&self, custom: Option<SensorExposure>) -> Result<()> {
         // SAFETY: AVFoundation calls on the device this camera owns, under its configuration

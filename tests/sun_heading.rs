@@ -374,3 +374,42 @@ fn the_live_session_calibrates_its_heading_from_the_sun_in_its_camera_frame() {
 fn afternoon() -> chrono::DateTime<chrono::Utc> {
     chrono::DateTime::parse_from_rfc3339("2026-11-21T14:00:00Z").unwrap().with_timezone(&chrono::Utc)
 }
+
+/// The short frame's exposure (docs/capture.md, the live sun): the sun sighted in quarry_01 at
+/// 28 views around it (heading ±18°, pitch −6..+3° about the sun; exact poses; the virtual
+/// phone auto-exposed for each view), the short frame at −4 .. 0 EV of that exposure:
+/// `cargo test --test sun_heading short_frame_exposure_study -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn short_frame_exposure_study() {
+    use previz::camera::exposure::ExposureMode;
+    use previz::camera::sim::{SimSettings, VirtualPhone};
+    use previz::pose::frames::from_heading_pitch_roll;
+    use previz::pose::sun_heading::sight_sun;
+    let w = world();
+    let settings = SimSettings { width: 320, height: 240, vfov_deg: 50.0, exposure: ExposureMode::default() };
+    let mut phone = VirtualPhone::new(w.env.clone(), &settings).unwrap();
+    println!("| short frame | views with a measurement | RMS heading error (°) | worst (°) |");
+    println!("|---|---|---|---|");
+    let mut t = 0.0;
+    for ev in [-4.0f32, -3.0, -2.0, -1.0, 0.0] {
+        let (mut n, mut seen, mut sq, mut worst) = (0, 0, 0.0f64, 0.0f64);
+        for dh in [-18.0, -12.0, -6.0, 0.0, 6.0, 12.0, 18.0] {
+            for dp in [-6.0, -3.0, 0.0, 3.0] {
+                let q =
+                    from_heading_pitch_roll((w.sun_azimuth_deg + dh).to_radians(), (w.sun_elevation_deg + dp).to_radians(), 0.0).as_quat();
+                // A stream frame (10 s after the last: converged) sets the exposure.
+                t += 10.0;
+                phone.render(q, t).unwrap();
+                let image = phone.render_with_exposure(q, phone.exposure().unwrap() * ev.exp2()).unwrap();
+                n += 1;
+                if let Some(m) = sight_sun(&image, 50.0, q).unwrap().and_then(|s| heading_measurement(&s, w.sun_enu, 0.0)) {
+                    seen += 1;
+                    sq += m.error.to_degrees().powi(2);
+                    worst = worst.max(m.error.to_degrees().abs());
+                }
+            }
+        }
+        println!("| {ev:+.0} EV | {seen}/{n} | {:.3} | {worst:.3} |", (sq / seen.max(1) as f64).sqrt());
+    }
+}

@@ -111,7 +111,8 @@ fill = 0.8
         let toward = p.placement.position - p.camera.position;
         p.placement.position = p.camera.position + toward * 2f32.powi(i);
         // Every other frame corrected (its own pipelines), every third with the sun down (the
-        // ground without the shadow lookup), every fourth with each pass timed alone.
+        // ground without the shadow lookup), every fourth with each pass timed alone, every
+        // fifth with every triangle drawn (the closed sphere is culled in the others).
         if i % 2 == 0 {
             p.colour = corrected;
         }
@@ -119,12 +120,14 @@ fill = 0.8
             p.lighting.sun_dir.z = -0.2;
         }
         compositor.set_pass_timing(i % 4 == 0);
+        compositor.set_culling(i % 5 != 0);
         compositor.render(gpu(), &p, Layer::Composite).unwrap();
         levels.push(compositor.lod_level());
         maps.push(compositor.shadow_map_size());
         grounds.push(compositor.ground_vertices());
     }
     compositor.set_pass_timing(false);
+    compositor.set_culling(true);
     let after = settled_counters();
     levels.dedup();
     maps.dedup();
@@ -133,7 +136,12 @@ fill = 0.8
     assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
     assert!(maps.len() >= 2, "the shadow map did not follow the footprint: {maps:?}");
     assert!(grounds.len() >= 2 && grounds.iter().any(|g| g.0 == 0), "the ground's split did not follow the sun: {grounds:?}");
-    assert_unchanged(&before, &after, &FRAME_RESOURCES, "level, shadow-map, ground-split, colour-correction and pass-timing switches");
+    assert_unchanged(
+        &before,
+        &after,
+        &FRAME_RESOURCES,
+        "level, shadow-map, ground-split, colour-correction, pass-timing and culling switches",
+    );
 }
 
 /// Called from the one test: the counters are per device and tests run in parallel.

@@ -290,6 +290,13 @@ impl Compositor {
         self.full_detail = on;
     }
 
+    /// Cull the back faces of closed meshes seen from outside (true, the default) or draw every
+    /// triangle (after a depth pre-pass): the same pixels, for the tests and benchmarks that
+    /// check and measure it.
+    pub fn set_culling(&mut self, on: bool) {
+        self.model_pass.set_culling(on);
+    }
+
     /// Time each pass of the following frames alone ([`Timings::passes`]): the composite's
     /// background, model and ground steps become separate render passes, each with its own
     /// timestamps (a profile: on a tile GPU the split costs memory traffic; lavapipe stores and
@@ -382,8 +389,11 @@ impl Compositor {
         let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
-        let level =
-            if self.full_detail || p.method.bends_rays() { 0 } else { lod_level(model.lod_errors(), model.bounds(), p, self.height).0 };
+        let (lod, distance, _) = lod_level(model.lod_errors(), model.bounds(), p, self.height);
+        let level = if self.full_detail || p.method.bends_rays() { 0 } else { lod };
+        // Back faces of a closed mesh are hidden from a camera outside its bounds, unless a
+        // mirroring transform turns its faces inside out.
+        let cull = distance > 0.0 && super::view::model_matrix(model.bounds(), &p.placement).determinant() > 0.0;
         let shadow = fit_shadow(p, &context);
         // The model samples the map whatever the sun (its shading uses the visibility beyond the
         // sun's own term), so the shadow pass runs whenever the model or its shadow is on
@@ -399,6 +409,7 @@ impl Compositor {
             colour,
             light,
             level,
+            cull,
             shadow_pass,
             ground_pass,
             shadow_map_size: shadow.map_size,
@@ -534,7 +545,7 @@ impl Compositor {
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
         self.ground.write(queue, &data.ground, &data.ground_mesh);
-        self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
+        self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull);
         self.level = data.level;
         self.shadow_index = shadow_index;
         self.passes_run =
@@ -589,12 +600,10 @@ impl Compositor {
             match step {
                 // 3b. Background pass: the camera image fills the target around the model.
                 0 => in_group(pass, "background pass", |pass| self.background.draw(pass)),
-                // 5. Model pass: shading, reflection/refraction and colour correction.
-                // Its depth first (a pre-pass), so each pixel is shaded once.
-                1 => in_group(pass, "model pass", |pass| {
-                    self.model_pass.draw_prepass(pass, model, (self.level, self.shadow_index))?;
-                    self.model_pass.draw(pass, model, method, (self.level, self.shadow_index))
-                })?,
+                // 5. Model pass: shading, reflection/refraction and colour correction. A closed
+                // mesh with its back faces culled; any other after its depth (a pre-pass), so
+                // each pixel is shaded once.
+                1 => in_group(pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?,
                 // 4. Ground pass: the shadow catcher darkens the background under the model.
                 _ => in_group(pass, "ground pass", |pass| self.ground.draw(pass, self.shadow_index)),
             }

@@ -43,6 +43,9 @@ pub struct FrameData {
     pub light: LightUniforms,
     /// The level of detail drawn (0: the model as loaded).
     pub level: usize,
+    /// Whether the model pass may cull the back faces of closed meshes: the camera is outside
+    /// the model's bounds and the model's transform does not mirror it.
+    pub cull: bool,
     /// Whether the shadow pass has anything to do: sunlight to block and the model or its
     /// shadow on screen (render::shadow_fit::shadow_needed).
     pub shadow_pass: bool,
@@ -248,13 +251,12 @@ pub fn fit_shadow(p: &FrameParams, c: &FrameContext) -> shadow_fit::ShadowFit {
 
 /// The level of detail the half-pixel rule draws (`scene::lod::select_level`) for a model with
 /// model-space `bounds` and a chain with `errors` (model units), placed and seen as in `p`,
-/// rendered `height_px` rows high; also the distance to the model's bounding sphere (world
-/// units) and the focal length in pixels.
+/// rendered `height_px` rows high; also the distance to the model's bounding box (world units:
+/// no vertex is nearer) and the focal length in pixels.
 pub fn lod_level(errors: &[f32], bounds: (Vec3, Vec3), p: &FrameParams, height_px: u32) -> (usize, f32, f32) {
-    let m = view::model_matrix(bounds, &p.placement);
-    let centre = m.transform_point3(0.5 * (bounds.0 + bounds.1));
-    let radius = 0.5 * (bounds.1 - bounds.0).length() * p.placement.scale;
-    let distance = lod::sphere_distance(p.camera.position, centre, radius);
+    // The camera in model space: the model matrix turns, scales uniformly and moves.
+    let camera = view::model_matrix(bounds, &p.placement).inverse().transform_point3(p.camera.position);
+    let distance = lod::box_distance(camera, bounds) * p.placement.scale.abs();
     let focal = lod::focal_px(p.camera.vfov, height_px);
     let world: Vec<f32> = errors.iter().map(|e| e * p.placement.scale).collect();
     (lod::select_level(&world, distance, focal, lod::MAX_SCREEN_ERROR_PX), distance, focal)
@@ -502,18 +504,24 @@ mod tests {
     #[test]
     fn the_level_follows_the_distance_and_the_scale() {
         // Camera at the origin, 90° vertical field of view, 200 rows: focal = 100 px. The 2 m
-        // cube's sphere (r = √3) is centred 9 m away: distance 9 − √3 = 7.27 m at scale 1.
+        // cube stands on z = −10 below the camera: its top face, the nearest point, is 8 m away
+        // at scale 1 (its bounding sphere's would be 9 − √3 = 7.27 m).
         let (p, c) = scene(1.0);
-        let errors = [0.0, 0.01, 0.03, 0.1];
+        let errors = [0.0, 0.01, 0.036, 0.1];
         let (level, distance, focal) = lod_level(&errors, c.bounds, &p, 200);
-        assert!((focal - 100.0).abs() < 1e-3 && (distance - (9.0 - 3f32.sqrt())).abs() < 1e-4);
-        // 0.03 * 100 / 7.27 = 0.41 px < 0.5; 0.1 → 1.38 px.
+        assert!((focal - 100.0).abs() < 1e-3 && (distance - 8.0).abs() < 1e-4, "{focal} {distance}");
+        // 0.036 * 100 / 8 = 0.45 px < 0.5 (at the sphere's 7.27 m: 0.50, too coarse); 0.1 →
+        // 1.25 px.
         assert_eq!(level, 2);
-        // Scale 2: the errors double (0.06 m → 0.0 ...) and the sphere is nearer (its centre at
-        // 8 m, r = 2√3): 0.02 * 100 / 4.54 = 0.44 px, 0.06 → 1.3 px.
+        // Scale 2: the errors double (0.072 m → 0.2 m) and the top face is nearer (the base stays
+        // on z = −10, the top at −6): 0.02 * 100 / 6 = 0.33 px, 0.072 → 1.2 px.
         assert_eq!(lod_level(&errors, c.bounds, &scene(2.0).0, 200).0, 1);
-        // Twice the rows: twice the focal length, one level finer.
+        // Twice the rows: twice the focal length, one level finer (0.036 → 0.9 px).
         assert_eq!(lod_level(&errors, c.bounds, &p, 400).0, 1);
+        // A camera inside the box draws level 0.
+        let mut inside = p;
+        inside.camera.position = inside.placement.position + Vec3::new(0.0, 0.0, 1.0);
+        assert_eq!(lod_level(&errors, c.bounds, &inside, 200).0, 0);
     }
 
     #[test]

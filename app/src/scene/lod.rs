@@ -46,6 +46,9 @@ pub struct IndexRange {
 pub struct MeshLods {
     pub indices: Vec<u32>,
     pub levels: Vec<IndexRange>,
+    /// Per level, whether its triangles form closed surfaces ([`is_closed`]): their back faces
+    /// are hidden from a camera outside them, so a renderer may cull them.
+    pub closed: Vec<bool>,
 }
 
 /// The level chain of a model. Every mesh has the same number of levels; a mesh that could not
@@ -74,13 +77,15 @@ impl LodChain {
         let per_mesh: Vec<Vec<(Vec<u32>, f32)>> = model.meshes.iter().map(simplify_chain).collect();
         let levels = per_mesh.iter().map(Vec::len).max().unwrap_or(1);
         let mut chain = LodChain { errors: vec![0.0; levels], triangles: vec![0; levels], meshes: Vec::new() };
-        for chain_of_mesh in &per_mesh {
+        for (mesh, chain_of_mesh) in model.meshes.iter().zip(&per_mesh) {
             let mut lods = MeshLods::default();
+            let welded = position_ids(&mesh.positions);
             for (level, err) in chain.errors.iter_mut().enumerate() {
                 let (indices, e) = &chain_of_mesh[level.min(chain_of_mesh.len() - 1)];
                 *err = err.max(*e);
                 lods.levels.push(IndexRange { first: lods.indices.len() as u32, count: indices.len() as u32 });
                 lods.indices.extend_from_slice(indices);
+                lods.closed.push(is_closed(&welded, indices));
             }
             for (t, r) in chain.triangles.iter_mut().zip(&lods.levels) {
                 *t += r.count as usize / 3;
@@ -117,10 +122,43 @@ pub fn select_level(errors: &[f32], distance: f32, focal_px: f32, max_px: f32) -
     errors.iter().rposition(|&e| e * focal_px / distance < max_px).unwrap_or(0)
 }
 
-/// The distance from the camera to the nearest point of a bounding sphere (centre, radius),
-/// world units; 0 or less when the camera is inside it.
-pub fn sphere_distance(camera: Vec3, centre: Vec3, radius: f32) -> f32 {
-    (centre - camera).length() - radius
+/// Per vertex, an id shared by the vertices at the same position (bit for bit).
+pub fn position_ids(positions: &[[f32; 3]]) -> Vec<u32> {
+    let mut ids = std::collections::HashMap::new();
+    positions
+        .iter()
+        .map(|p| {
+            let next = ids.len() as u32;
+            *ids.entry(p.map(f32::to_bits)).or_insert(next)
+        })
+        .collect()
+}
+
+/// Whether `indices` (triangles over vertices with position ids `welded`, [`position_ids`])
+/// form closed surfaces wound one way: every edge between two positions is used exactly once in
+/// each direction (triangles with two corners at one position have no area and are left out).
+/// Seen from outside such a surface, every back face lies behind a front face, so culling the
+/// back faces changes no pixel.
+pub fn is_closed(welded: &[u32], indices: &[u32]) -> bool {
+    let mut edges = std::collections::HashMap::new();
+    for t in indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| welded[t[k] as usize]);
+        if a == b || b == c || c == a {
+            continue;
+        }
+        for edge in [(a, b), (b, c), (c, a)] {
+            *edges.entry(edge).or_insert(0u32) += 1;
+        }
+    }
+    !edges.is_empty() && edges.iter().all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1))
+}
+
+/// The distance from `point` to the nearest point of the axis-aligned box `(min, max)`; 0 when
+/// the point is inside it. Every vertex of a model lies in its bounding box, so no vertex is
+/// nearer than this to a camera at `point` (the box is nearer the surface than the bounding
+/// sphere, whose nearest point the rule used before: a tighter bound, still never too coarse).
+pub fn box_distance(point: Vec3, (lo, hi): (Vec3, Vec3)) -> f32 {
+    (lo - point).max(point - hi).max(Vec3::ZERO).length()
 }
 
 /// Simplify `mesh` into a chain: level 0 is the mesh as it is, each next level aims at
@@ -752,6 +790,41 @@ mod tests {
         }
         let positions: Vec<[f32; 3]> = pos.iter().map(|p| p.to_array()).collect();
         Mesh { normals: positions.clone(), uvs: vec![[0.0; 2]; positions.len()], positions, indices: tris.concat(), material: 0 }
+    }
+
+    #[test]
+    fn closed_surfaces_are_found_by_their_edges() {
+        // An icosphere is closed; one triangle fewer leaves a hole; one triangle turned over is
+        // wound against its neighbours; a flat grid has a border.
+        let sphere = icosphere(2);
+        let welded = position_ids(&sphere.positions);
+        assert!(is_closed(&welded, &sphere.indices));
+        assert!(!is_closed(&welded, &sphere.indices[3..]));
+        let mut turned = sphere.indices.clone();
+        turned.swap(0, 1);
+        assert!(!is_closed(&welded, &turned));
+        let grid = grid(4, 0.0, 1.0, 0.0);
+        assert!(!is_closed(&position_ids(&grid.positions), &grid.indices));
+        // Split vertices (a flat-shaded cube: 24 vertices, 8 positions) are welded by position.
+        let corners: Vec<[f32; 3]> = (0..8).map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32]).collect();
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let positions: Vec<[f32; 3]> = quads.iter().flat_map(|q| q.map(|c| corners[c])).collect();
+        let indices: Vec<u32> = (0..6u32).flat_map(|f| [0, 1, 2, 0, 2, 3].map(|k| 4 * f + k)).collect();
+        assert!(is_closed(&position_ids(&positions), &indices));
+        // The chain notes it per level: the sphere's levels stay closed.
+        let chain = LodChain::build(&Model { meshes: vec![icosphere(4)], materials: vec![Default::default()] });
+        assert!(chain.meshes[0].closed.iter().all(|&c| c), "{:?}", chain.meshes[0].closed);
+    }
+
+    #[test]
+    fn box_distance_is_to_the_nearest_face_edge_or_corner() {
+        let unit = (Vec3::ZERO, Vec3::ONE);
+        // By hand: beyond a face, an edge and a corner; inside and on the surface, 0.
+        assert_eq!(box_distance(Vec3::new(0.5, 0.5, 3.0), unit), 2.0);
+        assert_eq!(box_distance(Vec3::new(2.0, 3.0, 0.5), unit), 5f32.sqrt());
+        assert_eq!(box_distance(Vec3::new(-1.0, -2.0, 3.0), unit), 3.0);
+        assert_eq!(box_distance(Vec3::splat(0.5), unit), 0.0);
+        assert_eq!(box_distance(Vec3::new(1.0, 0.5, 0.0), unit), 0.0);
     }
 
     #[test]

@@ -31,15 +31,24 @@ pub struct ModelPipelines {
     pub layout: wgpu::BindGroupLayout,
     /// Bind group 1: one per material.
     pub material_layout: wgpu::BindGroupLayout,
-    /// One pipeline per method, indexed by [`LightingMethod::shader_id`]: the shader's `METHOD` is a
-    /// pipeline-override constant, so each compiles only its own branches.
-    pub by_method: Vec<wgpu::RenderPipeline>,
-    /// The same without colour correction (`COLOUR_CORRECTION` false: no correction code at
-    /// all), for frames that ask for none.
-    pub uncorrected: Vec<wgpu::RenderPipeline>,
-    /// The depth pre-pass: the model's depth alone, so that the shading pipelines (depth test
-    /// less-or-equal) shade each pixel once, not every surface behind the nearest.
+    /// The shading pipelines, indexed by [`shading_index`]: one per method (the shader's
+    /// `METHOD` is a pipeline-override constant, so each compiles only its own branches), with
+    /// and without colour correction (`COLOUR_CORRECTION` false: no correction code at all, for
+    /// frames that ask for none), drawing every triangle or culling back faces (a closed mesh
+    /// seen from outside, whose back faces are hidden).
+    pub shading: Vec<wgpu::RenderPipeline>,
+    /// The depth pre-pass of a mesh drawn without culling: its depth alone, so that the
+    /// shading pipelines (depth test less-or-equal) shade each pixel once, not every surface
+    /// behind the nearest. A culled closed mesh has no pre-pass: only where it overlaps itself
+    /// is a pixel shaded twice, which costs less on lavapipe than drawing it twice
+    /// (docs/PERFORMANCE.md, seventh session).
     pub prepass: wgpu::RenderPipeline,
+}
+
+/// The index in [`ModelPipelines::shading`] of `method`'s pipeline with or without colour
+/// correction, culling back faces or not.
+pub fn shading_index(method: LightingMethod, corrected: bool, cull: bool) -> usize {
+    (usize::from(cull) * 2 + usize::from(corrected)) * LightingMethod::ALL.len() + method.shader_id() as usize
 }
 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
@@ -70,10 +79,15 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
         "material",
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
-    let by_method = pipelines_for(device, (&layout, &material_layout), (COLOR_FORMAT, samples), true);
-    let uncorrected = pipelines_for(device, (&layout, &material_layout), (COLOR_FORMAT, samples), false);
-    let prepass = prepass_pipeline(device, (&layout, &material_layout), samples);
-    ModelPipelines { layout, material_layout, by_method, uncorrected, prepass }
+    let module = build::shader(device, "model", source(Technique::Model));
+    let mut shading = Vec::new();
+    for cull in [false, true] {
+        for corrected in [false, true] {
+            shading.extend(method_pipelines(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), (corrected, cull)));
+        }
+    }
+    let prepass = prepass_pipeline(device, &module, (&layout, &material_layout), samples);
+    ModelPipelines { layout, material_layout, shading, prepass }
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
@@ -91,34 +105,65 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
 /// with the colour correction (the shader's `COLOUR_CORRECTION`: `corrected`) or without.
 pub fn pipelines_for(
     device: &wgpu::Device,
-    (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
-    (format, samples): (wgpu::TextureFormat, u32),
+    layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    target: (wgpu::TextureFormat, u32),
     corrected: bool,
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
+    method_pipelines(device, &module, layouts, target, (corrected, false))
+}
+
+/// [`pipelines_for`] from the model shader's `module`, culling back faces or not.
+fn method_pipelines(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    (format, samples): (wgpu::TextureFormat, u32),
+    (corrected, cull): (bool, bool),
+) -> Vec<wgpu::RenderPipeline> {
+    let colour =
+        wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
     LightingMethod::ALL
         .iter()
         .map(|m| {
             let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", if corrected { 1.0 } else { 0.0 })];
-            build::render_pipeline(
-                device,
-                build::PipelineSpec {
-                    label: m.name(),
-                    module: &module,
-                    layouts: &[layout, material_layout],
-                    vertex_buffers: &[Some(vertex_layout())],
-                    colour: Some(wgpu::ColorTargetState {
-                        format,
-                        blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    depth: depth_state(true, wgpu::DepthBiasState::default()),
-                    samples,
-                    constants: &constants,
-                },
-            )
+            model_pipeline(device, (m.name(), module, "fs_main"), layouts, (colour.clone(), samples), (&constants, cull))
         })
         .collect()
+}
+
+/// A model pipeline: the model shader's vertex stage and fragment entry point `entry` with
+/// override `constants`, drawing into `colour` targets of `samples` per pixel with depth
+/// written and tested, culling back faces (counter-clockwise fronts) or not.
+fn model_pipeline(
+    device: &wgpu::Device,
+    (label, module, entry): (&str, &wgpu::ShaderModule, &str),
+    (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    (colour, samples): (wgpu::ColorTargetState, u32),
+    (constants, cull): (&[(&str, f64)], bool),
+) -> wgpu::RenderPipeline {
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout), Some(material_layout)],
+        immediate_size: 0,
+    });
+    let options = wgpu::PipelineCompilationOptions { constants, ..Default::default() };
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: options.clone(),
+            buffers: &[Some(vertex_layout())],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: cull.then_some(wgpu::Face::Back), ..Default::default() },
+        depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
+        multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
+        fragment: Some(wgpu::FragmentState { module, entry_point: Some(entry), compilation_options: options, targets: &[Some(colour)] }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 /// The depth pre-pass pipeline: the model pass's vertex stage (its position `@invariant`, so
@@ -126,39 +171,13 @@ pub fn pipelines_for(
 /// pixel into the composite's targets.
 fn prepass_pipeline(
     device: &wgpu::Device,
-    (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    module: &wgpu::ShaderModule,
+    layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     samples: u32,
 ) -> wgpu::RenderPipeline {
-    let module = build::shader(device, "model depth pre-pass", source(Technique::Model));
-    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("model depth pre-pass"),
-        bind_group_layouts: &[Some(layout), Some(material_layout)],
-        immediate_size: 0,
-    });
     let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
-    let options = wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() };
-    let targets = [Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() })];
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("model depth pre-pass"),
-        layout: Some(&layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            compilation_options: options.clone(),
-            buffers: &[Some(vertex_layout())],
-        },
-        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-        depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
-        multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_depth"),
-            compilation_options: options,
-            targets: &targets,
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+    let colour = wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() };
+    model_pipeline(device, ("model depth pre-pass", module, "fs_depth"), layouts, (colour, samples), (&constants, false))
 }
 
 /// The model's depth seen by the camera, single-sampled and without colour: the model pass's
@@ -205,6 +224,9 @@ struct MeshGpu {
     indices: wgpu::Buffer,
     levels: Vec<IndexRange>,
     material: wgpu::BindGroup,
+    /// Per level, whether it is a closed surface (`MeshLods::closed`: its back faces may be
+    /// culled).
+    closed: Vec<bool>,
 }
 
 /// A model on the GPU.
@@ -239,23 +261,34 @@ impl ModelGpu {
     /// where to bind each mesh's material (None: no materials, the shadow pass).
     pub fn draw_meshes(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>, level: usize) {
         for mesh in &self.meshes {
-            if let Some(group) = material_group {
-                pass.set_bind_group(group, &mesh.material, &[]);
-            }
-            let r = mesh.levels[level.min(mesh.levels.len() - 1)];
-            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(r.first..r.first + r.count, 0, 0..1);
+            mesh.draw(pass, material_group, level);
         }
     }
 }
 
+impl MeshGpu {
+    /// Draw the mesh at level of detail `level` (clamped to its chain), its material bound at
+    /// `material_group` (None: not bound).
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>, level: usize) {
+        if let Some(group) = material_group {
+            pass.set_bind_group(group, &self.material, &[]);
+        }
+        let r = self.levels[level.min(self.levels.len() - 1)];
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(r.first..r.first + r.count, 0, 0..1);
+    }
+}
+
 pub struct ModelPass {
-    /// Indexed by [`LightingMethod::shader_id`].
-    by_method: Vec<wgpu::RenderPipeline>,
-    /// The same without the colour correction's code.
-    uncorrected: Vec<wgpu::RenderPipeline>,
+    /// Indexed by [`shading_index`].
+    shading: Vec<wgpu::RenderPipeline>,
     prepass: wgpu::RenderPipeline,
+    /// Whether this frame may cull the back faces of closed meshes (the camera outside the
+    /// model's bounds, the model not mirrored, culling not turned off).
+    cull: bool,
+    /// Whether culling is on ([`ModelPass::set_culling`]).
+    culling: bool,
     /// Whether this frame corrects the model's colour (its `ColourCorrection` is not "none").
     corrected: bool,
     layout: wgpu::BindGroupLayout,
@@ -279,8 +312,9 @@ impl ModelPass {
     pub fn new(gpu: &Gpu, pipelines: &Pipelines) -> ModelPass {
         let device = &gpu.device;
         ModelPass {
-            by_method: pipelines.model.by_method.clone(),
-            uncorrected: pipelines.model.uncorrected.clone(),
+            shading: pipelines.model.shading.clone(),
+            cull: false,
+            culling: true,
             prepass: pipelines.model.prepass.clone(),
             corrected: false,
             layout: pipelines.model.layout.clone(),
@@ -398,6 +432,7 @@ impl ModelPass {
                 }),
                 levels: lods.levels.clone(),
                 material: bind,
+                closed: lods.closed.clone(),
             });
             materials.push((material_buf, uniforms));
         }
@@ -405,8 +440,11 @@ impl ModelPass {
     }
 
     /// This frame's colour correction and material terms; a frame without correction draws
-    /// with the pipelines that have no correction code.
-    pub fn write(&mut self, queue: &wgpu::Queue, model: &ModelGpu, colour: &ColourCorrection, terms: &MaterialTerms) {
+    /// with the pipelines that have no correction code. `cull`: the frame may cull the back
+    /// faces of closed meshes (the camera is outside the model's bounds and the model is not
+    /// mirrored).
+    pub fn write(&mut self, queue: &wgpu::Queue, model: &ModelGpu, (colour, terms): (&ColourCorrection, &MaterialTerms), cull: bool) {
+        self.cull = cull && self.culling;
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
         self.corrected = colour.method != crate::colour::transfer::TransferMethod::None.shader_id();
         for (buf, base) in &model.materials {
@@ -414,23 +452,39 @@ impl ModelPass {
         }
     }
 
-    /// Draw `model` with `method`'s pipeline at level of detail `level`, sampling shadow map
-    /// `shadow_index`.
+    /// Cull the back faces of closed meshes (true, the default) or draw every triangle: the two
+    /// draw the same pixels (what the tests check and the benchmark measures), from the next
+    /// frame written.
+    pub fn set_culling(&mut self, on: bool) {
+        self.culling = on;
+    }
+
+    /// Draw `model` with `method`'s pipelines at level of detail `level`, sampling shadow map
+    /// `shadow_index`: a closed mesh seen from outside with its back faces culled, any other
+    /// after its depth pre-pass.
     pub fn draw(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         model: &ModelGpu,
         method: LightingMethod,
-        lod_and_shadow: (usize, usize),
+        (level, shadow_index): (usize, usize),
     ) -> Result<()> {
-        let pipelines = if self.corrected { &self.by_method } else { &self.uncorrected };
-        self.draw_with(pass, &pipelines[method.shader_id() as usize], model, lod_and_shadow)
+        let bind_group = self.bind_groups.get(shadow_index).ok_or_else(|| anyhow!("no environment set"))?;
+        pass.set_bind_group(0, bind_group, &[]);
+        for mesh in model.meshes.iter().filter(|m| !self.culls(m, level)) {
+            pass.set_pipeline(&self.prepass);
+            mesh.draw(pass, Some(1), level);
+        }
+        for mesh in &model.meshes {
+            pass.set_pipeline(&self.shading[shading_index(method, self.corrected, self.culls(mesh, level))]);
+            mesh.draw(pass, Some(1), level);
+        }
+        Ok(())
     }
 
-    /// The depth pre-pass of `model` at level of detail `level` (the shadow map index only
-    /// picks the bind group).
-    pub fn draw_prepass(&self, pass: &mut wgpu::RenderPass<'_>, model: &ModelGpu, lod_and_shadow: (usize, usize)) -> Result<()> {
-        self.draw_with(pass, &self.prepass, model, lod_and_shadow)
+    /// Whether this frame culls `mesh`'s back faces at `level`.
+    fn culls(&self, mesh: &MeshGpu, level: usize) -> bool {
+        self.cull && mesh.closed[level.min(mesh.closed.len() - 1)]
     }
 
     /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from

@@ -282,9 +282,16 @@ fn quality_errors() {
     let face_size: u32 = env_or("FACE", "128").parse().unwrap();
     let hdr = std::env::var("HDR").is_ok();
     let vfov = if case == "random50" { 50.0 } else { 100.0 };
-    const NAMES: [&str; 6] =
-        ["turns", "turns+refine", "turns, yaw error only", "turns, tilt error only", "true poses", "refined, common tilt off"];
-    let mut totals = [[0.0f64; 3]; 6];
+    const NAMES: [&str; 7] = [
+        "turns",
+        "turns+refine",
+        "turns, yaw error only",
+        "turns, tilt error only",
+        "true poses",
+        "refined, common tilt off",
+        "refined + levelled (product)",
+    ];
+    let mut totals = [[0.0f64; 3]; 7];
     let mut runs = 0;
     for seed in a..=b {
         let seed = if case == "six" { 2000 + seed } else { seed };
@@ -380,6 +387,21 @@ fn quality_errors() {
                 .map(|s| (w_href * DQuat::from_scaled_axis(-common) * w_href.inverse() * s.pose.as_dquat()).normalize().as_quat())
                 .collect(),
         );
+        // Gravity held over the last `w` s before each shot: the accelerometer readings, each
+        // turned to the shot's instant by the true relative rotation (the gyroscope's over a
+        // fraction of a second), in the camera frame; the common tilt taken as the turn from
+        // the vertical to the mean of the measured ups put in the world by the refined poses.
+        // The product's vertical: the refined poses levelled by the accelerometer held at the
+        // shots (`align_shots` does this after the refinement).
+        let leveling = previz::capture::gravity::level(
+            &refined.iter().map(|s| s.pose).collect::<Vec<_>>(),
+            &refined.iter().map(|s| s.gravity).collect::<Vec<_>>(),
+        );
+        if std::env::var("DETAIL").is_ok() {
+            println!("  leveling {leveling:?}");
+        }
+        let correction = leveling.map_or(Quat::IDENTITY, |l| l.correction);
+        variants.push(refined.iter().map(|s| (correction * s.pose).normalize()).collect());
         let ideal: Vec<Vec<u8>> = Face::ALL.iter().map(|&f| ideal_face(&env, tf, f, face_size, settings)).collect();
         // HDR: every shot's bracket at its true pose, merged.
         let merged: Vec<_> = if hdr {

@@ -23,6 +23,7 @@
 //!    ([`refine_shots`]); the capture's vertical is the mean of the sensor tilts.
 
 use super::dense_solve::solve_dense;
+use super::gravity::{Leveling, level};
 use super::projection::Pinhole;
 use super::reproject::{Shot, sample_linear};
 use glam::{Quat, Vec2, Vec3};
@@ -223,6 +224,9 @@ pub struct Alignment {
     pub dropped: usize,
     /// The joint refinement of every shot's whole orientation after the turns ([`refine_shots`]).
     pub refinement: Refinement,
+    /// The capture's vertical from the accelerometer held at the shots ([`level`]); `None`
+    /// where too few shots held it: the vertical is then the mean of the sensor tilts.
+    pub leveling: Option<Leveling>,
 }
 
 /// Align `shots` from their overlaps (see the module documentation): each shot's turn about the
@@ -231,9 +235,16 @@ pub struct Alignment {
 /// and what was done (`turns_deg`: the whole turn about the vertical, both steps').
 pub fn align_shots(camera: &Pinhole, shots: &[Shot], fixed: usize) -> (Vec<Shot>, Alignment) {
     let (turned, alignment) = align_turns(camera, shots, fixed);
-    let (aligned, refinement) = refine_shots(camera, &turned, fixed);
+    let (mut aligned, refinement) = refine_shots(camera, &turned, fixed);
+    // The capture's vertical from the accelerometer held at the shots, where they have it.
+    let leveling = level(&aligned.iter().map(|s| s.pose).collect::<Vec<_>>(), &aligned.iter().map(|s| s.gravity).collect::<Vec<_>>());
+    if let Some(l) = leveling {
+        for s in &mut aligned {
+            s.pose = (l.correction * s.pose).normalize();
+        }
+    }
     let turns_deg = shots.iter().zip(&aligned).map(|(s, a)| yaw_deg(a.pose * s.pose.inverse())).collect();
-    (aligned, Alignment { turns_deg, refinement, ..alignment })
+    (aligned, Alignment { turns_deg, refinement, leveling, ..alignment })
 }
 
 /// The first step of [`align_shots`]: each shot's turn about the vertical from the pairs'
@@ -277,7 +288,7 @@ pub fn align_turns(camera: &Pinhole, shots: &[Shot], fixed: usize) -> (Vec<Shot>
         h = solve(n, fixed, &pairs);
     }
     let aligned = shots.iter().zip(&h).map(|(s, d)| Shot { pose: (turn(*d as f32) * s.pose).normalize(), ..s.clone() }).collect();
-    (aligned, Alignment { turns_deg: h, pairs, dropped, refinement: Refinement::default() })
+    (aligned, Alignment { turns_deg: h, pairs, dropped, ..Alignment::default() })
 }
 
 /// The angle (degrees) of a world-frame rotation's twist about the world vertical.
@@ -569,7 +580,7 @@ mod tests {
             .map(|(i, (&(h, p), e)): (usize, (&(f64, f64), f64))| {
                 let truth = from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.02).as_quat();
                 let estimate = (Quat::from_rotation_z((e as f32).to_radians()) * truth).normalize();
-                Shot { target: i, t: i as f64, pose: estimate, image: Arc::new(render(&cam, truth)) }
+                Shot { target: i, t: i as f64, pose: estimate, image: Arc::new(render(&cam, truth)), gravity: None }
             })
             .collect();
         let (aligned, report) = align_shots(&cam, &shots, 0);
@@ -617,7 +628,7 @@ mod tests {
                 let (tx, ty) = tilt[i];
                 let error =
                     turn(yaw[i]) * Quat::from_rotation_x((tx as f32).to_radians()) * Quat::from_rotation_y((ty as f32).to_radians());
-                Shot { target: i, t: i as f64, pose: (error * *truth).normalize(), image: Arc::new(render(&cam, *truth)) }
+                Shot { target: i, t: i as f64, pose: (error * *truth).normalize(), image: Arc::new(render(&cam, *truth)), gravity: None }
             })
             .collect();
         let worst = |s: &[Shot]| s.iter().zip(&truths).map(|(s, t)| s.pose.angle_between(*t).to_degrees()).fold(0.0, f32::max);
@@ -642,7 +653,7 @@ mod tests {
             let truth = from_heading_pitch_roll(h.to_radians(), p.to_radians(), 0.0).as_quat();
             // The guidance's pose: heading drifted clockwise by `drift` (a turn by −drift).
             let estimate = (Quat::from_rotation_z(-drift.to_radians()) * truth).normalize();
-            Shot { target: i, t: i as f64, pose: estimate, image: Arc::new(render(&cam, truth)) }
+            Shot { target: i, t: i as f64, pose: estimate, image: Arc::new(render(&cam, truth)), gravity: None }
         };
         let earlier = [shot(0, 0.0, 0.0, 0.0), shot(1, 120.0, 0.0, 0.0)];
         // 30° to the right of the front, 2.5° of drift: the turn that takes it off is +2.5°,

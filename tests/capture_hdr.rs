@@ -184,6 +184,29 @@ fn an_hdr_capture_measures_the_sky_within_ten_percent() {
     assert!(share >= 0.99, "{share}");
 }
 
+/// Issue 12's HDR goal at `phone` noise: the assembled luminance within 10 % of the source over
+/// 99 % of texels (100° lens, the study's 640×480 frames and 128 px faces). The shots' poses
+/// after the joint refinement err only by the capture's common tilt, which moves every
+/// high-contrast edge; with the vertical from the accelerometer held before each shot
+/// (`capture::gravity`) seeds 0 and 1 went from 96.30 % and 97.71 % (the tilt from the mean of the
+/// fusion filter's tilts, 0.15–0.3° off) to over 99.8 % (`hdr_study`, 2026-12-01).
+#[test]
+fn an_hdr_capture_at_phone_noise_measures_the_sky_within_ten_percent() {
+    let env = quarry();
+    for seed in [0u64, 1] {
+        let mut cfg = ReplayConfig { hdr: true, ..config(100.0, seed, (640, 480), 128) };
+        cfg.score = false;
+        let t = trace(&cfg, seed);
+        let r = replay(&env, &t, &cfg).unwrap();
+        assert!(r.incomplete.is_none(), "seed {seed}: {:?}", r.incomplete);
+        let (share, _) = hdr_within_10_percent(&env, &r, front_true_heading(&t, &r));
+        let alignment = r.capture.as_ref().unwrap().meta.alignment.unwrap();
+        eprintln!("seed {seed}: within 10 %: {:.2} % of texels; {alignment:?}", 100.0 * share);
+        assert!(alignment.vertical_shots >= 5, "seed {seed}: {alignment:?}");
+        assert!(share >= 0.99, "seed {seed}: {share}");
+    }
+}
+
 /// Irradiance (luminance) on a plane facing `s`, from every texel of a cube in its own frame.
 fn facing_irradiance(cube: &CubeMap, s: glam::Vec3, clip: Option<[f32; 3]>) -> f64 {
     previz::light::samples::from_cube(cube)

@@ -809,7 +809,12 @@ impl Assistant {
             })
             .collect();
         let mut meta = CaptureMeta::new(cfg, href, face_meta, shot_meta);
-        meta.alignment = alignment.map(|a| AlignmentMeta { pairs: a.pairs.len(), dropped_pairs: a.dropped });
+        meta.alignment = alignment.map(|a| AlignmentMeta {
+            pairs: a.pairs.len(),
+            dropped_pairs: a.dropped,
+            vertical_correction_deg: a.leveling.map(|l| l.angle_deg()),
+            vertical_shots: a.leveling.map_or(0, |l| l.shots),
+        });
         CubeCapture::new(meta, faces)
     }
 }

@@ -34,6 +34,8 @@ const MAX_GAP_S: f64 = 0.1;
 const NOISE_SIGMA: f64 = 0.02;
 const BIAS_SIGMA: f64 = 0.05;
 const LEVER_SIGMA_M: f64 = 0.5;
+/// ... and the gyroscope's bias not yet learnt (degrees/s).
+const GYRO_BIAS_SIGMA: f64 = 0.3;
 /// Fewest shots with held gravity for the fit; and the largest tilt it may correct (degrees:
 /// more than the filter's tilt can be off means the model does not hold).
 const MIN_SHOTS: usize = 3;
@@ -46,6 +48,9 @@ pub struct HeldGravity {
     pub accel: DVec3,
     /// The phone's mean own acceleration is `lever · r` for a camera at `r` from its pivot.
     pub lever: DMat3,
+    /// The mean errs by `gyro · c` for a gyroscope bias `c` (rad/s): the readings are turned
+    /// into the shot's frame by the gyroscope, so a bias turns each by its rate times its age.
+    pub gyro: DMat3,
 }
 
 /// The last [`WINDOW_S`] of accelerometer and gyroscope readings, turned into one frame by the
@@ -55,9 +60,10 @@ pub struct GravityLog {
     camera_to_device: DQuat,
     /// Device frame at the last gyroscope reading → the log's frame.
     q: DQuat,
-    /// Gyroscope readings: time, attitude then, rate (rad/s, device frame).
+    /// Gyroscope readings: time, attitude then, rate (rad/s, device frame; the mean rate over
+    /// the interval ending at the reading, as Android's and the simulator's readings are).
     gyro: VecDeque<(f64, DQuat, DVec3)>,
-    /// Accelerometer readings: time, specific force in the log's frame.
+    /// Accelerometer readings: time, specific force (device frame).
     accel: VecDeque<(f64, DVec3)>,
 }
 
@@ -70,23 +76,28 @@ impl GravityLog {
         GravityLog { camera_to_device: camera_to_device(rotation), q: DQuat::IDENTITY, gyro: VecDeque::new(), accel: VecDeque::new() }
     }
 
-    /// The attitude (device → log frame) at time `t`, from the gyroscope reading before it.
+    /// The attitude (device → log frame) at time `t` and the rate then: within the interval
+    /// between two gyroscope readings, turned at the later one's rate; past the last, at its.
     fn attitude_at(&self, t: f64) -> Option<(DQuat, DVec3)> {
-        let i = self.gyro.partition_point(|g| g.0 <= t);
-        let (tg, q, w) = if i == 0 { *self.gyro.front()? } else { self.gyro[i - 1] };
-        Some(((q * DQuat::from_scaled_axis(w * (t - tg))).normalize(), w))
+        let i = self.gyro.partition_point(|g| g.0 < t);
+        if i == 0 || i == self.gyro.len() {
+            let (tg, q, w) = if i == 0 { *self.gyro.front()? } else { *self.gyro.back()? };
+            return Some(((q * DQuat::from_scaled_axis(w * (t - tg))).normalize(), w));
+        }
+        let ((t0, q0, _), (_, _, w)) = (self.gyro[i - 1], self.gyro[i]);
+        Some(((q0 * DQuat::from_scaled_axis(w * (t - t0))).normalize(), w))
     }
 
     pub fn update(&mut self, r: &Reading) {
         match *r {
             Reading::Gyro { t, v } => {
-                if let Some(&(t0, _, w0)) = self.gyro.back() {
+                if let Some(&(t0, _, _)) = self.gyro.back() {
                     let dt = t - t0;
                     if !(0.0..=MAX_GAP_S).contains(&dt) {
                         self.gyro.clear();
                         self.accel.clear();
                     } else {
-                        self.q = (self.q * DQuat::from_scaled_axis(0.5 * (w0 + v) * dt)).normalize();
+                        self.q = (self.q * DQuat::from_scaled_axis(v * dt)).normalize();
                     }
                 }
                 self.gyro.push_back((t, self.q, v));
@@ -95,8 +106,8 @@ impl GravityLog {
                 }
             }
             Reading::Accel { t, v } => {
-                if let Some((q, _)) = self.attitude_at(t) {
-                    self.accel.push_back((t, q * v));
+                if !self.gyro.is_empty() {
+                    self.accel.push_back((t, v));
                 }
                 while self.accel.front().is_some_and(|a| a.0 < t - 2.0 * WINDOW_S) {
                     self.accel.pop_front();
@@ -119,12 +130,28 @@ impl GravityLog {
         let (t0, t1) = (first - 0.5 * dt, last + 0.5 * dt);
         let (qt, _) = self.attitude_at(t)?;
         let to_t = qt.inverse();
-        let mean = inside.iter().fold(DVec3::ZERO, |s, a| s + a.1) / inside.len() as f64;
+        let turned: Vec<(DMat3, DVec3)> = inside
+            .iter()
+            .filter_map(|(ti, v)| {
+                let m = DMat3::from_quat(to_t * self.attitude_at(*ti)?.0);
+                Some((m, m * *v))
+            })
+            .collect();
+        let n = turned.len() as f64;
+        let mean = turned.iter().fold(DVec3::ZERO, |s, (_, a)| s + *a) / n;
         let end = |tt: f64| self.attitude_at(tt).map(|(q, w)| DMat3::from_quat(to_t * q) * cross_matrix(w));
         let lever_device = (end(t1)? - end(t0)?) * (1.0 / (t1 - t0));
+        // A gyroscope bias c turns the frame at t against the one at reading i by ∫ Q_s c ds
+        // over (t_i, t]: the reading moves by (Q_i a_i) × that, to first order.
+        let (mut since, mut gyro_device) = (DMat3::IDENTITY * (t - last), DMat3::ZERO);
+        for (m, a) in turned.iter().rev() {
+            gyro_device += cross_matrix(*a) * since;
+            since += *m * dt;
+        }
         // Device → camera frame.
         let c = DMat3::from_quat(self.camera_to_device);
-        Some(HeldGravity { accel: c.transpose() * (to_t * mean), lever: c.transpose() * lever_device * c })
+        let ct = c.transpose();
+        Some(HeldGravity { accel: ct * mean, lever: ct * lever_device * c, gyro: ct * (gyro_device * (1.0 / n)) * c })
     }
 }
 
@@ -135,9 +162,11 @@ pub struct Leveling {
     pub correction: Quat,
     /// Shots whose held gravity was used.
     pub shots: usize,
-    /// The fitted accelerometer bias (m/s²) and lever arm (m), camera frame.
+    /// The fitted accelerometer bias (m/s²), lever arm (m) and gyroscope bias (rad/s), camera
+    /// frame.
     pub bias: DVec3,
     pub lever_m: DVec3,
+    pub gyro_bias: DVec3,
 }
 
 impl Leveling {
@@ -152,8 +181,8 @@ impl Leveling {
 /// with gravity, or when the fit asks for more than a plausible tilt.
 pub fn level(poses: &[Quat], held: &[Option<HeldGravity>]) -> Option<Leveling> {
     let g = STANDARD_GRAVITY;
-    // Unknowns: γx, γy, b (3), r (3), δg.
-    const N: usize = 9;
+    // Unknowns: γx, γy, b (3), r (3), δg, c (3).
+    const N: usize = 12;
     let mut h = vec![vec![0.0f64; N]; N];
     let mut rhs = vec![0.0f64; N];
     let mut shots = 0;
@@ -164,6 +193,7 @@ pub fn level(poses: &[Quat], held: &[Option<HeldGravity>]) -> Option<Leveling> {
         let mut y = r * held.accel;
         y.z -= g;
         let rd = r * held.lever;
+        let rc = r * held.gyro;
         for row in 0..3 {
             let mut j = [0.0f64; N];
             match row {
@@ -174,6 +204,7 @@ pub fn level(poses: &[Quat], held: &[Option<HeldGravity>]) -> Option<Leveling> {
             for c in 0..3 {
                 j[2 + c] = r.col(c)[row];
                 j[5 + c] = rd.col(c)[row];
+                j[9 + c] = rc.col(c)[row];
             }
             for p in 0..N {
                 rhs[p] += j[p] * y[row];
@@ -189,6 +220,7 @@ pub fn level(poses: &[Quat], held: &[Option<HeldGravity>]) -> Option<Leveling> {
     for c in 0..3 {
         h[2 + c][2 + c] += (NOISE_SIGMA / BIAS_SIGMA).powi(2);
         h[5 + c][5 + c] += (NOISE_SIGMA / LEVER_SIGMA_M).powi(2);
+        h[9 + c][9 + c] += (NOISE_SIGMA / GYRO_BIAS_SIGMA.to_radians()).powi(2);
     }
     let (x, full_rank) = super::dense_solve::solve_dense(h, rhs);
     let gamma = DVec3::new(x[0], x[1], 0.0);
@@ -200,6 +232,7 @@ pub fn level(poses: &[Quat], held: &[Option<HeldGravity>]) -> Option<Leveling> {
         shots,
         bias: DVec3::new(x[2], x[3], x[4]),
         lever_m: DVec3::new(x[5], x[6], x[7]),
+        gyro_bias: DVec3::new(x[9], x[10], x[11]),
     })
 }
 
@@ -209,10 +242,11 @@ mod tests {
     use crate::pose::frames::from_heading_pitch_roll;
 
     /// Readings of a phone (landscape, R90) following `orientation(t)` (camera → world) about a
-    /// pivot at `−r` from the camera, with an accelerometer bias `b` (device frame), at 100 Hz.
-    fn feed(log: &mut GravityLog, orientation: &dyn Fn(f64) -> DQuat, r: DVec3, b: DVec3, from: f64, to: f64) {
-        let c = camera_to_device(DisplayRotation::R90);
-        let device = |t: f64| orientation(t) * c.inverse();
+    /// pivot at `−r` from the camera, with an accelerometer bias `b` and a gyroscope bias `c`
+    /// (device frame), at 100 Hz.
+    fn feed(log: &mut GravityLog, orientation: &dyn Fn(f64) -> DQuat, r: DVec3, (b, c): (DVec3, DVec3), from: f64, to: f64) {
+        let to_device = camera_to_device(DisplayRotation::R90);
+        let device = |t: f64| orientation(t) * to_device.inverse();
         let g = STANDARD_GRAVITY;
         let n = ((to - from) * 100.0).round() as usize;
         for k in 0..=n {
@@ -222,9 +256,9 @@ mod tests {
             let p = |t: f64| orientation(t) * r;
             let acc = (p(t + h) - 2.0 * p(t) + p(t - h)) / (h * h);
             log.update(&Reading::Accel { t, v: device(t).inverse() * (acc + DVec3::Z * g) + b });
-            // Body rate from the derivative of the device attitude: q̇ = ½ q ω.
-            let dq = device(t).inverse() * device(t + h);
-            log.update(&Reading::Gyro { t, v: dq.to_scaled_axis() / h });
+            // The mean body rate over the interval ending at the reading.
+            let dq = device(t - 0.01).inverse() * device(t);
+            log.update(&Reading::Gyro { t, v: dq.to_scaled_axis() / 0.01 + c });
         }
     }
 
@@ -233,13 +267,22 @@ mod tests {
         // Camera pitched up 30°, rolled 10°: up in the camera frame is the world's ẑ turned back.
         let pose = from_heading_pitch_roll(0.4, 30f64.to_radians(), 10f64.to_radians());
         let mut log = GravityLog::new(DisplayRotation::R90);
-        feed(&mut log, &|_| pose, DVec3::ZERO, DVec3::ZERO, 0.0, 1.5);
+        feed(&mut log, &|_| pose, DVec3::ZERO, (DVec3::ZERO, DVec3::ZERO), 0.0, 1.5);
         let held = log.held(1.5).unwrap();
         let want = pose.inverse() * DVec3::Z * STANDARD_GRAVITY;
         assert!((held.accel - want).length() < 1e-6, "{:?} vs {want:?}", held.accel);
+        // A gyroscope bias of 0.2°/s turns the earlier readings of the window (by up to 0.2°):
+        // the mean moves by ~0.1° of g, as the `gyro` term predicts.
+        let c = DVec3::new(0.2, -0.1, 0.1).normalize() * 0.2f64.to_radians();
+        let mut biased = GravityLog::new(DisplayRotation::R90);
+        feed(&mut biased, &|_| pose, DVec3::ZERO, (DVec3::ZERO, c), 0.0, 1.5);
+        let held = biased.held(1.5).unwrap();
+        let c_cam = camera_to_device(DisplayRotation::R90).inverse() * c;
+        assert!((held.accel - want).length() > 0.01, "{:?}", held.accel - want);
+        assert!((held.accel - want - held.gyro * c_cam).length() < 2e-4, "{:?}", held.accel - want - held.gyro * c_cam);
         // Not enough readings yet.
         let mut fresh = GravityLog::new(DisplayRotation::R90);
-        feed(&mut fresh, &|_| pose, DVec3::ZERO, DVec3::ZERO, 0.0, 0.3);
+        feed(&mut fresh, &|_| pose, DVec3::ZERO, (DVec3::ZERO, DVec3::ZERO), 0.0, 0.3);
         assert!(fresh.held(0.3).is_none());
     }
 
@@ -255,7 +298,7 @@ mod tests {
         };
         let r = DVec3::new(0.0, 0.0, -0.3);
         let mut log = GravityLog::new(DisplayRotation::R90);
-        feed(&mut log, &turn, r, DVec3::ZERO, -0.5, 1.0);
+        feed(&mut log, &turn, r, (DVec3::ZERO, DVec3::ZERO), -0.5, 1.0);
         let held = log.held(1.0).unwrap();
         let up = turn(1.0).inverse() * DVec3::Z * STANDARD_GRAVITY;
         let predicted = up + held.lever * r;
@@ -267,11 +310,13 @@ mod tests {
     #[test]
     fn a_common_tilt_is_found_apart_from_a_phone_fixed_bias_and_the_lever_arm() {
         // Six shots at the six face centres (and a seventh between), each after a turn, the
-        // accelerometer biased by 0.04 m/s² per axis; the poses as "aligned" share a common
-        // tilt of 0.3° about a horizontal axis.
+        // accelerometer biased by 0.04 m/s² per axis, the gyroscope by ~0.15°/s; the poses as
+        // "aligned" share a common tilt of 0.3° about a horizontal axis.
         let aims = [(0.0, 0.0), (90.0, 0.0), (180.0, 0.0), (270.0, 0.0), (0.0, 89.0), (0.0, -89.0), (45.0, 40.0)];
         let r = DVec3::new(0.01, -0.02, -0.35);
         let b = DVec3::new(0.04, -0.04, 0.04);
+        let c = DVec3::new(0.1, -0.08, 0.06f64).to_array().map(f64::to_radians);
+        let c = DVec3::from_array(c);
         let common = DQuat::from_scaled_axis(DVec3::new(0.2, -0.22, 0.0).normalize() * 0.3f64.to_radians());
         let (mut poses, mut held) = (Vec::new(), Vec::new());
         for (k, &(h, p)) in aims.iter().enumerate() {
@@ -283,7 +328,7 @@ mod tests {
                 from.slerp(to, s * s * (3.0 - 2.0 * s))
             };
             let mut log = GravityLog::new(DisplayRotation::R90);
-            feed(&mut log, &path, r, b, -0.5, 1.0);
+            feed(&mut log, &path, r, (b, c), -0.5, 1.0);
             held.push(log.held(1.0));
             poses.push((common * to).as_quat());
         }
@@ -293,10 +338,11 @@ mod tests {
         eprintln!("{l:?}: residual {residual:.4}°");
         assert_eq!(l.shots, 7);
         assert!(residual < 0.01, "{residual}");
-        // The bias and the lever arm come back too, near enough (the bias in the camera frame;
-        // the fit's priors pull both a little towards 0: measured 0.008 m/s² and 0.02 m off).
+        // The bias and the lever arm come back too, roughly (the bias in the camera frame; the
+        // fit's priors and the gyroscope bias trade off with them: measured 0.012 m/s² and
+        // 0.02 m off). The tilt is what the fit is for.
         let b_cam = camera_to_device(DisplayRotation::R90).inverse() * b;
-        assert!((l.bias - b_cam).length() < 0.01, "{:?} vs {b_cam:?}", l.bias);
+        assert!((l.bias - b_cam).length() < 0.02, "{:?} vs {b_cam:?}", l.bias);
         assert!((l.lever_m - r).length() < 0.03, "{:?}", l.lever_m);
         // Fewer than three shots: no fit.
         assert!(level(&poses[..2], &held[..2]).is_none());

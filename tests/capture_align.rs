@@ -290,15 +290,17 @@ fn detail(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> String {
 /// Where the stitch's error comes from, and what each alignment step does, run by hand (not
 /// in CI). Per run, the shots as taken are aligned offline twice on the same images: turns
 /// about the vertical only (`align_turns`, the fifth session's alignment) and then every
-/// shot's whole orientation refined jointly (`refine_shots`, what `align_shots` does now).
+/// shot's whole orientation refined jointly (`refine_shots`, `align_shots`'s second step).
 /// Each pose set is scored by the faces' mean stitch FLIP and PSNR against the ideal faces at
 /// the front's true heading, with the shots' residual yaw and tilt against the truth (in the
 /// front's true frame), and the turns-only poses also with their residual yaw alone, their
 /// tilt alone and none (the true poses: what blending and resampling alone cost). With `HDR=1`
 /// each shot's bracket is rendered at its true pose and the HDR faces' share of texels within
-/// 10 % of the source luminance is scored too. `CASE=random50|random100|six SEEDS=0-3
-/// [SIZE=320] [FACE=128] [HDR=1] [MAPS=dir] cargo test --test capture_align quality_errors --
-/// --ignored --nocapture`.
+/// 10 % of the source luminance is scored too. The last two rows: the refined poses with the
+/// capture's common tilt taken off with the truth (the best a vertical can do), and levelled by
+/// the accelerometer held at the shots (`capture::gravity`, what `align_shots` does).
+/// `CASE=random50|random100|six SEEDS=0-3 [SIZE=320] [FACE=128] [HDR=1] [NOISE=phone|bad]
+/// [MAPS=dir] [DETAIL=1] cargo test --test capture_align quality_errors -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn quality_errors() {
@@ -323,6 +325,7 @@ fn quality_errors() {
     let face_size: u32 = env_or("FACE", "128").parse().unwrap();
     let hdr = std::env::var("HDR").is_ok();
     let vfov = if case == "random50" { 50.0 } else { 100.0 };
+    let noise = if env_or("NOISE", "phone") == "bad" { NoiseLevel::Bad } else { NoiseLevel::Phone };
     const NAMES: [&str; 7] = [
         "turns",
         "turns+refine",
@@ -338,7 +341,7 @@ fn quality_errors() {
         let seed = if case == "six" { 2000 + seed } else { seed };
         let cfg = ReplayConfig {
             mode: Mode::Stitch,
-            noise: NoiseLevel::Phone,
+            noise,
             seed,
             vfov_deg: vfov,
             width,
@@ -428,10 +431,6 @@ fn quality_errors() {
                 .map(|s| (w_href * DQuat::from_scaled_axis(-common) * w_href.inverse() * s.pose.as_dquat()).normalize().as_quat())
                 .collect(),
         );
-        // Gravity held over the last `w` s before each shot: the accelerometer readings, each
-        // turned to the shot's instant by the true relative rotation (the gyroscope's over a
-        // fraction of a second), in the camera frame; the common tilt taken as the turn from
-        // the vertical to the mean of the measured ups put in the world by the refined poses.
         // The product's vertical: the refined poses levelled by the accelerometer held at the
         // shots (`align_shots` does this after the refinement).
         let leveling = previz::capture::gravity::level(

@@ -12,7 +12,7 @@ use previz::capture::projection::{face_pixel_dir_local, local_to_world};
 use previz::capture::replay::{ReplayConfig, ReplayResult, replay};
 use previz::capture::{Assistant, Face, Mode};
 use previz::colour::luminance_bt709;
-use previz::pose::hand_motion::UserPathParams;
+use previz::pose::hand_motion::{UserPathParams, simulate_user_path};
 use previz::pose::trace::TruthTrace;
 use previz::scene::CubeMap;
 use previz::scene::environment::load_environment;
@@ -229,13 +229,19 @@ fn hdr_study() {
     );
     println!("|---|---|---|---|---|---|");
     for noise in [NoiseLevel::None, NoiseLevel::Phone] {
-        for vfov in [100.0f32, 50.0] {
+        // The guided user with each lens, and the held-out six-face paths (seeds 2000–2003).
+        for (vfov, six) in [(100.0f32, false), (50.0, false), (100.0, true)] {
             let seeds = [0u64, 1, 2, 3];
             let (mut share, mut worst, mut ratio, mut ratio_clipped) = (0.0, 1f64, 0.0, 0.0);
             for &seed in &seeds {
+                let seed = if six { 2000 + seed } else { seed };
                 let mut cfg = ReplayConfig { hdr: true, noise, ..config(vfov, seed, (640, 480), 128) };
                 cfg.score = false;
-                let t = trace(&cfg, seed);
+                let t = if six {
+                    TruthTrace::new(simulate_user_path(seed, &UserPathParams::default()).unwrap().samples).unwrap()
+                } else {
+                    trace(&cfg, seed)
+                };
                 let r = replay(&env, &t, &cfg).unwrap();
                 assert!(r.incomplete.is_none(), "{:?}", r.incomplete);
                 let front = front_true_heading(&t, &r);
@@ -250,8 +256,9 @@ fn hdr_study() {
                 ratio_clipped += e_cap / facing_irradiance(&env, sun, Some(clip)) / seeds.len() as f64;
             }
             println!(
-                "| {} | {vfov}° | {} | {:.2} % ({:.2} %) | {ratio:.3} | {ratio_clipped:.3} |",
+                "| {} | {vfov}°{} | {} | {:.2} % ({:.2} %) | {ratio:.3} | {ratio_clipped:.3} |",
                 noise.name(),
+                if six { " six-face paths" } else { "" },
                 seeds.len(),
                 100.0 * share,
                 100.0 * worst

@@ -300,7 +300,8 @@ fn detail(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> String {
 /// capture's common tilt taken off with the truth (the best a vertical can do), and levelled by
 /// the accelerometer held at the shots (`capture::gravity`, what `align_shots` does).
 /// `CASE=random50|random100|six SEEDS=0-3 [SIZE=320] [FACE=128] [HDR=1] [NOISE=phone|bad]
-/// [MAPS=dir] [DETAIL=1] cargo test --test capture_align quality_errors -- --ignored --nocapture`.
+/// [MAPS=dir: per run, ideal | refined | ×4 difference | levelled | ×4 difference, a face per row]
+/// [DETAIL=1] cargo test --test capture_align quality_errors -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn quality_errors() {
@@ -470,9 +471,9 @@ fn quality_errors() {
         let mut maps = Vec::new();
         for (vi, poses) in variants.iter().enumerate() {
             let (db, flip) = stitch_scores(&env, &trace, &r, &cfg, poses);
-            if vi == 1 && std::env::var("MAPS").is_ok() {
+            if (vi == 1 || vi == NAMES.len() - 1) && std::env::var("MAPS").is_ok() {
                 let posed: Vec<Shot> = taken.iter().zip(poses).map(|(s, p)| Shot { pose: *p, ..s.clone() }).collect();
-                maps = Face::ALL.map(|face| assemble_face(face, Mode::Stitch, &posed[0], &posed, &camera, href, face_size).rgb).to_vec();
+                maps.push(Face::ALL.map(|face| assemble_face(face, Mode::Stitch, &posed[0], &posed, &camera, href, face_size).rgb));
             }
             let mut within = f64::NAN;
             if hdr {
@@ -507,19 +508,21 @@ fn quality_errors() {
         println!("{line}");
         runs += 1;
         if let Ok(dir) = std::env::var("MAPS") {
-            // Per face (rows): ideal | refined | |difference| x4.
+            // Per face (rows): ideal | refined | |difference| x4 | levelled | |difference| x4.
             let s = face_size as usize;
-            let mut img = image::RgbImage::new(3 * face_size, 6 * face_size);
-            for (row, got) in maps.iter().enumerate() {
+            let mut img = image::RgbImage::new(5 * face_size, 6 * face_size);
+            for row in 0..6 {
                 let want = &ideal[row];
                 for i in 0..s * s {
                     let (x, y) = ((i % s) as u32, (row * s + i / s) as u32);
                     let p = |v: &[u8]| image::Rgb([v[3 * i], v[3 * i + 1], v[3 * i + 2]]);
                     img.put_pixel(x, y, p(want));
-                    img.put_pixel(x + face_size, y, p(got));
-                    let d: [u8; 3] =
-                        std::array::from_fn(|c| ((i32::from(want[3 * i + c]) - i32::from(got[3 * i + c])).abs() * 4).min(255) as u8);
-                    img.put_pixel(x + 2 * face_size, y, image::Rgb(d));
+                    for (k, got) in maps.iter().map(|m| &m[row]).enumerate() {
+                        let d: [u8; 3] =
+                            std::array::from_fn(|c| ((i32::from(want[3 * i + c]) - i32::from(got[3 * i + c])).abs() * 4).min(255) as u8);
+                        img.put_pixel(x + (1 + 2 * k as u32) * face_size, y, p(got));
+                        img.put_pixel(x + (2 + 2 * k as u32) * face_size, y, image::Rgb(d));
+                    }
                 }
             }
             img.save(format!("{dir}/{case}_{seed}.png")).unwrap();

@@ -303,9 +303,9 @@ fn yaw_deg(q: Quat) -> f64 {
 }
 
 /// 1σ of the accelerometer's tilt per shot (degrees): the pull of each shot's tilt towards its
-/// sensor pose in the refinement (the overlaps fix the relative tilts far more tightly). The
-/// capture's vertical is the mean of the sensor tilts (a constant accelerometer bias, in the
-/// device frame, turns with the phone and largely cancels over shots all round).
+/// sensor pose in the refinement (the overlaps fix the relative tilts far more tightly). During
+/// the refinement the capture's vertical is the mean of the sensor tilts; [`align_shots`] then
+/// levels it by the accelerometer held at the shots ([`super::gravity`]), where they hold it.
 const TILT_SIGMA_DEG: f64 = 0.5;
 /// 1σ of each shot's heading after the pair search (degrees): a weak pull that keeps a shot
 /// without usable overlaps where it is (3° and 30° measured the same).

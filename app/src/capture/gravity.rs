@@ -344,7 +344,9 @@ mod tests {
         let b_cam = camera_to_device(DisplayRotation::R90).inverse() * b;
         assert!((l.bias - b_cam).length() < 0.02, "{:?} vs {b_cam:?}", l.bias);
         assert!((l.lever_m - r).length() < 0.03, "{:?}", l.lever_m);
-        // Fewer than three shots: no fit.
+        // Fewer than three shots, or a tilt beyond what the filter's can be off (3°): no fit.
         assert!(level(&poses[..2], &held[..2]).is_none());
+        let far = Quat::from_rotation_x(3f32.to_radians());
+        assert!(level(&poses.iter().map(|p| far * *p).collect::<Vec<_>>(), &held).is_none());
     }
 }

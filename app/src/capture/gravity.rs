@@ -12,11 +12,13 @@
 //! window `[t₀, t₁]` is exactly the change of its velocity, `(Q₁(ω₁×r) − Q₀(ω₀×r)) / (t₁ − t₀)`
 //! (`ω` the gyroscope's rates at the ends, `Q` the turns to the shot's frame), which is linear
 //! in `r`: the window needs no steady phase, only its two ends. Then, over all shots with their
-//! aligned orientations `R_k` ([`level`]): `R_k m_k = g ẑ + g γ×ẑ + R_k (b + D_k r) + δg ẑ`, with
-//! the capture's common tilt `γ`, a phone-fixed accelerometer bias `b`, the lever arm `r` and a
-//! gravity magnitude error `δg` unknown — linear least squares with weak priors on `b` and `r`.
-//! The shots' attitudes differ, so a bias fixed in the phone separates from a tilt fixed in the
-//! world.
+//! aligned orientations `R_k` ([`level`]): `R_k m_k = g ẑ + g γ×ẑ + R_k (b + D_k r + E_k c) + δg ẑ`,
+//! with the capture's common tilt `γ`, a phone-fixed accelerometer bias `b`, the lever arm `r`, the
+//! gyroscope's bias `c` not yet learnt (it turns the window's earlier readings by its rate times
+//! their age; `E_k` the first-order change of the mean) and a gravity magnitude error `δg`
+//! unknown — linear least squares with weak priors on `b`, `r` and `c`. The shots' attitudes
+//! differ, so what is fixed in the phone separates from a tilt fixed in the world. Measured on
+//! the simulator's captures in docs/capture.md ("Alignment from the images").
 
 use crate::pose::frames::{DisplayRotation, camera_to_device};
 use crate::sensors::{Reading, STANDARD_GRAVITY};

@@ -12,7 +12,7 @@ use previz::capture::projection::{face_pixel_dir_local, local_to_world};
 use previz::capture::replay::{ReplayConfig, ReplayResult, replay};
 use previz::capture::{Assistant, Face, Mode};
 use previz::colour::luminance_bt709;
-use previz::pose::hand_motion::UserPathParams;
+use previz::pose::hand_motion::{UserPathParams, simulate_user_path};
 use previz::pose::trace::TruthTrace;
 use previz::scene::CubeMap;
 use previz::scene::environment::load_environment;
@@ -184,6 +184,29 @@ fn an_hdr_capture_measures_the_sky_within_ten_percent() {
     assert!(share >= 0.99, "{share}");
 }
 
+/// Issue 12's HDR goal at `phone` noise: the assembled luminance within 10 % of the source over
+/// 99 % of texels (100° lens, the study's 640×480 frames and 128 px faces). The shots' poses
+/// after the joint refinement err only by the capture's common tilt, which moves every
+/// high-contrast edge; with the vertical from the accelerometer held before each shot
+/// (`capture::gravity`) seeds 0 and 1 went from 96.30 % and 97.71 % (the tilt from the mean of the
+/// fusion filter's tilts, 0.15–0.3° off) to over 99.8 % (`hdr_study`, 2026-12-01).
+#[test]
+fn an_hdr_capture_at_phone_noise_measures_the_sky_within_ten_percent() {
+    let env = quarry();
+    for seed in [0u64, 1] {
+        let mut cfg = ReplayConfig { hdr: true, ..config(100.0, seed, (640, 480), 128) };
+        cfg.score = false;
+        let t = trace(&cfg, seed);
+        let r = replay(&env, &t, &cfg).unwrap();
+        assert!(r.incomplete.is_none(), "seed {seed}: {:?}", r.incomplete);
+        let (share, _) = hdr_within_10_percent(&env, &r, front_true_heading(&t, &r));
+        let alignment = r.capture.as_ref().unwrap().meta.alignment.unwrap();
+        eprintln!("seed {seed}: within 10 %: {:.2} % of texels; {alignment:?}", 100.0 * share);
+        assert!(alignment.vertical_shots >= 5, "seed {seed}: {alignment:?}");
+        assert!(share >= 0.99, "seed {seed}: {share}");
+    }
+}
+
 /// Irradiance (luminance) on a plane facing `s`, from every texel of a cube in its own frame.
 fn facing_irradiance(cube: &CubeMap, s: glam::Vec3, clip: Option<[f32; 3]>) -> f64 {
     previz::light::samples::from_cube(cube)
@@ -206,13 +229,19 @@ fn hdr_study() {
     );
     println!("|---|---|---|---|---|---|");
     for noise in [NoiseLevel::None, NoiseLevel::Phone] {
-        for vfov in [100.0f32, 50.0] {
+        // The guided user with each lens, and the held-out six-face paths (seeds 2000–2003).
+        for (vfov, six) in [(100.0f32, false), (50.0, false), (100.0, true)] {
             let seeds = [0u64, 1, 2, 3];
             let (mut share, mut worst, mut ratio, mut ratio_clipped) = (0.0, 1f64, 0.0, 0.0);
             for &seed in &seeds {
+                let seed = if six { 2000 + seed } else { seed };
                 let mut cfg = ReplayConfig { hdr: true, noise, ..config(vfov, seed, (640, 480), 128) };
                 cfg.score = false;
-                let t = trace(&cfg, seed);
+                let t = if six {
+                    TruthTrace::new(simulate_user_path(seed, &UserPathParams::default()).unwrap().samples).unwrap()
+                } else {
+                    trace(&cfg, seed)
+                };
                 let r = replay(&env, &t, &cfg).unwrap();
                 assert!(r.incomplete.is_none(), "{:?}", r.incomplete);
                 let front = front_true_heading(&t, &r);
@@ -227,8 +256,9 @@ fn hdr_study() {
                 ratio_clipped += e_cap / facing_irradiance(&env, sun, Some(clip)) / seeds.len() as f64;
             }
             println!(
-                "| {} | {vfov}° | {} | {:.2} % ({:.2} %) | {ratio:.3} | {ratio_clipped:.3} |",
+                "| {} | {vfov}°{} | {} | {:.2} % ({:.2} %) | {ratio:.3} | {ratio_clipped:.3} |",
                 noise.name(),
+                if six { " six-face paths" } else { "" },
                 seeds.len(),
                 100.0 * share,
                 100.0 * worst

@@ -59,7 +59,7 @@ impl AimHeading {
         let mut held = filter.clone();
         held.hold_heading(t, true);
         self.held = Some(held);
-        self.shots = vec![Shot { target: 0, t, pose: pose.q, image: frame }];
+        self.shots = vec![Shot { target: 0, t, pose: pose.q, image: frame, gravity: None }];
     }
 
     /// The pose to judge aims with: the fused `pose` before the tap; after it, its orientation
@@ -75,7 +75,7 @@ impl AimHeading {
     pub fn shot(&mut self, target: usize, t: f64, aim: Pose, pose: Pose, frame: Arc<Rgba8Image>) -> Pose {
         let images = self.images;
         let Some(held) = self.held.as_mut().filter(|_| images) else { return pose };
-        let mut shot = Shot { target, t, pose: aim.q, image: frame };
+        let mut shot = Shot { target, t, pose: aim.q, image: frame, gravity: None };
         if let Some(turn) = turn_against(&self.camera, &self.shots, &shot) {
             self.drift_fixes += 1;
             held.heading_fix(t, turn.to_radians(), IMAGE_TURN_SIGMA_DEG.to_radians());

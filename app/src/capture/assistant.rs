@@ -383,7 +383,7 @@ impl Assistant {
 
     fn store(&mut self, index: usize, t: f64, pose: &Pose, q: Quat, image: Arc<Rgba8Image>) {
         let s = &mut self.states[index];
-        s.shot = Some(Shot { target: index, t, pose: q, image });
+        s.shot = Some(Shot { target: index, t, pose: q, image, gravity: None });
         s.heading_source = Some(pose.heading_source);
         s.accuracy_deg = pose.accuracy_deg;
         self.on_target = None;
@@ -510,6 +510,15 @@ impl Assistant {
         let seen = seen_samples(&self.cfg.camera, &self.samples, local, self.cfg.tolerance_deg * PLAN_MARGIN);
         let new = seen.iter().filter(|&&i| !self.covered[i as usize]).count();
         new >= MIN_NEW_SAMPLES && new as f64 >= MIN_NEW_FRACTION * seen.len() as f64
+    }
+
+    /// The accelerometer held before the shot taken at time `t` (the tap or a capture;
+    /// [`super::gravity::GravityLog::held`]): the joint alignment levels the capture with it.
+    /// Nothing happens when no shot was taken at `t`.
+    pub fn set_shot_gravity(&mut self, t: f64, gravity: Option<super::gravity::HeldGravity>) {
+        if let Some(shot) = self.states.iter_mut().filter_map(|s| s.shot.as_mut()).find(|s| s.t == t) {
+            shot.gravity = gravity;
+        }
     }
 
     /// Take the shot for target `index` (as returned by [`Assistant::observe`]) from `frame`
@@ -800,7 +809,12 @@ impl Assistant {
             })
             .collect();
         let mut meta = CaptureMeta::new(cfg, href, face_meta, shot_meta);
-        meta.alignment = alignment.map(|a| AlignmentMeta { pairs: a.pairs.len(), dropped_pairs: a.dropped });
+        meta.alignment = alignment.map(|a| AlignmentMeta {
+            pairs: a.pairs.len(),
+            dropped_pairs: a.dropped,
+            vertical_correction_deg: a.leveling.map(|l| l.angle_deg()),
+            vertical_shots: a.leveling.map_or(0, |l| l.shots),
+        });
         CubeCapture::new(meta, faces)
     }
 }

@@ -123,6 +123,13 @@ pub struct AlignmentMeta {
     pub pairs: usize,
     /// Pairs dropped as disagreeing with the joint solution.
     pub dropped_pairs: usize,
+    /// The tilt (degrees) taken off the whole capture by the accelerometer held at the shots
+    /// ([`super::gravity`]), and how many shots held it; null / 0 when too few did (the vertical
+    /// is then the mean of the sensor tilts) and in folders written before it.
+    #[serde(default)]
+    pub vertical_correction_deg: Option<f64>,
+    #[serde(default)]
+    pub vertical_shots: usize,
 }
 
 impl ShotMeta {

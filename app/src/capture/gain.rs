@@ -226,7 +226,7 @@ mod tests {
             .enumerate()
             .map(|(i, (t, s))| {
                 let pose = t.pose(30.0).as_quat();
-                Shot { target: i, t: i as f64, pose, image: Arc::new(phone.render_with(pose, *s).unwrap()) }
+                Shot { target: i, t: i as f64, pose, image: Arc::new(phone.render_with(pose, *s).unwrap()), gravity: None }
             })
             .collect();
         let g = estimate_gains(&cam, &shots, 0);

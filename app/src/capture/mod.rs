@@ -29,6 +29,7 @@ pub mod dense_solve;
 pub mod folder;
 pub mod frame_fold;
 pub mod gain;
+pub mod gravity;
 pub mod guided_path;
 pub mod hdr;
 pub mod projection;

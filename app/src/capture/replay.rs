@@ -20,6 +20,7 @@ use super::Mode;
 use super::aim_heading::AimHeading;
 use super::assistant::{Assistant, AssistantConfig, Phase};
 use super::folder::{CubeCapture, Location};
+use super::gravity::GravityLog;
 use super::guided_path::{AimShift, CapturePath, simulate_guided_path};
 use super::hdr::{BRACKET_EV, clip_radiance, hdr_faces, merge_brackets};
 use super::projection::{Pinhole, face_pixel_dir_local, local_to_world};
@@ -279,6 +280,8 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
     let mut complete_t = None;
     let mut track = Vec::new();
     let mut aim = AimHeading::new(cfg.camera()?, cfg.align);
+    // The accelerometer held before each shot: the capture's vertical (capture::gravity).
+    let mut gravity = GravityLog::new(rotation);
     // The sun measurement of the shot with the sun nearest its centre: (off-axis angle, the
     // heading error of the shot's sensor pose, the shot's time).
     let mut sun_fix: Option<(f32, HeadingMeasurement, f64)> = None;
@@ -290,6 +293,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         for r in &readings {
             filter.update(r)?;
             aim.update(r)?;
+            gravity.update(r);
             if let Reading::Gps(f) = r {
                 location = Some(Location { lat_deg: f.lat_deg, lon_deg: f.lon_deg, alt_m: f.alt_m });
             }
@@ -317,6 +321,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
                 brackets.push((t, bracket(&phone, truth, settings, &frame)?, settings));
             }
             assistant.tap(t, &pose, frame.clone())?;
+            assistant.set_shot_gravity(t, gravity.held(t));
             sun_fix = nearer_centre(
                 sun_fix,
                 measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &pose, truth, settings)?.map(|(a, m)| (a, m, t)),
@@ -340,6 +345,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
             shot_settings.push((t, settings));
             let shot_pose = aim.shot(i, t, aim_pose, pose, frame.clone());
             assistant.capture(i, t, &shot_pose, frame)?;
+            assistant.set_shot_gravity(t, gravity.held(t));
             sun_fix = nearer_centre(
                 sun_fix,
                 measure_sun(&phone, cfg, spa_sun(cfg.clock, location), &shot_pose, truth, settings)?.map(|(a, m)| (a, m, t)),

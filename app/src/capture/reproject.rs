@@ -20,6 +20,9 @@ pub struct Shot {
     pub t: f64,
     pub pose: Quat,
     pub image: Arc<Rgba8Image>,
+    /// The accelerometer held before the shot (the capture's vertical, [`super::gravity`]);
+    /// `None` where the readings were not logged.
+    pub gravity: Option<super::gravity::HeldGravity>,
 }
 
 /// One assembled face: sRGB-encoded RGB8, `size`×`size`, top row first.
@@ -232,7 +235,7 @@ mod tests {
         let cam = Pinhole::from_vfov(400, 300, 120.0).unwrap();
         let href = 359.0;
         let pose = from_heading_pitch_roll((href + 90.0 + 1.5f64).to_radians(), 1.5f64.to_radians(), 8f64.to_radians()).as_quat();
-        let shot = Shot { target: 0, t: 0.0, pose, image: Arc::new(render(&cam, pose, &world)) };
+        let shot = Shot { target: 0, t: 0.0, pose, image: Arc::new(render(&cam, pose, &world)), gravity: None };
         let face = assemble_face(Face::Right, Mode::Stitch, &shot, std::slice::from_ref(&shot), &cam, href, 32);
         assert_eq!(face.coverage, 1.0);
         let err = mean_abs_diff(&face.rgb, &ideal(Face::Right, href, 32));
@@ -254,7 +257,7 @@ mod tests {
             .enumerate()
             .map(|(i, t)| {
                 let pose = t.pose(href).as_quat();
-                Shot { target: i, t: i as f64, pose, image: Arc::new(render(&cam, pose, &world)) }
+                Shot { target: i, t: i as f64, pose, image: Arc::new(render(&cam, pose, &world)), gravity: None }
             })
             .collect();
         let front = &shots[0];

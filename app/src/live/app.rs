@@ -24,6 +24,7 @@ use super::{LiveFrame, LiveSession};
 use crate::capture::Mode as CaptureMode;
 use crate::capture::aim_heading::AimHeading;
 use crate::capture::assistant::{Assistant, AssistantConfig, Phase};
+use crate::capture::gravity::GravityLog;
 use crate::capture::projection::Pinhole;
 use crate::capture::targets::Face;
 use crate::gpu::Gpu;
@@ -89,6 +90,8 @@ struct CaptureRun {
     /// measured turn correcting its drift), and the pose it gave at the latest frame.
     aim: AimHeading,
     aim_pose: Option<crate::pose::Pose>,
+    /// The accelerometer held before each shot: the capture's vertical (capture::gravity).
+    gravity: GravityLog,
     thumbs: [Option<egui::TextureHandle>; 6],
     /// What each thumbnail shows: the face assembled from this many shots, [`ASSEMBLED`] (the
     /// finished capture's face), or nothing yet.
@@ -321,6 +324,7 @@ impl App {
             assistant,
             aim: AimHeading::new(camera, true),
             aim_pose: None,
+            gravity: GravityLog::new(self.session.display_rotation()),
             thumbs: Default::default(),
             thumb_sources: [None; 6],
             last_shot: None,
@@ -450,6 +454,7 @@ impl App {
         run.tap |= f.user_tapped;
         for r in self.session.readings() {
             run.aim.update(r)?;
+            run.gravity.update(r);
         }
         let Some(pose) = f.pose else { return Ok(()) };
         // From the tap on, aims are judged with the heading held at the tap and corrected by
@@ -468,11 +473,13 @@ impl App {
             run.assistant.set_gain_compensation(!locked);
             run.assistant.tap(f.t, &pose, front.clone())?;
             run.aim.tap(self.session.orientation_filter(), f.t, &pose, front);
+            run.assistant.set_shot_gravity(f.t, run.gravity.held(f.t));
             run.last_shot = Some((Face::Front.name().to_string(), f.t));
         } else if let Some(i) = run.assistant.observe(f.t, &aim_pose)? {
             let frame = image()?;
             let shot_pose = run.aim.shot(i, f.t, aim_pose, pose, frame.clone());
             run.assistant.capture(i, f.t, &shot_pose, frame)?;
+            run.assistant.set_shot_gravity(f.t, run.gravity.held(f.t));
             let name = run.assistant.targets().get(i).map_or_else(String::new, |t| t.name.clone());
             run.last_shot = Some((name, f.t));
         }

@@ -49,8 +49,11 @@ fn a_clipped_clear_skys_sun_is_lost_to_clipping_calibrated_right_and_off_by_the_
         let dhi = luminance_bt709(brute_force_irradiance(&sky, Vec3::Z));
         // The 8-bit exposure: the 99th percentile of the sky (above the horizon, > 10° from the
         // sun) at 0.5.
-        let mut lum: Vec<f32> =
-            sky.iter().filter(|s| s.dir.z > 0.05 && s.dir.dot(sun.dir) < 10f32.to_radians().cos()).map(|s| luminance_bt709(s.radiance)).collect();
+        let mut lum: Vec<f32> = sky
+            .iter()
+            .filter(|s| s.dir.z > 0.05 && s.dir.dot(sun.dir) < 10f32.to_radians().cos())
+            .map(|s| luminance_bt709(s.radiance))
+            .collect();
         lum.sort_by(f32::total_cmp);
         let scale = 0.5 / lum[lum.len() * 99 / 100];
         let clipped: Vec<[f32; 3]> = map.pixels().iter().map(|p| p.map(|c| (c * scale).min(1.0))).collect();
@@ -75,7 +78,8 @@ fn a_clipped_clear_skys_sun_is_lost_to_clipping_calibrated_right_and_off_by_the_
         // 3. The model's ratio: Bird's DNI/DHI for the atmosphere used (quarry: T = 2.05 from the
         //    sky's shape; sunrise: its sky is not a clear one by the fit, RMS 0.42, so the
         //    default AOD 0.1) is 7.7 and 9.1 where the maps hold 4.2 and 5.1: the whole error.
-        let atmosphere = restored.turbidity.map_or_else(clear_sky::Atmosphere::default, |t| sky_model::atmosphere_for_turbidity(f64::from(t)));
+        let atmosphere =
+            restored.turbidity.map_or_else(clear_sky::Atmosphere::default, |t| sky_model::atmosphere_for_turbidity(f64::from(t)));
         let bird = clear_sky::bird(90.0 - f64::from(elevation.to_degrees()), &atmosphere).unwrap();
         let (model_ratio, map_ratio) = (bird.direct_normal / bird.diffuse_horizontal, f64::from(truth / dhi));
         let explained = model_ratio / map_ratio * f64::from(dhi_clipped / dhi);

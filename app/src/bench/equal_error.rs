@@ -98,25 +98,41 @@ pub fn scene_ratios(rows: &[AccuracyRow], method: &str) -> Vec<SceneRatio> {
         .filter(|r| r.method == method)
         .filter_map(|r| {
             let at = at_equal_error(&ladder_of(rows, &r.scene), f64::from(r.flip_roi))?;
-            Some(SceneRatio { scene: r.scene.clone(), method: method.into(), flip_roi: f64::from(r.flip_roi), ms: r.ms, at, ratio: at.tracer_ms / r.ms })
+            Some(SceneRatio {
+                scene: r.scene.clone(),
+                method: method.into(),
+                flip_roi: f64::from(r.flip_roi),
+                ms: r.ms,
+                at,
+                ratio: at.tracer_ms / r.ms,
+            })
         })
         .collect()
 }
 
 /// Markdown table of the ratios, then their geometric mean.
 pub fn markdown(ratios: &[SceneRatio]) -> String {
-    let mut s = String::from("| scene | method | FLIP ROI | ms | path tracer spp at that error | its ms per frame | ratio |\n|---|---|---|---|---|---|---|\n");
+    let mut s = String::from(
+        "| scene | method | FLIP ROI | ms | path tracer spp at that error | its ms per frame | ratio |\n|---|---|---|---|---|---|---|\n",
+    );
     for r in ratios {
         let (spp, bound) = match r.at.bracket {
             Bracket::Between => (format!("{:.1}", r.at.spp), ""),
             Bracket::BelowFirst => (format!("≤ {:.0} (worse than {:.0} spp)", r.at.spp, r.at.spp), "≤ "),
             Bracket::PastLast => (format!("{:.0} (extrapolated)", r.at.spp), ""),
         };
-        s += &format!("| {} | {} | {:.3} | {:.1} | {spp} | {:.0} | {bound}{:.0}× |\n", r.scene, r.method, r.flip_roi, r.ms, r.at.tracer_ms, r.ratio);
+        s += &format!(
+            "| {} | {} | {:.3} | {:.1} | {spp} | {:.0} | {bound}{:.0}× |\n",
+            r.scene, r.method, r.flip_roi, r.ms, r.at.tracer_ms, r.ratio
+        );
     }
     if !ratios.is_empty() {
         let g = (ratios.iter().map(|r| r.ratio.ln()).sum::<f64>() / ratios.len() as f64).exp();
-        s += &format!("\ngeometric mean over {} scenes: {g:.0}× (goal ≥ 1000×: {})\n", ratios.len(), if g >= 1000.0 { "met" } else { "not met" });
+        s += &format!(
+            "\ngeometric mean over {} scenes: {g:.0}× (goal ≥ 1000×: {})\n",
+            ratios.len(),
+            if g >= 1000.0 { "met" } else { "not met" }
+        );
     }
     s
 }

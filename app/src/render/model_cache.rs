@@ -9,12 +9,12 @@
 //! CPU), and any change to the model computes it again. One cache per device
 //! ([`ModelCache::of`]); it keeps the [`CAPACITY`] models used last.
 
+use super::ground_worker::{self, GroundWorker, PlacementKey, placement_key};
 use super::pipelines::Vertex;
 use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
 use crate::light::sh9::SkyShape;
 use crate::scene::lod::LodChain;
-use super::ground_worker::{self, GroundWorker, PlacementKey, placement_key};
 use crate::scene::occlusion::{self, GroundSky, GroundTransfer, Occluders};
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
@@ -181,7 +181,7 @@ impl PreparedModel {
             self.keep(&mut state, bits, transfer);
         }
         let key = placement_key(placement);
-        if !state.last.as_ref().is_some_and(|g| g.bits == key) {
+        if state.last.as_ref().is_none_or(|g| g.bits != key) {
             let transfer = ground_worker::cast(&self.occluders, self.bounds, placement);
             self.ground_waited.fetch_add(1, Relaxed);
             self.keep(&mut state, key, transfer);

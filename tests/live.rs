@@ -136,7 +136,7 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let table = String::from_utf8_lossy(&out.stdout);
-    for stage in ["camera frame", "sensors + fusion", "sun (SPA)", "compositor (GPU)", "whole frame"] {
+    for stage in ["camera frame", "sensors + fusion", "sun (SPA)", "compositor (GPU)", "whole frame", "model turning"] {
         assert!(table.contains(stage), "{stage} missing from:\n{table}");
     }
 
@@ -390,4 +390,34 @@ fn a_gps_fix_moves_the_place_the_sun_is_computed_for() {
     assert!((lat - 39.742476).abs() < 1e-9 && (lon + 105.1786).abs() < 1e-9, "the fix's place: {lat}, {lon}");
     assert!((f.sun.azimuth_deg - 194.34024).abs() < 0.05, "azimuth {}", f.sun.azimuth_deg);
     assert!((f.sun.apparent_zenith_deg - 50.11162).abs() < 0.05, "zenith {}", f.sun.apparent_zenith_deg);
+}
+
+#[test]
+fn turning_the_model_does_not_make_a_frame_wait_for_the_grounds_rays() {
+    // Suzanne: no other test here loads it, so the device's model cache counts are this test's.
+    let s = scene(&SCENE.replace("meshes/stanford-bunny.obj", "meshes/suzanne.obj"));
+    let inputs = load_inputs(&s, false).unwrap();
+    let cfg = config("2003-10-17T12:30:30-07:00", NoiseLevel::None);
+    let mut session = LiveSession::simulated(gpu(), Arc::new(inputs.env), &inputs.model, &s, cfg).unwrap();
+    session.advance(gpu()).unwrap().unwrap();
+    session.render(gpu()).unwrap();
+    let prepared = session.compositor().prepared_model().unwrap().clone();
+    // The first placement has no map to keep: its frame waited for the rays and uploaded the map.
+    let (waits, updates) = (prepared.ground_waits(), session.compositor().ground_sky_updates());
+    assert_eq!((waits, updates), (1, 1));
+    // A turn: the frame draws with the previous placement's map, its rays cast on the worker.
+    session.params_mut().placement.rotation.z += 0.6;
+    session.advance(gpu()).unwrap().unwrap();
+    let during = session.render(gpu()).unwrap();
+    assert_eq!(prepared.ground_waits(), waits, "the turned frame waited for the ground's rays");
+    assert_eq!(session.compositor().ground_sky_updates(), updates, "the previous map stays until the new one is in");
+    // The turn's map arrives; the next frame uploads it, and draws what a still of the same frame
+    // (which waits for the current placement's rays) draws.
+    prepared.finish_ground();
+    let live = session.render(gpu()).unwrap();
+    assert_eq!(session.compositor().ground_sky_updates(), updates + 1);
+    let still = session.render_layer(gpu(), Layer::Composite).unwrap();
+    assert!(live.rgba == still.rgba, "the live frame's ground differs from the still's");
+    assert!(during.rgba != still.rgba, "the turned frame drew the previous placement's map");
+    assert_eq!((prepared.ground_waits(), prepared.ground_rays_cast()), (waits, 2));
 }

@@ -140,7 +140,7 @@ pub struct AccuracyRow {
     /// Mean linear luminance over the reference's model pixels, this image / the reference.
     pub model_luminance_ratio: f32,
     /// Time to make the image, ms (previz: fastest of the timed frames, wall clock including
-    /// readback; path tracer: the reference script's wall time).
+    /// readback; path tracer: its lit renders per frame, start-up excluded: [`score_ladder`]).
     pub ms: f64,
     /// The method's frame cost as a ratio of the background-only floor, measured by `previz
     /// bench frame` (bench::frame::MethodCost, GPU time, default scene and frame; issue 11's
@@ -407,7 +407,8 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
 }
 
 /// Score the path tracer's own ladder: `NAME_sppN.png` (with `NAME_sppN.json` holding
-/// `seconds`) in `dir` for every N found, against the high-sample reference.
+/// `frame_seconds`: render_reference.py `--time-frame`, the lit renders' time per frame without
+/// Mitsuba's start-up) in `dir` for every N found, against the high-sample reference.
 pub fn score_ladder(dir: &Path, name: &str, reference: &Reference) -> Result<Vec<AccuracyRow>> {
     let mut rows = Vec::new();
     for spp in [1u32, 4, 16, 64] {
@@ -418,7 +419,9 @@ pub fn score_ladder(dir: &Path, name: &str, reference: &Reference) -> Result<Vec
         let json = dir.join(format!("{name}_spp{spp}.json"));
         let text = std::fs::read_to_string(&json).with_context(|| format!("cannot read {}", json.display()))?;
         let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", json.display()))?;
-        let seconds = v["seconds"].as_f64().ok_or_else(|| anyhow!("{}: no \"seconds\"", json.display()))?;
+        let seconds = v["frame_seconds"]
+            .as_f64()
+            .ok_or_else(|| anyhow!("{}: no \"frame_seconds\" (render it with render_reference.py --time-frame)", json.display()))?;
         let (flip_frame, flip_roi, model_luminance_ratio) = score(reference, read_rgb8(&png)?.as_raw())?;
         rows.push(AccuracyRow {
             scene: name.into(),
@@ -526,7 +529,7 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
         let root = root.titled("Lighting accuracy vs cost (mean over the reference scenes)", ("sans-serif", 26)).map_err(|e| err(&e))?;
         let (left, right) = root.split_horizontally(CHART_W * 55 / 100);
         let mut c = ChartBuilder::on(&left)
-            .caption("against time per image (lavapipe wall clock; the path tracer's run)", ("sans-serif", 18))
+            .caption("against time per image (lavapipe wall clock; the path tracer per frame, start-up excluded)", ("sans-serif", 18))
             .margin(20)
             .x_label_area_size(60)
             .y_label_area_size(80)
@@ -551,6 +554,24 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
             .label("path tracer 1/4/16/64 spp vs 256 spp")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], black.stroke_width(2)));
         c.draw_series(tracer.iter().map(|p| Circle::new(*p, 5, black.filled()))).map_err(|e| err(&e))?;
+        // The default method against the path tracer's mean curve at its mean error.
+        let ladder: Vec<super::equal_error::Rung> = means
+            .iter()
+            .filter_map(|m| {
+                let spp = m.method.strip_prefix("path tracer ")?.strip_suffix(" spp")?.parse().ok()?;
+                Some(super::equal_error::Rung { spp, flip_roi: m.flip_roi, ms: m.ms })
+            })
+            .collect();
+        let default = crate::setup::method_choice::ORDINARY.name();
+        if let Some(d) = means.iter().find(|m| m.method == default)
+            && let Some(at) = super::equal_error::at_equal_error(&ladder, d.flip_roi)
+        {
+            let grey = RGBColor(110, 110, 110);
+            c.draw_series(DashedLineSeries::new(vec![(d.ms, d.flip_roi), (at.tracer_ms, d.flip_roi)], 4, 4, grey.stroke_width(2)))
+                .map_err(|e| err(&e))?
+                .label(format!("{default} vs path tracer at equal error: {:.0}x ({:.1} spp)", at.tracer_ms / d.ms, at.spp))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], grey.stroke_width(2)));
+        }
         for (m, col) in &methods {
             let col = *col;
             c.draw_series(std::iter::once(TriangleMarker::new((m.ms, m.flip_roi), 9, col.filled())))

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 /// The stages, in the order of a frame, then the floor: the same frame's background alone
 /// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
-pub const STAGES: [&str; 13] = [
+pub const STAGES: [&str; 15] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
@@ -26,6 +26,8 @@ pub const STAGES: [&str; 13] = [
     "profile: background pass",
     "profile: model pass",
     "profile: ground pass",
+    "model turning 2 deg a frame: frame's thread (uniforms, ground map, encode), rays on the worker",
+    "same, the frame waiting for the ground's rays (before issue 9's worker)",
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
@@ -35,6 +37,10 @@ pub const FOLD_THREAD: usize = 7;
 /// Index of the profile's first row: after the measured frames, as many again with each pass
 /// timed alone (`Compositor::set_pass_timing`), then the passes one by one.
 pub const PROFILE: usize = 8;
+/// Index of the turning model's rows: after the profile, as many frames again turning the model
+/// 2° each (a new placement every frame: the ground's rays cast again), timed on the frame's
+/// thread with the rays on the worker, then as many waiting for them.
+pub const TURN: usize = 13;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug)]
@@ -61,14 +67,14 @@ pub fn run(
         lon_deg: -2.5879,
         start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00")?.with_timezone(&chrono::Utc),
         frame_hz: 30.0,
-        duration_s: ((2 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
+        duration_s: ((4 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
         noise: NoiseLevel::Phone,
         seed: 1,
     };
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
     session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 13] = Default::default();
+    let mut samples: [Vec<f64>; 15] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let folds = session.fold_refreshes().map_or(0, |r| r.0);
@@ -103,6 +109,20 @@ pub fn run(
         progress.inc(1);
     }
     session.set_pass_timing(false);
+    // The model turning: each frame a new placement. With the rays on the worker the frame keeps
+    // the last map that arrived; waiting, it casts them itself.
+    progress.set_length((4 * frames + warmup) as u64);
+    for (row, background) in [(TURN, true), (TURN + 1, false)] {
+        session.set_ground_in_background(background);
+        for _ in 0..frames {
+            session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
+            session.params_mut().placement.rotation.z += 2f32.to_radians();
+            let r = session.render(gpu)?;
+            samples[row].push(r.timings.encode_ms);
+            progress.inc(1);
+        }
+    }
+    session.set_ground_in_background(true);
     Ok(STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect())
 }
 

@@ -2,6 +2,7 @@
 
 pub mod accuracy;
 pub mod colour;
+pub mod equal_error;
 pub mod frame;
 pub mod live;
 pub mod lod;

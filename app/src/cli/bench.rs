@@ -25,7 +25,9 @@ pub enum What {
     Frame(FrameArgs),
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
     /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames; then as
-    /// many frames again with each pass timed alone (the profile rows).
+    /// many frames again with each pass timed alone (the profile rows); then as many turning the
+    /// model 2° a frame, the ground's rays on their worker, and as many with the frame waiting
+    /// for them (the frame's thread's time).
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model
@@ -270,6 +272,9 @@ fn run_accuracy(a: AccuracyArgs) -> Result<()> {
     } else {
         println!("{} scenes on {}; references in {}\n", names.len(), gpu.describe(), a.references.display());
         print!("{}", accuracy::markdown(&rows));
+        let default = crate::setup::method_choice::ORDINARY.name();
+        println!("\nThe default method ({default}) against the path tracer at equal error (bench::equal_error):\n");
+        print!("{}", crate::bench::equal_error::markdown(&crate::bench::equal_error::scene_ratios(&rows, default)));
         println!("\nError budget of each scene's own method (docs/accuracy.md):\n");
         print!("{}", accuracy::budget_markdown(&budgets));
     }

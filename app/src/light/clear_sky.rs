@@ -85,6 +85,32 @@ pub fn bird(zenith_deg: f64, a: &Atmosphere) -> Option<ClearSky> {
     Some(ClearSky { direct_normal, diffuse_horizontal: global_horizontal - direct_horizontal, global_horizontal })
 }
 
+/// Dominant wavelengths (µm) of the BT.709 / sRGB red, green and blue primaries: where the beam's
+/// spectral transmittance is read for each channel in [`beam_colour`].
+pub const PRIMARY_WAVELENGTHS_UM: [f64; 3] = [0.611, 0.549, 0.464];
+
+/// Rayleigh optical depth of the standard atmosphere at wavelength `um` (µm), at sea level
+/// (Bird & Riordan 1986, SPCTRAL2: τ_R = 1 / (λ⁴ (115.6406 − 1.335 / λ²))).
+pub fn rayleigh_depth(um: f64) -> f64 {
+    1.0 / (um.powi(4) * (115.6406 - 1.335 / (um * um)))
+}
+
+/// The colour of the direct beam at solar zenith `zenith_deg` through `a` (linear BT.709 RGB,
+/// luminance 1): a white sun (equal energy in the three channels above the atmosphere)
+/// attenuated along Kasten's air mass by Rayleigh scattering ([`rayleigh_depth`], scaled by
+/// pressure) and the aerosol of `a` (Ångström's τ = β λ^−α through its 380 and 500 nm depths),
+/// each channel at its primary's dominant wavelength ([`PRIMARY_WAVELENGTHS_UM`]). Ozone and water
+/// vapour are left out (Chappuis band and near infrared: a few per cent in the visible). None
+/// with the sun at or below the horizon.
+pub fn beam_colour(zenith_deg: f64, a: &Atmosphere) -> Option<[f32; 3]> {
+    let am = kasten1966_airmass(zenith_deg)?;
+    let alpha = if a.aod380 > 0.0 && a.aod500 > 0.0 { (a.aod380 / a.aod500).ln() / (0.5f64 / 0.38).ln() } else { 0.0 };
+    let beta = a.aod500 * 0.5f64.powf(alpha);
+    let t = PRIMARY_WAVELENGTHS_UM.map(|um| (-am * (rayleigh_depth(um) * a.pressure / 101_325.0 + beta * um.powf(-alpha))).exp());
+    let y = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+    (y > 0.0).then(|| t.map(|c| (c / y) as f32))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -105,6 +131,31 @@ mod tests {
         }
         assert!(bird(90.0, &Atmosphere::default()).is_none());
         assert!(bird(-1.0, &Atmosphere::default()).is_none());
+    }
+
+    #[test]
+    fn the_beam_reddens_towards_the_horizon() {
+        // SPCTRAL2's Rayleigh depth at 0.5 µm by hand: 1 / (0.0625 · (115.6406 − 5.34)) = 0.14506.
+        assert!((rayleigh_depth(0.5) - 0.145_06).abs() < 1e-4, "{}", rayleigh_depth(0.5));
+        // Without aerosol, overhead (air mass 1): R, G, B transmit e^−τ at 611, 549, 464 nm.
+        let clean = Atmosphere { aod380: 0.0, aod500: 0.0, ..Atmosphere::default() };
+        let c = beam_colour(0.0, &clean).unwrap();
+        let t = PRIMARY_WAVELENGTHS_UM.map(|um| (-kasten1966_airmass(0.0).unwrap() * rayleigh_depth(um)).exp());
+        let y = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+        for k in 0..3 {
+            assert!((f64::from(c[k]) - t[k] / y).abs() < 1e-6, "{c:?}");
+        }
+        // Luminance 1, and ever redder as the sun goes down: quarry_01's measured sun 10.1° up
+        // (light::measure, RGB / luminance 1.37, 0.95, 0.37) lies between the colours at its
+        // elevation for a clear and a hazy day.
+        let a = Atmosphere::default();
+        let (high, low) = (beam_colour(30.0, &a).unwrap(), beam_colour(79.9, &a).unwrap());
+        assert!((0.2126 * low[0] + 0.7152 * low[1] + 0.0722 * low[2] - 1.0).abs() < 1e-5);
+        assert!(low[0] / low[2] > high[0] / high[2] && high[0] / high[2] > c[0] / c[2], "{high:?} {low:?}");
+        let hazy = beam_colour(79.9, &Atmosphere { aod380: 0.45, aod500: 0.3, ..a }).unwrap();
+        let quarry = 1.37f32 / 0.37;
+        assert!(low[0] / low[2] < quarry && quarry < hazy[0] / hazy[2], "{low:?} {hazy:?}");
+        assert!(beam_colour(90.0, &a).is_none());
     }
 
     /// (zenith deg, [dni, dhi, ghi] W/m²) from pvlib.

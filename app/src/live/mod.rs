@@ -342,7 +342,9 @@ impl LiveSession {
     /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
     pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let (compositor, params, light) = compositor_and_light(gpu, scene, env, model)?;
+        let (mut compositor, params, light) = compositor_and_light(gpu, scene, env, model)?;
+        // A turn or scale of the model casts the ground's rays off the frame's thread.
+        compositor.set_ground_in_background(true);
         let unit_light = light.unit;
         let map_sun_dir = params.lighting.sun_dir;
         // True north from the first GPS fix and the World Magnetic Model for the date.
@@ -530,14 +532,29 @@ impl LiveSession {
         self.compositor.render(gpu, &self.params, self.layer)
     }
 
-    /// Render one layer of the current frame (the model alone, say) and read it back.
-    pub fn render_layer(&mut self, gpu: &Gpu, layer: Layer) -> Result<Rendered> {
-        self.compositor.render(gpu, &self.params, layer)
+    /// Whether a turn or scale of the model casts the ground's rays on a worker (the default)
+    /// or the frame waits for them, as a composite does (`bench live` compares the two).
+    pub fn set_ground_in_background(&mut self, on: bool) {
+        self.compositor.set_ground_in_background(on);
     }
 
-    /// The current frame's float layers (render/layers.rs), for the shutter's `layers.exr`.
+    /// Render one layer of the current frame (the model alone, say) and read it back: a still
+    /// (the shutter's export), so the ground's map is the model's current placement's, waiting
+    /// for its rays if a turn's are still being cast.
+    pub fn render_layer(&mut self, gpu: &Gpu, layer: Layer) -> Result<Rendered> {
+        self.compositor.set_ground_in_background(false);
+        let rendered = self.compositor.render(gpu, &self.params, layer);
+        self.compositor.set_ground_in_background(true);
+        rendered
+    }
+
+    /// The current frame's float layers (render/layers.rs), for the shutter's `layers.exr` (a
+    /// still, as [`LiveSession::render_layer`]).
     pub fn render_float_layers(&mut self, gpu: &Gpu) -> Result<crate::render::layers::LayerImages> {
-        self.compositor.render_layers(gpu, &self.params)
+        self.compositor.set_ground_in_background(false);
+        let layers = self.compositor.render_layers(gpu, &self.params);
+        self.compositor.set_ground_in_background(true);
+        layers
     }
 
     pub fn compositor(&self) -> &Compositor {

@@ -131,6 +131,9 @@ pub struct Compositor {
     /// or scale of the model, not per frame.
     ground_sky_uploaded: Option<Arc<occlusion::GroundSky>>,
     ground_sky_updates: usize,
+    /// Cast a new placement's ground rays on the model cache's worker, drawing the previous map
+    /// meanwhile (the live view), instead of waiting for them (a composite).
+    ground_in_background: bool,
 }
 
 /// Which of the optional passes a frame ran.
@@ -200,6 +203,7 @@ impl Compositor {
             shadow_held,
             ground_sky_uploaded: None,
             ground_sky_updates: 0,
+            ground_in_background: false,
         })
     }
 
@@ -303,6 +307,12 @@ impl Compositor {
     /// loads the target between them).
     pub fn set_pass_timing(&mut self, on: bool) {
         self.pass_timing = on;
+    }
+
+    /// Cast the ground's rays for a new turn or scale of the model off the frame's thread
+    /// (`PreparedModel::ground_sky_without_waiting`): the live view. Off, a frame waits for them.
+    pub fn set_ground_in_background(&mut self, on: bool) {
+        self.ground_in_background = on;
     }
 
     /// Draw the shadow into the largest map instead of the one its footprint on screen needs,
@@ -566,7 +576,12 @@ impl Compositor {
         // Computed by the device's model cache once per key (shared by every compositor on the
         // device), uploaded here when it is not the map this compositor holds.
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        let sky = model.prepared.ground_sky(key, crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading));
+        let shape = crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading);
+        let sky = if self.ground_in_background {
+            model.prepared.ground_sky_without_waiting(key, shape)
+        } else {
+            model.prepared.ground_sky(key, shape)
+        };
         if self.ground_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &sky)) {
             return Ok(());
         }

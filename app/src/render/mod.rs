@@ -4,6 +4,7 @@ pub mod antialiasing;
 pub mod compositor;
 pub mod environment;
 pub mod frame;
+pub mod ground_worker;
 pub mod layers;
 pub mod method;
 pub mod model_cache;

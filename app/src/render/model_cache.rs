@@ -9,6 +9,7 @@
 //! CPU), and any change to the model computes it again. One cache per device
 //! ([`ModelCache::of`]); it keeps the [`CAPACITY`] models used last.
 
+use super::ground_worker::{self, GroundWorker, PlacementKey, placement_key};
 use super::pipelines::Vertex;
 use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
@@ -19,7 +20,9 @@ use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::{Mat4, Vec3};
 use std::hash::{Hash, Hasher};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::atomic::AtomicUsize;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 /// Models kept per device (the least recently used goes first).
 pub const CAPACITY: usize = 8;
@@ -60,9 +63,32 @@ impl ModelKey {
 /// The last placement's ground: the model matrix's bits, its transfer, and the last sky's shape
 /// with its map.
 struct Ground {
-    bits: [u32; 16],
+    bits: PlacementKey,
     transfer: GroundTransfer,
     map: Option<(SkyShape, Arc<GroundSky>)>,
+}
+
+impl Ground {
+    /// The map under a sky of shape `light`: the last one when the shape is the same, else
+    /// recombined from the transfer (counted in `computed`).
+    fn map(&mut self, light: SkyShape, computed: &AtomicUsize) -> Arc<GroundSky> {
+        if let Some((shape, sky)) = &self.map
+            && *shape == light
+        {
+            return sky.clone();
+        }
+        let sky = Arc::new(self.transfer.map(&light.world_coeffs()));
+        computed.fetch_add(1, Relaxed);
+        self.map = Some((light, sky.clone()));
+        sky
+    }
+}
+
+/// The ground's transfers: the last placement's, and the one being cast for a newer placement.
+#[derive(Default)]
+struct GroundState {
+    last: Option<Ground>,
+    worker: GroundWorker,
 }
 
 /// What a model's upload needs, computed once per model content.
@@ -76,12 +102,13 @@ pub struct PreparedModel {
     pub chain: LodChain,
     model: Model,
     colour: OnceLock<std::result::Result<ColourStats, String>>,
-    occluders: OnceLock<Occluders>,
-    /// The ground under the last placement and sky asked for.
-    ground: Mutex<Option<Ground>>,
-    /// Ground transfers cast and maps recombined.
-    ground_cast: std::sync::atomic::AtomicUsize,
-    ground_computed: std::sync::atomic::AtomicUsize,
+    occluders: Arc<Occluders>,
+    /// The ground under the last placement and sky asked for, and the cast of a newer one.
+    ground: Mutex<GroundState>,
+    /// Ground transfers cast, casts a caller waited for, and maps recombined.
+    ground_cast: AtomicUsize,
+    ground_waited: AtomicUsize,
+    ground_computed: AtomicUsize,
 }
 
 impl PreparedModel {
@@ -116,9 +143,10 @@ impl PreparedModel {
             chain: LodChain::build(model),
             model: model.clone(),
             colour: OnceLock::new(),
-            occluders: OnceLock::from(occluders),
-            ground: Mutex::new(None),
+            occluders: Arc::new(occluders),
+            ground: Mutex::default(),
             ground_cast: Default::default(),
+            ground_waited: Default::default(),
             ground_computed: Default::default(),
         })
     }
@@ -137,50 +165,101 @@ impl PreparedModel {
     /// The ground's sky visibility under the model placed by `placement` (model space → world)
     /// under a sky of shape `light` (its rays weighted by the sky's radiance) over
     /// [`occlusion::GROUND_TEXELS`]² texels. The rays ([`occlusion::GROUND_RAYS`] a texel) are
-    /// cast once per placement into a transfer ([`occlusion::ground_transfer`] onto the SH9
-    /// basis); a new sky only recombines it with the shape's coefficients turned into the world
+    /// cast once per placement into a transfer ([`ground_worker::cast`] onto the SH9 basis); a
+    /// new sky only recombines it with the shape's coefficients turned into the world
     /// ([`SkyShape::world_coeffs`]; no ray, ~10 products a texel). The same `Arc` comes back
     /// while the placement and the shape stay, so `Arc::ptr_eq` with the one uploaded says
-    /// whether to upload.
+    /// whether to upload. Waits for the rays of a new placement, cast here (after any cast still
+    /// running on the worker): what a single composite needs.
     pub fn ground_sky(&self, placement: Mat4, light: SkyShape) -> Arc<GroundSky> {
-        use std::sync::atomic::Ordering::Relaxed;
-        let bits = placement.to_cols_array().map(f32::to_bits);
-        let mut last = self.ground.lock().unwrap_or_else(|p| p.into_inner());
-        let ground = match last.take() {
-            Some(g) if g.bits == bits => last.insert(g),
-            _ => {
-                let occluders = self.occluders.get_or_init(|| Occluders::of_model(&self.model));
-                let transfer = occlusion::ground_transfer(
-                    occluders,
-                    self.bounds,
-                    placement,
-                    occlusion::GROUND_TEXELS,
-                    occlusion::GROUND_RAYS,
-                    &crate::light::sh9::basis,
-                );
-                self.ground_cast.fetch_add(1, Relaxed);
-                last.insert(Ground { bits, transfer, map: None })
-            }
-        };
-        if let Some((shape, sky)) = &ground.map
-            && *shape == light
-        {
-            return sky.clone();
+        let mut state = self.lock_ground();
+        self.adopt_finished(&mut state);
+        // A cast still running first: this placement's is the one wanted, and another's would
+        // replace this one's as the last placement's when it finished.
+        if let Some((bits, transfer)) = state.worker.wait() {
+            self.ground_waited.fetch_add(1, Relaxed);
+            self.keep(&mut state, bits, transfer);
         }
-        let sky = Arc::new(ground.transfer.map(&light.world_coeffs()));
-        self.ground_computed.fetch_add(1, Relaxed);
-        ground.map = Some((light, sky.clone()));
-        sky
+        let key = placement_key(placement);
+        if state.last.as_ref().is_none_or(|g| g.bits != key) {
+            let transfer = ground_worker::cast(&self.occluders, self.bounds, placement);
+            self.ground_waited.fetch_add(1, Relaxed);
+            self.keep(&mut state, key, transfer);
+        }
+        state.last.as_mut().expect("the placement's ground, just made").map(light, &self.ground_computed)
+    }
+
+    /// [`PreparedModel::ground_sky`] without waiting for rays (the live view: a turn or a scale
+    /// of the model must not hold the frame): for a new placement the transfer is cast on the
+    /// [`GroundWorker`]'s thread and the previous placement's map (under `light`) comes back
+    /// until it is ready; a later call finds it. Only the very first placement, with no map to
+    /// keep, waits.
+    pub fn ground_sky_without_waiting(&self, placement: Mat4, light: SkyShape) -> Arc<GroundSky> {
+        let mut state = self.lock_ground();
+        self.adopt_finished(&mut state);
+        let key = placement_key(placement);
+        match state.last.as_ref().map(|g| g.bits == key) {
+            None => {
+                drop(state);
+                return self.ground_sky(placement, light);
+            }
+            // Not started when the worker is casting another placement: that one first (then
+            // kept as the nearer previous map), this one on a later call.
+            Some(false) => {
+                state.worker.start(self.occluders.clone(), self.bounds, placement);
+            }
+            Some(true) => {}
+        }
+        state.last.as_mut().expect("a placement's ground is kept").map(light, &self.ground_computed)
+    }
+
+    /// Whether a ground transfer is being cast on the worker's thread.
+    pub fn ground_pending(&self) -> bool {
+        self.lock_ground().worker.busy().is_some()
+    }
+
+    /// Wait for the worker's transfer, if one is being cast, and keep it as the last placement's
+    /// (tests and benchmarks that want it before the next frame; the live view lets it finish).
+    pub fn finish_ground(&self) {
+        let mut state = self.lock_ground();
+        if let Some((bits, transfer)) = state.worker.wait() {
+            self.keep(&mut state, bits, transfer);
+        }
+    }
+
+    /// A finished worker's transfer becomes the last placement's (newer than the one kept).
+    fn adopt_finished(&self, state: &mut GroundState) {
+        if let Some((bits, transfer)) = state.worker.finished() {
+            self.keep(state, bits, transfer);
+        }
+    }
+
+    /// Keep a newly cast transfer as the last placement's.
+    fn keep(&self, state: &mut GroundState, bits: PlacementKey, transfer: GroundTransfer) {
+        self.ground_cast.fetch_add(1, Relaxed);
+        state.last = Some(Ground { bits, transfer, map: None });
+    }
+
+    fn lock_ground(&self) -> MutexGuard<'_, GroundState> {
+        self.ground.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     /// How many times [`PreparedModel::ground_sky`] made a map (for a new placement or sky).
     pub fn ground_sky_computed(&self) -> usize {
-        self.ground_computed.load(std::sync::atomic::Ordering::Relaxed)
+        self.ground_computed.load(Relaxed)
     }
 
-    /// How many times [`PreparedModel::ground_sky`] cast the ground's rays (for a new placement).
+    /// How many ground transfers have been cast and kept (one per new placement), on the
+    /// caller's thread or the worker's.
     pub fn ground_rays_cast(&self) -> usize {
-        self.ground_cast.load(std::sync::atomic::Ordering::Relaxed)
+        self.ground_cast.load(Relaxed)
+    }
+
+    /// How many times a call for the ground's map waited for rays (cast them, or waited for the
+    /// worker casting them): [`PreparedModel::ground_sky`] on each new placement,
+    /// [`PreparedModel::ground_sky_without_waiting`] only on the first.
+    pub fn ground_waits(&self) -> usize {
+        self.ground_waited.load(Relaxed)
     }
 }
 
@@ -437,6 +516,47 @@ mod tests {
         assert_ne!(prepared.ground_sky(here, turned).visibility, e.visibility);
         assert_eq!(*prepared.ground_sky(here, SkyShape::UNIFORM), *a);
         assert_eq!((prepared.ground_sky_computed(), prepared.ground_rays_cast()), (6, 3));
+    }
+
+    #[test]
+    fn a_turn_keeps_the_previous_map_while_its_rays_are_cast_on_the_worker() {
+        let model = tetrahedron();
+        let prepared = PreparedModel::new(&model).unwrap();
+        let shape = SkyShape { coeffs: [1.0, 0.1, 0.3, 0.25, 0.0, 0.0, 0.1, 0.0, 0.1], heading: 0.0 };
+        let here = Mat4::from_scale(Vec3::splat(2.0));
+        let turned = Mat4::from_rotation_z(0.7) * here;
+        let scaled = Mat4::from_scale(Vec3::splat(3.0));
+        // The map each placement gets when the caller waits for its rays (a fresh cache).
+        let waited = |placement: Mat4| PreparedModel::new(&model).unwrap().ground_sky(placement, shape);
+        // The first placement has no map to keep: it waits.
+        let first = prepared.ground_sky_without_waiting(here, shape);
+        assert_eq!((prepared.ground_waits(), prepared.ground_rays_cast()), (1, 1));
+        assert_eq!(*first, *waited(here));
+        // A turn: the call comes back with the previous placement's map, its own rays left to the
+        // worker; a scale asked for before they are in starts nothing more.
+        let during = prepared.ground_sky_without_waiting(turned, shape);
+        assert!(Arc::ptr_eq(&during, &first));
+        assert!(Arc::ptr_eq(&prepared.ground_sky_without_waiting(scaled, shape), &first));
+        assert_eq!((prepared.ground_waits(), prepared.ground_rays_cast()), (1, 1));
+        // The turn's transfer arrives (kept as the nearer previous map, under any sky) and the
+        // scale's is started from it; then the scale's arrives: each the map of a waiting caller.
+        prepared.finish_ground();
+        assert!(!prepared.ground_pending());
+        let nearer = prepared.ground_sky_without_waiting(scaled, shape);
+        assert_eq!(*nearer, *waited(turned));
+        assert_ne!(nearer.visibility, first.visibility);
+        assert!(prepared.ground_pending());
+        prepared.finish_ground();
+        let arrived = prepared.ground_sky_without_waiting(scaled, shape);
+        assert_eq!(*arrived, *waited(scaled));
+        assert!(Arc::ptr_eq(&arrived, &prepared.ground_sky_without_waiting(scaled, shape)));
+        // No call after the first waited for a ray; three placements, three casts.
+        assert_eq!((prepared.ground_waits(), prepared.ground_rays_cast()), (1, 3));
+        // A caller that waits, asking while the worker casts its placement (or once it is done),
+        // takes that cast instead of casting again.
+        prepared.ground_sky_without_waiting(here, shape);
+        assert_eq!(*prepared.ground_sky(here, shape), *first);
+        assert_eq!(prepared.ground_rays_cast(), 4);
     }
 
     #[test]

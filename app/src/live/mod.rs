@@ -762,7 +762,14 @@ impl LiveSession {
             let started = std::time::Instant::now();
             let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;
             let (unit, _) = environment_light(&scene, &cube, &prepared.env.priors, 1.0, 0.0)?;
-            Ok(PreparedFold { cube, prepared, sky_sh: unit.sky_sh, ground_radiance: unit.ground_radiance, cpu_ms: started.elapsed().as_secs_f64() * 1e3, fold_ms })
+            Ok(PreparedFold {
+                cube,
+                prepared,
+                sky_sh: unit.sky_sh,
+                ground_radiance: unit.ground_radiance,
+                cpu_ms: started.elapsed().as_secs_f64() * 1e3,
+                fold_ms,
+            })
         }));
         Ok(())
     }

@@ -255,7 +255,6 @@ fn per_vertex<T: Send + Clone>(mesh: &Mesh, empty: T, f: impl Fn(Vec3, Vec3, u32
     ao
 }
 
-
 /// Per vertex of every mesh of `model`, the light it gets from the sky and from the ground it
 /// stands on, each as a share of what an open vertex would get (sh9-ggx, shaders/sh9_ggx.wgsl,
 /// the vertex attribute `ao`): `[sky, ground lit by the sky, ground, bounce]`. Sloan, Kautz &
@@ -313,7 +312,8 @@ pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<[f32; 4
                 let lit = if down > 0 { lit / down as f32 } else { open };
                 [share(up_open, up), lit, share(down_open, down), multi_bounce(open, albedo) - open]
             });
-            let smooth: [Vec<f32>; 4] = std::array::from_fn(|k| smooth_over_neighbours(mesh, &values.iter().map(|v| v[k]).collect::<Vec<_>>()));
+            let smooth: [Vec<f32>; 4] =
+                std::array::from_fn(|k| smooth_over_neighbours(mesh, &values.iter().map(|v| v[k]).collect::<Vec<_>>()));
             (0..values.len()).map(|i| std::array::from_fn(|k| smooth[k][i])).collect()
         })
         .collect()
@@ -776,7 +776,11 @@ mod tests {
         let model = Model { meshes: vec![mesh], materials: vec![Default::default()] };
         let ao = model_sky_ground(&model, &Occluders::of_model(&model));
         assert_eq!(ao[0].len(), model.meshes[0].positions.len());
-        assert!(ao[0].iter().all(|v| v[0] == 1.0 && v[2] == 1.0 && v[3].abs() < 1e-6), "{:?}", ao[0].iter().find(|v| v[0] < 1.0 || v[2] < 1.0));
+        assert!(
+            ao[0].iter().all(|v| v[0] == 1.0 && v[2] == 1.0 && v[3].abs() < 1e-6),
+            "{:?}",
+            ao[0].iter().find(|v| v[0] < 1.0 || v[2] < 1.0)
+        );
     }
 
     #[test]

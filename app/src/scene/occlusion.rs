@@ -855,10 +855,7 @@ mod tests {
         for p in &mut ball.positions {
             p[1] += h;
         }
-        let mut base = Mesh::default();
-        base.positions = vec![[0.0; 3]; 3];
-        base.normals = vec![[0.0, 1.0, 0.0]; 3];
-        base.indices = vec![0, 1, 2];
+        let base = Mesh { positions: vec![[0.0; 3]; 3], normals: vec![[0.0, 1.0, 0.0]; 3], indices: vec![0, 1, 2], ..Default::default() };
         let model = Model { meshes: vec![ball, base], materials: vec![Default::default()] };
         let values = model_sky_ground(&model, &Occluders::of_model(&model));
         let steps = 4000;

@@ -104,6 +104,10 @@ struct Light {
     // x: how dark the ground gets where the model hides all of its sky (the sky's share of its
     // light, render::Lighting::sky_occlusion); yzw: 0.
     ground_sky: vec4<f32>,
+    // rgb: the ground's radiance below the horizon per unit of frame.daylight (sh9-ggx: `sh` is
+    // the sky above the horizon alone, render::Lighting::ground_radiance); w: the sun's share
+    // of the ground's light (render::frame::sun_share_on_ground).
+    ground: vec4<f32>,
 };
 
 // A world direction in the environment map's own ENU frame (frame.wgsl env_dir before the

@@ -41,8 +41,10 @@ struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
-    // Fraction of the sky the vertex sees (1 until the model's occlusion is computed).
-    @location(3) ao: f32,
+    // Shares of the sky's light (x), of the ground's where the sky lights it (y) and of the
+    // ground's (z) that the vertex gets past the model, and the model's own reflected light (w)
+    // (1, 1, 1, 0 until the model's occlusion is computed; scene::occlusion::model_sky_ground).
+    @location(3) ao: vec4<f32>,
 };
 
 struct VertexOut {
@@ -50,7 +52,7 @@ struct VertexOut {
     @location(0) world: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
-    @location(3) ao: f32,
+    @location(3) ao: vec4<f32>,
 };
 
 @vertex

@@ -35,12 +35,18 @@ use std::path::Path;
 /// directional sky is hidden by the light the model hides, light::sh9::SkyShape): 0.133, 0.093,
 /// 0.152, 0.106, 0.134 and 0.97, 0.99, 1.26, 1.02, 1.04; bounds = measured + 0.01 FLIP, the
 /// truck's luminance error measured + 0.03.
+/// Seventh session (2026-12-01): the model lit from below by the references' ground (a uniform
+/// plane of the map's mean ground radiance, shadowed by the model, scene::occlusion::
+/// model_sky_ground) instead of the map's lower hemisphere: 0.129, 0.090, 0.128, 0.098, 0.137 and
+/// 0.96, 0.96, 1.06, 1.01, 1.00; bounds = measured + 0.01 FLIP (quarry_truck's 0.137 + 0.01 would
+/// loosen its 0.144: kept), luminance errors measured + 0.03 where that tightens them (dragon
+/// 0.29 → 0.09, truck 0.07 → 0.04; the bunny's 0.036 and blouberg's 0.041 keep 0.04 and 0.05).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.143, 0.04),
-    ("blouberg_teapot", 0.103, 0.05),
-    ("courtyard_dragon", 0.162, 0.29),
-    ("city_spot", 0.116, 0.05),
-    ("quarry_truck", 0.144, 0.07),
+    ("quarry_bunny", 0.139, 0.04),
+    ("blouberg_teapot", 0.101, 0.05),
+    ("courtyard_dragon", 0.139, 0.09),
+    ("city_spot", 0.109, 0.05),
+    ("quarry_truck", 0.144, 0.04),
 ];
 
 #[test]

@@ -275,6 +275,25 @@ pub struct ErrorBudget {
     pub luminance_shaded: f32,
     /// Mean linear R, G, B over the shadow region, this image / the reference.
     pub shadow_rgb: [f32; 3],
+    /// Mean FLIP over the [`RING`] pixels around the region of interest ([`ring_around`]): the
+    /// ground next to the shadow, which the model neither covers nor darkens by 5 % in the
+    /// reference, where the two images differ by little but the background's resampling — the
+    /// floor under [`ErrorBudget::flip_shadow`].
+    pub flip_ring: f32,
+}
+
+/// Width in pixels of the ring around the region of interest that [`ErrorBudget::flip_ring`]
+/// averages over.
+pub const RING: usize = 8;
+
+/// The pixels within `r` pixels (Chebyshev distance) of a pixel of `mask` (`w` × `h`, row-major)
+/// that are not in it.
+pub fn ring_around(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    let near = |x: usize, y: usize| {
+        let (x0, x1, y0, y1) = (x.saturating_sub(r), (x + r).min(w - 1), y.saturating_sub(r), (y + r).min(h - 1));
+        (y0..=y1).any(|yy| mask[yy * w + x0..=yy * w + x1].iter().any(|&m| m))
+    };
+    (0..w * h).map(|i| !mask[i] && near(i % w, i / w)).collect()
 }
 
 /// Linear (sRGB-decoded) RGB of RGB8 pixels.
@@ -325,6 +344,7 @@ pub fn error_budget(reference: &Reference, test: &[u8], without_sun: &[u8]) -> R
         luminance_lit: ratio(&lit),
         luminance_shaded: ratio(&shaded),
         shadow_rgb: std::array::from_fn(|c| a[c] / b[c]),
+        flip_ring: masked_mean(&map, &ring_around(&reference.roi, reference.width as usize, reference.height as usize, RING)),
     })
 }
 
@@ -350,17 +370,18 @@ pub fn budget_of_scene(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs:
 /// Markdown table of error budgets.
 pub fn budget_markdown(budgets: &[ErrorBudget]) -> String {
     let mut s = String::from(
-        "| scene | method | FLIP ROI | model share of ROI | FLIP model | FLIP shadow | lit share of model | luminance lit / ref | luminance shaded / ref | shadow R, G, B / ref |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scene | method | FLIP ROI | model share of ROI | FLIP model | FLIP shadow | FLIP around the ROI (background floor) | lit share of model | luminance lit / ref | luminance shaded / ref | shadow R, G, B / ref |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for b in budgets {
         s += &format!(
-            "| {} | {} | {:.3} | {:.2} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2}, {:.2}, {:.2} |\n",
+            "| {} | {} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.2} | {:.2}, {:.2}, {:.2} |\n",
             b.scene,
             b.method,
             b.flip_roi,
             b.model_share,
             b.flip_model,
             b.flip_shadow,
+            b.flip_ring,
             b.lit_share,
             b.luminance_lit,
             b.luminance_shaded,
@@ -710,6 +731,30 @@ mod tests {
         let blue = crate::colour::srgb_to_linear(200.0 / 255.0) / crate::colour::srgb_to_linear(140.0 / 255.0);
         assert!((b.shadow_rgb[2] - blue).abs() < 1e-5 && b.shadow_rgb[0] == 1.0, "{b:?}");
         assert!(error_budget(&reference, &test[3..], &without_sun).is_err());
+        // The ring: the bottom-right quarter, outside the region of interest and within 8 px of
+        // it; identical there above, and only there in an image whose background differs there.
+        assert!(ring_around(&reference.roi, 16, 16, RING) == reference.roi.iter().map(|r| !r).collect::<Vec<_>>());
+        let b = error_budget(&reference, &rgb, &without_sun).unwrap();
+        assert_eq!(b.flip_ring, 0.0);
+        let test: Vec<u8> =
+            (0..n).flat_map(|i| if !reference.roi[i] { [60, 60, 60] } else { [rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]] }).collect();
+        let b = error_budget(&reference, &test, &without_sun).unwrap();
+        assert!(b.flip_ring > 0.05 && b.flip_ring > 2.0 * b.flip_roi, "{b:?}");
+    }
+
+    #[test]
+    fn the_ring_around_a_pixel_is_its_neighbours() {
+        // One pixel in the middle of 7x7: radius 1 gives its 8 neighbours, radius 3 the rest of
+        // the image; at a corner, radius 1 gives 3.
+        let mut mask = vec![false; 49];
+        mask[3 * 7 + 3] = true;
+        let ring = ring_around(&mask, 7, 7, 1);
+        assert_eq!(ring.iter().filter(|&&v| v).count(), 8);
+        assert!(ring[2 * 7 + 2] && ring[4 * 7 + 4] && !ring[3 * 7 + 3] && !ring[7 + 3]);
+        assert_eq!(ring_around(&mask, 7, 7, 3).iter().filter(|&&v| v).count(), 48);
+        let mut corner = vec![false; 49];
+        corner[0] = true;
+        assert_eq!(ring_around(&corner, 7, 7, 1).iter().filter(|&&v| v).count(), 3);
     }
 
     #[test]

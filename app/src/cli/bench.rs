@@ -32,7 +32,8 @@ pub enum What {
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model
     /// luminance, time), the path tracer's own 1/4/16/64-spp ladder, and each scene's error
-    /// budget (model vs shadow, sunlit vs shaded side, shadow colour). `--export-reference DIR
+    /// budget (model vs shadow, sunlit vs shaded side, shadow colour, the background's FLIP
+    /// around the model + shadow). `--export-reference DIR
     /// SCENE` instead writes SCENE as previz draws it for tests/reference/render_reference.py.
     Accuracy(AccuracyArgs),
     /// The model's level-of-detail chain in the scene: per level the triangles, the

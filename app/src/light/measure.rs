@@ -33,8 +33,13 @@ pub struct MeasuredLight {
     pub sun_irradiance: [f32; 3],
     /// Angular radius of the sun as measured (rad; at least the real sun's 0.2666°).
     pub sun_angular_radius: f32,
-    /// The sky and surroundings without the sun, as SH9 radiance coefficients.
+    /// The sky and surroundings without the sun, as SH9 radiance coefficients (the lower
+    /// hemisphere bounded by [`bounded_ground`]).
     pub sky: Sh9,
+    /// The sky and the ground of the world the references render (tests/reference: a
+    /// Lambertian plane of the map's mean ground radiance under the map's upper hemisphere),
+    /// which sh9-ggx lights the model from separately ([`SkyAndGround`]).
+    pub sky_and_ground: SkyAndGround,
     pub source: SunSource,
     /// A restored sun's turbidity, read from the unclipped sky's shape (light::sky_model); None
     /// when the sun was not restored or the sky does not look like a clear sky (the restore then
@@ -91,11 +96,13 @@ pub struct MeasureOptions {
 pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight {
     let found = sun_finder::find_sun(samples, &options.finder);
     let Some(sun) = found.clone() else {
+        let ground = bounded_ground(samples.to_vec(), [0.0; 3]);
         return MeasuredLight {
             sun_dir: None,
             sun_irradiance: [0.0; 3],
             sun_angular_radius: SUN_ANGULAR_RADIUS,
-            sky: Sh9::project(&bounded_ground(samples.to_vec(), [0.0; 3])),
+            sky: Sh9::project(&ground),
+            sky_and_ground: SkyAndGround::of(&ground),
             source: SunSource::None,
             turbidity: None,
             found,
@@ -108,11 +115,13 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     // is: what energy the map holds, white.
     if !sun.saturated || !options.restore_clipped {
         let on_ground = sun.irradiance.map(|e| e * sun.dir.z.max(0.0));
+        let ground = bounded_ground(sky_samples, on_ground);
         return MeasuredLight {
             sun_dir: Some(sun.dir),
             sun_irradiance: sun.irradiance,
             sun_angular_radius: radius,
-            sky: Sh9::project(&bounded_ground(sky_samples, on_ground)),
+            sky: Sh9::project(&ground),
+            sky_and_ground: SkyAndGround::of(&ground),
             source: SunSource::Measured,
             turbidity: None,
             found,
@@ -143,15 +152,45 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     };
     let source = if luminance_bt709(sun_irradiance) > 0.0 { SunSource::Restored } else { SunSource::None };
     let on_ground = sun_irradiance.map(|e| e * sun.dir.z.max(0.0));
-    let sky = Sh9::project(&bounded_ground(sky_samples, on_ground));
+    let ground = bounded_ground(sky_samples, on_ground);
     MeasuredLight {
         sun_dir: (source == SunSource::Restored).then_some(sun.dir),
         sun_irradiance,
         sun_angular_radius: radius,
-        sky,
+        sky: Sh9::project(&ground),
+        sky_and_ground: SkyAndGround::of(&ground),
         source,
         turbidity: fit.map(|(t, _)| t as f32),
         found,
+    }
+}
+
+/// A sky over a uniform ground: what tests/reference/render_reference.py renders from a map (its
+/// upper hemisphere as the sky, below it a Lambertian plane whose unshadowed radiance is the
+/// mean radiance of the map's lower hemisphere), so that the model's light from below can be
+/// shadowed by the model on that plane (scene::occlusion::model_sky_ground) instead of coming
+/// from the map's own lower hemisphere (a sunlit patch of floor, courtyard.exr).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SkyAndGround {
+    /// The upper hemisphere's radiance as SH9 coefficients (the lower hemisphere black).
+    pub sky: Sh9,
+    /// The ground's radiance, linear RGB: the solid-angle mean of the lower hemisphere.
+    pub ground: [f32; 3],
+}
+
+impl SkyAndGround {
+    /// Split `samples` (a whole sphere) at the horizon.
+    pub fn of(samples: &[DirSample]) -> SkyAndGround {
+        let upper: Vec<DirSample> = samples.iter().filter(|s| s.dir.z > 0.0).copied().collect();
+        let (mut sum, mut weight) = ([0f64; 3], 0f64);
+        for s in samples.iter().filter(|s| s.dir.z <= 0.0) {
+            weight += f64::from(s.solid_angle);
+            for (a, r) in sum.iter_mut().zip(s.radiance) {
+                *a += f64::from(r) * f64::from(s.solid_angle);
+            }
+        }
+        let ground = if weight > 0.0 { sum.map(|a| (a / weight) as f32) } else { [0.0; 3] };
+        SkyAndGround { sky: Sh9::project(&upper), ground }
     }
 }
 
@@ -253,6 +292,31 @@ mod tests {
         let want = 0.95 * (std::f32::consts::PI + 1.0) / std::f32::consts::PI;
         assert!((with_sun[0] - want).abs() < 0.01, "{with_sun:?} vs {want}");
         assert_eq!(mean_down(&bounded_ground(map(0.3), [0.0; 3])), mean_down(&map(0.3)));
+    }
+
+    #[test]
+    fn a_map_splits_into_the_sky_above_and_a_uniform_ground() {
+        // Sky radiance 1 above the horizon, a ground of 0.3 (R), 0.5 (G), 0.1 (B) half of it and
+        // twice that the other half below: the ground is the mean (0.45, 0.75, 0.15). A uniform
+        // upper hemisphere projects onto bands 0 and 1 only (∫ over it of Y20 ∝ 3z² − 1 is 0), so
+        // its SH9 irradiance is exact: E(n) = π (1 + n.z) / 2 (the sky's view factor from a
+        // tilted surface): π facing up, π/2 facing the horizon, 0 facing down.
+        let (w, h) = (128u32, 64u32);
+        let pixels: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                let k = if i % w < w / 2 { 1.0 } else { 2.0 };
+                if (i / w) < h / 2 { [1.0; 3] } else { [0.3 * k, 0.5 * k, 0.1 * k] }
+            })
+            .collect();
+        let split = SkyAndGround::of(&from_equirect(&Equirect::new(w, h, pixels).unwrap(), 0.0));
+        for (got, want) in split.ground.iter().zip([0.45, 0.75, 0.15]) {
+            assert!((got - want).abs() < 1e-4, "{:?}", split.ground);
+        }
+        let pi = std::f32::consts::PI;
+        for (n, want) in [(Vec3::Z, pi), (Vec3::X, pi / 2.0), (Vec3::new(0.0, 0.6, -0.8), pi * 0.1), (-Vec3::Z, 0.0)] {
+            let e = split.sky.irradiance(n);
+            assert!(e.iter().all(|&c| (c - want).abs() < 0.01), "{n}: {e:?} vs {want}");
+        }
     }
 
     #[test]

@@ -330,6 +330,7 @@ struct PreparedFold {
     cube: CubeMap,
     prepared: crate::render::environment::Prepared,
     sky_sh: [[f32; 3]; 9],
+    ground_radiance: [f32; 3],
     cpu_ms: f64,
     /// Milliseconds the fold and its readback took on the frame's thread.
     fold_ms: f64,
@@ -653,6 +654,7 @@ impl LiveSession {
         self.params.lighting.shadow_opacity = light.shadow_opacity;
         self.params.lighting.sky_occlusion = light.sky_occlusion;
         self.params.lighting.sky_sh = light.sky_sh;
+        self.params.lighting.ground_radiance = light.ground_radiance;
         self.params.lighting.sun_colour = light.sun_colour;
         self.params.lighting.sun_angular_radius = light.sun_angular_radius;
         if let Some(c) = &mut self.controls {
@@ -721,6 +723,8 @@ impl LiveSession {
         // The ambient's colour and direction from the fold; its level (DL) stays the map's.
         self.params.lighting.sky_sh = done.sky_sh;
         self.unit_light.sky_sh = done.sky_sh;
+        self.params.lighting.ground_radiance = done.ground_radiance;
+        self.unit_light.ground_radiance = done.ground_radiance;
         state.refreshes += 1;
         state.frame_ms = done.fold_ms + started.elapsed().as_secs_f64() * 1e3;
         state.cpu_ms = done.cpu_ms;
@@ -775,7 +779,14 @@ impl LiveSession {
             let started = std::time::Instant::now();
             let prepared = crate::render::environment::prepare(&cube, 1.0, 0.0)?;
             let (unit, _) = environment_light(&scene, &cube, &prepared.env.priors, 1.0, 0.0)?;
-            Ok(PreparedFold { cube, prepared, sky_sh: unit.sky_sh, cpu_ms: started.elapsed().as_secs_f64() * 1e3, fold_ms })
+            Ok(PreparedFold {
+                cube,
+                prepared,
+                sky_sh: unit.sky_sh,
+                ground_radiance: unit.ground_radiance,
+                cpu_ms: started.elapsed().as_secs_f64() * 1e3,
+                fold_ms,
+            })
         }));
         Ok(())
     }

@@ -166,7 +166,21 @@ pub fn light_uniforms(l: &Lighting, (min, max): (Vec2, Vec2)) -> LightUniforms {
             let [r, g, b] = crate::light::sh9::irradiance_colour(&l.sky_sh, Vec3::Z);
             [l.sky_occlusion, r, g, b]
         },
+        ground: {
+            let [r, g, b] = l.ground_radiance;
+            [r, g, b, sun_share_on_ground(l)]
+        },
     }
+}
+
+/// The sun's share of the light a horizontal ground gets in `l` (luminance): the sun's
+/// E/π = sunlight · max(sun.z, 0) against the sky's daylight · Σ sky_sh_i Y_i(up); 0 without light.
+pub fn sun_share_on_ground(l: &Lighting) -> f32 {
+    let up = crate::light::sh9::basis(Vec3::Z);
+    let sky: [f32; 3] = std::array::from_fn(|k| l.sky_sh.iter().zip(up).map(|(c, y)| c[k] * y).sum::<f32>().max(0.0));
+    let sky = l.daylight * crate::colour::luminance_bt709(sky);
+    let sun = l.sunlight * l.sun_dir.normalize_or_zero().z.max(0.0);
+    if sun + sky > 0.0 { (sun / (sun + sky)).clamp(0.0, 1.0) } else { 0.0 }
 }
 
 /// The ground square whose sky visibility the ground pass samples, for a model with model-space
@@ -306,6 +320,7 @@ mod tests {
                 sky_occlusion: 0.0,
                 live_depth: 2.0,
                 sky_sh: std::array::from_fn(|i| [i as f32, 0.5, 0.25]),
+                ground_radiance: [0.2, 0.3, 0.4],
                 sun_colour: [1.2, 0.9, 0.7],
                 sun_angular_radius: 0.01,
             },
@@ -408,6 +423,11 @@ mod tests {
             assert!((got - want).abs() < 1e-5, "{:?}", l.ground_sky);
         }
         assert_eq!(l.sh[3], [3.0, 0.5, 0.25, 0.0]);
+        assert_eq!(&l.ground[..3], &[0.2, 0.3, 0.4]);
+        // The sun's share on the ground: sun E/π 0.7 from straight up (sun_dir (0, 0, 2)) against
+        // the sky's 0.3 · luminance of Σ sh_i Y_i(up) (the same sum as above, unnormalised).
+        let sky = 0.3 * lum;
+        assert!((l.ground[3] - 0.7 / (0.7 + sky)).abs() < 1e-5, "{} vs {}", l.ground[3], 0.7 / (0.7 + sky));
         // tan(0.01) = 0.010000333 (series x + x³/3).
         assert_eq!(&l.sun[..3], &[1.2, 0.9, 0.7]);
         assert!((l.sun[3] - 0.010_000_333).abs() < 1e-8);

@@ -127,13 +127,12 @@ impl PreparedModel {
         if let Some(m) = model.meshes.iter().find(|m| model.materials.get(m.material).is_none()) {
             bail!("a mesh refers to missing material {}", m.material);
         }
-        // Ambient occlusion: each vertex's share of the sky past the model itself. Occluders
-        // reflect light too: the multi-bounce fit for the mesh material's albedo.
+        // Each vertex's share of the sky and of the ground's light past the model itself
+        // (occluders reflect light too: the multi-bounce fit for the mesh material's albedo).
         let occluders = Occluders::of_model(model);
-        for ((vertices, ao), mesh) in vertices.iter_mut().zip(occlusion::model_ao_with(model, &occluders)).zip(&model.meshes) {
-            let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
+        for (vertices, ao) in vertices.iter_mut().zip(occlusion::model_sky_ground(model, &occluders)) {
             for (v, a) in vertices.iter_mut().zip(ao) {
-                v.ao = occlusion::multi_bounce(a, albedo);
+                v.ao = a;
             }
         }
         Ok(PreparedModel {
@@ -278,7 +277,7 @@ pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
             position: mesh.positions[i],
             normal: mesh.normals[i],
             uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
-            ao: 1.0,
+            ao: [1.0, 1.0, 1.0, 0.0],
         })
         .collect())
 }

@@ -86,6 +86,10 @@ pub struct Lighting {
     /// the environment map's own ENU frame (before its heading), per unit of `daylight`:
     /// daylight · Σ c_i Y_i(n) is what a white Lambertian surface facing n reflects.
     pub sky_sh: [[f32; 3]; 9],
+    /// The ground's radiance per unit of `daylight` (sh9-ggx, linear RGB): `sky_sh` is the sky
+    /// above the horizon, below it a uniform ground of this radiance lights the model, as far as
+    /// each vertex sees it past the model and its shadow (scene::occlusion::model_sky_ground).
+    pub ground_radiance: [f32; 3],
     /// The sun's colour (sh9-ggx): linear RGB of BT.709 luminance 1, scaled by `sunlight`.
     pub sun_colour: [f32; 3],
     /// Angular radius of the sun, radians: the width of the soft shadows' penumbra.

@@ -23,9 +23,11 @@ pub struct Vertex {
     pub position: [f32; 3],
     pub normal: [f32; 3],
     pub uv: [f32; 2],
-    /// Fraction of the sky the vertex sees, 0..1 (shaders/model.wgsl `VertexIn.ao`, location
-    /// [`AO_LOCATION`]); 1 until the model's occlusion is computed.
-    pub ao: f32,
+    /// Shares of the sky's light, of the ground's light where the sky lights it, and of the
+    /// ground's light, that the vertex gets past the model, 0..1, and the model's own reflected
+    /// light (scene::occlusion::model_sky_ground; shaders/model.wgsl `VertexIn.ao`, location
+    /// [`AO_LOCATION`]); (1, 1, 1, 0) until the model's occlusion is computed.
+    pub ao: [f32; 4],
 }
 
 /// Shader location of [`Vertex::ao`].

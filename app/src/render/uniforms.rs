@@ -46,6 +46,7 @@ pub struct LightUniforms {
     pub sun: [f32; 4],
     pub ground_square: [f32; 4],
     pub ground_sky: [f32; 4],
+    pub ground: [f32; 4],
 }
 
 /// Mirrors `struct Material` in shaders/model.wgsl.
@@ -107,7 +108,7 @@ mod tests {
             ]
         );
         crate::assert_wgsl_layout!(module, InstanceUniforms, "Instance", [model, normal]);
-        crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun, ground_square, ground_sky]);
+        crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun, ground_square, ground_sky, ground]);
         crate::assert_wgsl_layout!(module, MaterialUniforms, "Material", [albedo, specular, terms]);
     }
 }

@@ -209,6 +209,13 @@ impl Transfer {
 /// Per-vertex visibility of `mesh` against `occluders` (1 = unoccluded), `rays` rays each; the
 /// work is split over the machine's cores. Vertices with a zero normal get 1.
 pub fn vertex_ao(mesh: &Mesh, occluders: &Occluders, rays: u32) -> Vec<f32> {
+    per_vertex(mesh, 1.0, |start, normal, seed| occluders.visibility(start, normal, rays, seed))
+}
+
+/// `f(start, normal, seed)` for each vertex of `mesh` over the machine's cores (`empty` for a
+/// vertex without a normal entry gets a zero normal): `start` is the vertex moved a little
+/// inside its own triangles, `seed` its index.
+fn per_vertex<T: Send + Clone>(mesh: &Mesh, empty: T, f: impl Fn(Vec3, Vec3, u32) -> T + Sync) -> Vec<T> {
     let n = mesh.positions.len();
     // Each ray starts a little inside the vertex's own triangles (towards their mean centroid):
     // a vertex on a concave hard edge (the corner of a room) would otherwise sit exactly in the
@@ -227,7 +234,8 @@ pub fn vertex_ao(mesh: &Mesh, occluders: &Occluders, rays: u32) -> Vec<f32> {
         }
     }
     let towards = &towards;
-    let mut ao = vec![1.0f32; n];
+    let f = &f;
+    let mut ao = vec![empty; n];
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(n.max(1));
     let chunk = n.div_ceil(threads.max(1)).max(1);
     std::thread::scope(|s| {
@@ -239,7 +247,7 @@ pub fn vertex_ao(mesh: &Mesh, occluders: &Occluders, rays: u32) -> Vec<f32> {
                     let p = Vec3::from_array(mesh.positions[i]);
                     let (sum, count) = towards[i];
                     let start = if count > 0 { p + (sum / count as f32 - p) * 1e-3 } else { p };
-                    *v = occluders.visibility(start, normal, rays, i as u32);
+                    *v = f(start, normal, i as u32);
                 }
             });
         }
@@ -247,19 +255,78 @@ pub fn vertex_ao(mesh: &Mesh, occluders: &Occluders, rays: u32) -> Vec<f32> {
     ao
 }
 
-/// Per-vertex visibility of every mesh of `model` against all of its triangles, with
-/// [`rays_per_vertex`] rays each, then averaged once over each vertex's neighbours (the vertices
-/// it shares a triangle with), which multiplies the rays behind each value about sevenfold at the
-/// cost of a one-edge blur.
-pub fn model_ao(model: &Model) -> Vec<Vec<f32>> {
-    model_ao_with(model, &Occluders::of_model(model))
+/// Per vertex of every mesh of `model`, the light it gets from the sky and from the ground it
+/// stands on, each as a share of what an open vertex would get (sh9-ggx, shaders/sh9_ggx.wgsl,
+/// the vertex attribute `ao`): `[sky, ground lit by the sky, ground, bounce]`. Sloan, Kautz &
+/// Snyder 2002's transfer split at the horizon, computed once per model: a vertex's
+/// cosine-distributed rays that go up and pass the model see the sky; those that go down and
+/// pass the model meet the ground plane under it, whose sky the model hides in part
+/// ([`standing_ground`]): the ground's light the model gets is darkened by the model's own
+/// contact shadow (one bounce).
+/// - sky = open up-rays / up-rays;
+/// - ground lit by the sky = Σ (the ground's sky visibility at the hit) over the open down-rays
+///   / down-rays;
+/// - ground = open down-rays / down-rays (the sun's part of the ground's light, whose shadow
+///   depends on the sun, is taken as unshadowed: the shader mixes the two by the sun's share of
+///   the ground's light);
+/// - bounce = the light the model's own surfaces reflect onto the vertex, as a share of an open
+///   vertex's whole light: the multi-bounce fit for the mesh's albedo over all the rays' open
+///   share A, [`multi_bounce`](A) − A (the fit assumes the occluders lit as the vertex is).
+///
+/// A half without rays (a normal straight up or down) takes the open share of all rays. Each
+/// vertex casts [`rays_per_vertex`] rays against `occluders` (the model's triangles, which the
+/// renderer keeps for the ground's [`ground_transfer`]); each value is then averaged once over
+/// the vertex's neighbours ([`smooth_over_neighbours`]: the vertices it shares a triangle with,
+/// which multiplies the rays behind each value about sevenfold at the cost of a one-edge blur).
+/// The model stands upright on its bounding box's base (model space y up,
+/// render::view::model_matrix without a tilt).
+pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<[f32; 4]>> {
+    let Some(bounds) = model.bounds() else { return model.meshes.iter().map(|m| vec![[1.0, 1.0, 1.0, 0.0]; m.positions.len()]).collect() };
+    let ground = standing_ground(occluders, bounds, GROUND_TEXELS, GROUND_RAYS);
+    let rays = rays_per_vertex(model.meshes.iter().map(|m| m.positions.len()).sum());
+    model
+        .meshes
+        .iter()
+        .map(|mesh| {
+            let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
+            let values = per_vertex(mesh, [1.0, 1.0, 1.0, 0.0], |start, normal, seed| {
+                let Some(n) = normal.try_normalize() else { return [1.0, 1.0, 1.0, 0.0] };
+                // (rays, open rays) going up; (rays, open rays, Σ ground visibility) going down.
+                let (mut up, mut up_open, mut down, mut down_open, mut lit) = (0u32, 0u32, 0u32, 0u32, 0f32);
+                occluders.cast(start, n, rays, seed, |d, hit| {
+                    if d.y > 0.0 {
+                        up += 1;
+                        up_open += u32::from(!hit);
+                    } else {
+                        down += 1;
+                        if !hit {
+                            down_open += 1;
+                            let t = if d.y < 0.0 { ((bounds.0.y - start.y) / d.y).max(0.0) } else { 0.0 };
+                            let g = start + d * t;
+                            lit += ground.at(Vec2::new(g.x, -g.z));
+                        }
+                    }
+                });
+                let open = (up_open + down_open) as f32 / rays.max(1) as f32;
+                let share = |k: u32, n: u32| if n > 0 { k as f32 / n as f32 } else { open };
+                let lit = if down > 0 { lit / down as f32 } else { open };
+                [share(up_open, up), lit, share(down_open, down), multi_bounce(open, albedo) - open]
+            });
+            let smooth: [Vec<f32>; 4] =
+                std::array::from_fn(|k| smooth_over_neighbours(mesh, &values.iter().map(|v| v[k]).collect::<Vec<_>>()));
+            (0..values.len()).map(|i| std::array::from_fn(|k| smooth[k][i])).collect()
+        })
+        .collect()
 }
 
-/// [`model_ao`] against `occluders` already built for `model` (the renderer keeps them for the
-/// ground's [`ground_sky`]).
-pub fn model_ao_with(model: &Model, occluders: &Occluders) -> Vec<Vec<f32>> {
-    let rays = rays_per_vertex(model.meshes.iter().map(|m| m.positions.len()).sum());
-    model.meshes.iter().map(|m| smooth_over_neighbours(m, &vertex_ao(m, occluders, rays))).collect()
+/// The sky visibility of the ground plane under a model standing upright on its bounding box's
+/// base (model space, y up), [`ground_square`] of that stance, `size`² texels of `rays` rays: a
+/// [`GroundSky`] over model (x, −z), the world's (East, North) of an unturned placement.
+pub fn standing_ground(occluders: &Occluders, bounds: (Vec3, Vec3), size: u32, rays: u32) -> GroundSky {
+    // Model (x, y, z) → (x, −z, y): y up becomes z up (render::view::model_to_world_axes).
+    let stance = Mat4::from_cols(glam::Vec4::X, glam::Vec4::Z, -glam::Vec4::Y, glam::Vec4::W);
+    let (min, max, z, visibility) = over_ground(bounds, stance, size, |point, up, seed| occluders.visibility(point, up, rays, seed));
+    GroundSky { min, max, z, size: size.max(1), visibility }
 }
 
 /// Each vertex's value averaged with those of the vertices it shares a triangle with (each
@@ -703,11 +770,17 @@ mod tests {
 
     #[test]
     fn a_lone_convex_shape_is_unoccluded() {
+        // A sphere standing on the ground: every vertex sees all the sky above it and all the
+        // ground below it past the sphere, and the sphere reflects nothing onto itself.
         let mesh = sphere(2.0, 24, 48);
         let model = Model { meshes: vec![mesh], materials: vec![Default::default()] };
-        let ao = model_ao(&model);
+        let ao = model_sky_ground(&model, &Occluders::of_model(&model));
         assert_eq!(ao[0].len(), model.meshes[0].positions.len());
-        assert!(ao[0].iter().all(|&v| v == 1.0), "min {}", ao[0].iter().copied().fold(1.0, f32::min));
+        assert!(
+            ao[0].iter().all(|v| v[0] == 1.0 && v[2] == 1.0 && v[3].abs() < 1e-6),
+            "{:?}",
+            ao[0].iter().find(|v| v[0] < 1.0 || v[2] < 1.0)
+        );
     }
 
     #[test]
@@ -763,6 +836,53 @@ mod tests {
         // in each of its 2 triangles (1 of 4).
         assert!((s[0] - 0.5).abs() < 1e-6, "{s:?}");
         assert!(s[1..].iter().all(|&v| (v - 0.25).abs() < 1e-6), "{s:?}");
+    }
+
+    #[test]
+    fn under_a_floating_sphere_the_ground_it_shadows_lights_it_less() {
+        // A sphere of radius R centred h above the ground (model space, y up; a degenerate
+        // triangle at the origin puts the bounding box's base, the ground, at y = 0). A ground
+        // point at distance ρ from the point under the centre sees the sphere at distance
+        // D = √(ρ² + h²) and zenith angle β = atan(ρ/h), wholly above its horizon: the sphere's
+        // configuration factor from that differential area is (R/D)² cos β (Howell's catalog of
+        // radiation configuration factors: a sphere wholly above a tilted differential area), so
+        // the ground's sky visibility is V(ρ) = 1 − (R/D)² cos β.
+        // The sphere's lowest vertex (normal straight down, height d = h − R) sees the ground
+        // at ρ = d tan θ along a ray θ from straight down; its share of the ground's light is the
+        // cosine-weighted mean 2 ∫ V(d tan θ) cos θ sin θ dθ over 0..π/2.
+        let (r, h) = (1.0f32, 2.0f32);
+        let mut ball = sphere(r, 48, 96);
+        for p in &mut ball.positions {
+            p[1] += h;
+        }
+        let base = Mesh { positions: vec![[0.0; 3]; 3], normals: vec![[0.0, 1.0, 0.0]; 3], indices: vec![0, 1, 2], ..Default::default() };
+        let model = Model { meshes: vec![ball, base], materials: vec![Default::default()] };
+        let values = model_sky_ground(&model, &Occluders::of_model(&model));
+        let steps = 4000;
+        let expected = (0..steps)
+            .map(|i| {
+                let theta = (i as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
+                let rho = f64::from(h - r) * theta.tan();
+                let d2 = rho * rho + f64::from(h * h);
+                let v = 1.0 - f64::from(r * r) / d2 * f64::from(h) / d2.sqrt();
+                2.0 * v * theta.cos() * theta.sin() * std::f64::consts::FRAC_PI_2 / steps as f64
+            })
+            .sum::<f64>() as f32;
+        // The lowest vertex: ring 24 (θ = π/2 about the sphere's z), segment 72 (φ = 3π/2: −y).
+        let bottom = values[0][24 * 97 + 72];
+        assert!((bottom[1] - expected).abs() < 0.02, "ground share {} vs {expected}", bottom[1]);
+        // Nothing of the sphere is below its lowest vertex: all of the ground, and no bounce from a
+        // convex shape (the fit keeps 1 at 1).
+        assert!((bottom[2] - 1.0).abs() < 1e-6 && bottom[3].abs() < 1e-6, "{bottom:?}");
+        assert!(expected < 0.9, "the sphere's shadow darkens the ground it sees: {expected}");
+        // The top vertex sees the whole sky; nothing of the ground.
+        let top = values[0][24 * 97 + 24];
+        assert!((top[0] - 1.0).abs() < 1e-6, "{top:?}");
+        // Far from a small model the ground is whole: a ball of radius 0.01 at the same height.
+        let mut tiny = model.clone();
+        tiny.meshes[0].positions.iter_mut().for_each(|p| *p = [p[0] * 0.01, (p[1] - h) * 0.01 + h, p[2] * 0.01]);
+        let values = model_sky_ground(&tiny, &Occluders::of_model(&tiny));
+        assert!(values[0][24 * 97 + 72][1] > 0.99, "{:?}", values[0][24 * 97 + 72]);
     }
 
     #[test]

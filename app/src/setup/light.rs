@@ -113,6 +113,10 @@ pub struct LightTerms {
     /// the map's own ENU frame): l_d · Σ c_i Y_i(n) is the light a white Lambertian surface
     /// facing n reflects (sh9-ggx).
     pub sky_sh: [[f32; 3]; 9],
+    /// The ground's radiance below the horizon per unit of `daylight` (linear RGB, sh9-ggx): the
+    /// map's upper hemisphere is the sky of `sky_sh`, its lower one a uniform ground of this
+    /// radiance (light::measure::SkyAndGround), which the model shadows where it stands.
+    pub ground_radiance: [f32; 3],
     /// Angular radius of the sun (rad).
     pub sun_angular_radius: f32,
 }
@@ -145,10 +149,9 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
     let daylight = if reference > 0.0 { 0.5 * (up + down) / reference } else { 0.0 };
     // sh9-ggx's sky: irradiance / π per unit of its daylight (reference 1: daylight = 0.5 (up + down)).
     let sky_daylight = 0.5 * (up + down);
-    let sky_sh = std::array::from_fn(|i| {
-        let scale = if sky_daylight > 0.0 { COSINE_LOBE[i] / pi * exposure / sky_daylight } else { 0.0 };
-        light.sky.coeffs[i].map(|c| c * scale)
-    });
+    let per_daylight = if sky_daylight > 0.0 { exposure / sky_daylight } else { 0.0 };
+    let sky_sh = std::array::from_fn(|i| light.sky_and_ground.sky.coeffs[i].map(|c| c * COSINE_LOBE[i] / pi * per_daylight));
+    let ground_radiance = light.sky_and_ground.ground.map(|c| c * per_daylight);
     // The sun's share of the ground's irradiance with the direction used (the scene's sun is
     // given the map's energy).
     let ground_sun = sun * pi * sun_dir.z.max(0.0);
@@ -164,6 +167,7 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
         ground_sky,
         sun_colour,
         sky_sh,
+        ground_radiance,
         sun_angular_radius: light.sun_angular_radius,
     }
 }

@@ -103,7 +103,9 @@ pub fn set_lighting_environment(
     let heading = (scene.lighting.heading as f32).to_radians();
     compositor.set_environment(gpu, map, exposure, heading)?;
     let priors = compositor.priors().context("lighting environment priors")?;
-    params.lighting.sky_sh = environment_light(scene, map, &priors, exposure, heading)?.0.sky_sh;
+    let light = environment_light(scene, map, &priors, exposure, heading)?.0;
+    params.lighting.sky_sh = light.sky_sh;
+    params.lighting.ground_radiance = light.ground_radiance;
     Ok(())
 }
 
@@ -163,6 +165,7 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
         sky_occlusion,
         live_depth: scene.effects.live_depth as f32,
         sky_sh: light.sky_sh,
+        ground_radiance: light.ground_radiance,
         sun_colour: light.sun_colour,
         sun_angular_radius: light.sun_angular_radius,
     }

@@ -371,3 +371,26 @@ fn fxaa_brings_the_silhouette_towards_4x_msaa() {
     assert!(one > 5.0, "1x is within {one} of 4x on the silhouette: nothing to antialias");
     assert!(fxaa < one, "FXAA {fxaa} is no closer to 4x than 1x {one}");
 }
+
+/// `previz bench frame --json` carries the per-pass profile beside the rows: each main path
+/// with its passes' GPU time by name (null where a pass did not run: the floor draws no model).
+#[test]
+fn bench_frame_json_carries_the_per_pass_profile() {
+    use common::cli::{previz, tempdir};
+    let dir = tempdir("lod", "bench-frame-json");
+    let (env, model) = (common::data("cubemaps/humus_Park2_512"), common::data("meshes/icosphere-320.obj"));
+    let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
+    let args =
+        ["bench", "frame", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "1", "--warmup", "0", "--json"];
+    let out = previz(&dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["rows"].as_array().is_some_and(|r| r.len() > 5), "{v}");
+    let profile = v["profile"].as_array().unwrap();
+    let path = |name: &str| profile.iter().find(|r| r["path"] == name).unwrap_or_else(|| panic!("no {name} in {v}"));
+    let (floor, default) = (path(previz::bench::frame::FLOOR), path(previz::bench::frame::DEFAULT));
+    assert!(floor["background_ms"].as_f64().unwrap() > 0.0 && floor["model_ms"].is_null(), "{floor}");
+    for pass in ["total_ms", "background_ms", "model_ms"] {
+        assert!(default[pass].as_f64().is_some_and(|ms| ms > 0.0), "{pass}: {default}");
+    }
+}

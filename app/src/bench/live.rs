@@ -37,7 +37,7 @@ pub const FOLD_THREAD: usize = 7;
 pub const PROFILE: usize = 8;
 
 /// One stage's median and 95th percentile, ms.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct StageRow {
     pub stage: &'static str,
     pub median_ms: f64,
@@ -109,6 +109,23 @@ pub fn run(
 /// The compositor's median GPU time over the floor's (issue 11's goal: at most 1.5).
 pub fn floor_ratio(rows: &[StageRow]) -> f64 {
     rows[COMPOSITOR].median_ms / rows[FLOOR].median_ms
+}
+
+/// The rows as JSON (`previz bench live --json`): the stages, the compositor's ratio to the
+/// floor, and the profile's passes by name (GPU medians, ms; null: the pass did not run).
+pub fn json(rows: &[StageRow]) -> serde_json::Value {
+    let ms = |k: usize| rows.get(k).map(|r| r.median_ms).filter(|v| v.is_finite());
+    serde_json::json!({
+        "stages": rows,
+        "compositor_over_floor": floor_ratio(rows),
+        "profile": {
+            "total_ms": ms(PROFILE),
+            "shadow_ms": ms(PROFILE + 1),
+            "background_ms": ms(PROFILE + 2),
+            "model_ms": ms(PROFILE + 3),
+            "ground_ms": ms(PROFILE + 4),
+        },
+    })
 }
 
 /// The rows as a markdown table, then the compositor's ratio to the floor.

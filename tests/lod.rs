@@ -76,8 +76,9 @@ fn the_dragon_chain_reaches_a_few_thousand_triangles() {
 
 /// The shadow and ground passes run only when they have something to do: with the sun up and
 /// the model in view both run; with no measured sun or the sun below the horizon the ground
-/// pass is skipped (the model still samples the map) unless the sky's occlusion darkens the
-/// ground; looking away, neither. The map is drawn again only when its shadow changed (here:
+/// pass is skipped unless the sky's occlusion darkens the ground; with no measured sun the map
+/// is not drawn either (the model samples whatever it holds, times no sunlight); looking away,
+/// neither. The map is drawn again only when its shadow changed (here:
 /// the sun's direction).
 #[test]
 fn shadow_and_ground_passes_run_only_when_needed() {
@@ -104,6 +105,13 @@ fn shadow_and_ground_passes_run_only_when_needed() {
     // Under an overcast sky the ground still darkens where the model hides the sky.
     overcast.lighting.sky_occlusion = 1.0;
     assert_eq!(run(&mut c, &overcast), passes(true, false, true));
+    // A fresh compositor under that sky draws no map at all (every lookup is multiplied by the
+    // sunlight), and its frame is the one drawn with the sunny frame's map, byte for byte.
+    let (mut fresh, _) = prepare(gpu(), &s, &i).unwrap();
+    let image = |c: &mut previz::render::Compositor| c.render(gpu(), &overcast, Layer::Composite).unwrap().rgba;
+    let (without, with) = (image(&mut fresh), image(&mut c));
+    assert_eq!(fresh.passes_run(), passes(true, false, true));
+    assert!(without == with, "overcast: {} bytes differ without the map", without.iter().zip(&with).filter(|(a, b)| a != b).count());
     let mut down = up;
     down.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, -0.2);
     assert_eq!(run(&mut c, &down), passes(true, true, false));

@@ -10,13 +10,17 @@ use crate::setup::scene_file::Scene;
 use anyhow::{Result, anyhow};
 use std::sync::Arc;
 
-/// The stages, in the order of a frame, then the floor: the same frame's background alone
-/// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
-pub const STAGES: [&str; 13] = [
+/// The stages, in the order of a frame (the compositor's GPU time, then its CPU encode and the
+/// wall time from submit until the pixels are in memory), then the floor: the same frame's
+/// background alone (rendered after it, not part of the frame), what issue 11 compares the
+/// compositor with.
+pub const STAGES: [&str; 15] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
     "compositor (GPU)",
+    "compositor: CPU encode (uniforms, ground regions, passes)",
+    "compositor: submit until the pixels are in memory (wall)",
     "whole frame incl. readback (wall)",
     "floor: background only (GPU)",
     "environment fold: frame's thread (fold, readback, writes; when applied)",
@@ -29,12 +33,12 @@ pub const STAGES: [&str; 13] = [
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
-pub const FLOOR: usize = 5;
-pub const FOLD: usize = 6;
-pub const FOLD_THREAD: usize = 7;
+pub const FLOOR: usize = 7;
+pub const FOLD: usize = 8;
+pub const FOLD_THREAD: usize = 9;
 /// Index of the profile's first row: after the measured frames, as many again with each pass
 /// timed alone (`Compositor::set_pass_timing`), then the passes one by one.
-pub const PROFILE: usize = 8;
+pub const PROFILE: usize = 10;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -68,7 +72,7 @@ pub fn run(
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
     session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 13] = Default::default();
+    let mut samples: [Vec<f64>; STAGES.len()] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let folds = session.fold_refreshes().map_or(0, |r| r.0);
@@ -79,7 +83,8 @@ pub fn run(
         let floor = session.render_layer(gpu, crate::render::Layer::Background)?;
         if i >= warmup {
             let gpu_ms = |r: &crate::render::Rendered| r.timings.gpu_ms.unwrap_or(f64::NAN);
-            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), wall, gpu_ms(&floor)]) {
+            let (encode, submitted) = (r.timings.encode_ms, r.timings.readback_ms);
+            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), encode, submitted, wall, gpu_ms(&floor)]) {
                 v.push(x);
             }
             if let Some((_, frame_ms, cpu_ms)) = fold {

@@ -144,7 +144,7 @@ pub struct PassesRun {
     pub shadow: bool,
     /// The shadow pass drew that map this frame: false when the map already held the same
     /// shadow (`shadow_fit::map_still_valid`: same model, transform and level, the sun moved
-    /// less than an eighth of a texel).
+    /// less than an eighth of a texel) or when there is no sunlight (nothing to shadow).
     pub shadow_drawn: bool,
     pub ground: bool,
 }
@@ -171,6 +171,7 @@ impl Compositor {
         let targets = Targets::new(device, (width, height), aa)?;
         let fxaa = targets.aa_input().map(|input| FxaaPass::new(device, &pipelines, input));
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
+        shadow.clear_all(device, &gpu.queue);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
         let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
@@ -578,7 +579,11 @@ impl Compositor {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let shadow_index = self.shadow.index_of(data.shadow_map_size);
         let shadow = layer != Layer::Background && data.shadow_pass;
-        if shadow && kept.is_none() {
+        // Without sunlight (overcast, night) the map is not drawn: every lookup of it is
+        // multiplied by the sunlight (model.wgsl, sh9_ggx.wgsl) or skipped (ground.wgsl), so
+        // whatever it holds (cleared at creation, or an earlier shadow) changes no pixel.
+        let drawn = shadow && kept.is_none() && p.lighting.sunlight > 0.0;
+        if drawn {
             self.shadow_held[shadow_index] = Some(ShadowDrawn {
                 light_view_proj: glam::Mat4::from_cols_array_2d(&data.frame.light_view_proj),
                 model: glam::Mat4::from_cols_array_2d(&data.instance.model),
@@ -593,8 +598,7 @@ impl Compositor {
         self.model_pass.write(queue, model, &data.colour, &p.lighting.material);
         self.level = data.level;
         self.shadow_index = shadow_index;
-        self.passes_run =
-            PassesRun { shadow, shadow_drawn: shadow && kept.is_none(), ground: composite && data.ground_pass && data.shadow_pass };
+        self.passes_run = PassesRun { shadow, shadow_drawn: drawn, ground: composite && data.ground_pass && data.shadow_pass };
         Ok(data)
     }
 

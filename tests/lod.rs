@@ -228,8 +228,8 @@ fn a_small_shadow_from_a_small_map_matches_the_full_map() {
 /// The ground draws only where it can darken anything, and nothing visible changes: its shadow
 /// lookup only inside the shadow's outline (the model's silhouette seen from the sun, widened
 /// by what the soft lookup reaches, swept onto the ground; render::shadow_fit::
-/// silhouette_outline), the sky's occlusion only where it moves an 8-bit value by half a level
-/// or more (shadow_fit::sky_region), nothing elsewhere. The frame is within a mean FLIP of 1e-4
+/// silhouette_outline), the sky's occlusion only where it moves an 8-bit value by more than a
+/// level (shadow_fit::sky_region), nothing elsewhere. The frame is within a mean FLIP of 1e-4
 /// of the same frame with the lookup over the whole ground quad, with the same 2048² map (a
 /// footprint wider than 1024 px), for a cube and a sphere (whose silhouette is not its box), a
 /// low sun whose long shadow crosses the sky's square and a high one inside it. Not vacuous:

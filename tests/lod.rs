@@ -259,6 +259,16 @@ fn the_ground_is_drawn_only_where_it_can_darken() {
             eprintln!("{name}, sun {:.0}°: {}² map, {shadowed} + {sky_only} ground vertices", el.to_degrees(), c.shadow_map_size());
             assert_eq!(c.shadow_map_size(), 2048, "the test needs the same map both ways");
             assert!(shadowed > 0 && sky_only > 0, "the ground is split: {shadowed} + {sky_only} vertices");
+            // ... and draws less than its quad (the unit square, area 4, in the mesh's units; main
+            // drew all of it).
+            let mesh = c.frame_uniforms(&p).unwrap().ground_mesh;
+            let drawn: f32 = (mesh.vertices[..(mesh.shadowed + mesh.sky_only) as usize].chunks_exact(3))
+                .map(|t| {
+                    0.5 * (glam::Vec2::from(t[1]) - glam::Vec2::from(t[0])).perp_dot(glam::Vec2::from(t[2]) - glam::Vec2::from(t[0])).abs()
+                })
+                .sum();
+            eprintln!("{name}, sun {:.0}°: the ground draws {:.0} % of its quad", el.to_degrees(), 25.0 * drawn);
+            assert!(drawn < 0.99 * 4.0, "{name}: the ground draws {:.0} % of its quad", 25.0 * drawn);
             c.set_full_shadow(true);
             let everywhere = frame(&mut c, &p);
             assert_eq!((c.shadow_map_size(), c.ground_vertices().1), (2048, 0));

@@ -30,6 +30,10 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     // the sky, computed once for the placement, not per frame.
     assert!(params.lighting.sky_occlusion > 0.99, "{}", params.lighting.sky_occlusion);
     assert_eq!(compositor.ground_sky_updates(), 1);
+    // Where that occlusion is visible, once for the placement; the shadow's outline at most
+    // once (the camera turning keeps the shadow map).
+    let (outlines, sky_regions) = compositor.ground_regions_computed();
+    assert!(outlines <= 1 && sky_regions == 1, "{outlines} outlines, {sky_regions} sky regions");
     placements_write_the_ground_sky_once_each(&mut compositor, &start);
     lod_switches_allocate_nothing();
     antialiased_frames_allocate_nothing();
@@ -42,6 +46,7 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
 fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Compositor, params: &previz::render::FrameParams) {
     let before = settled_counters();
     let updates = compositor.ground_sky_updates();
+    let regions = compositor.ground_regions_computed().1;
     for i in 1..=3 {
         let mut p = *params;
         p.placement.position.x += 0.2 * i as f32;
@@ -50,6 +55,7 @@ fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Co
             compositor.render(gpu(), &p, Layer::Composite).unwrap();
         }
         assert_eq!(compositor.ground_sky_updates(), updates + i, "placement {i}");
+        assert_eq!(compositor.ground_regions_computed().1, regions + i, "placement {i}: the sky's region once");
     }
     // Moving the model without turning or scaling it reuses the map (it moves with the model).
     let mut moved = *params;
@@ -59,6 +65,7 @@ fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Co
         compositor.render(gpu(), &moved, Layer::Composite).unwrap();
     }
     assert_eq!(compositor.ground_sky_updates(), updates + 3, "moving the model computed the map again");
+    assert_eq!(compositor.ground_regions_computed().1, regions + 3, "moving the model computed the sky's region again");
     let after = settled_counters();
     assert_unchanged(&before, &after, &FRAME_RESOURCES, "placements");
 }
@@ -128,6 +135,12 @@ fill = 0.8
     }
     compositor.set_pass_timing(false);
     compositor.set_culling(true);
+    // The same frame again keeps its shadow map, and with it the shadow's outline.
+    compositor.render(gpu(), &params, Layer::Composite).unwrap();
+    let outlines = compositor.ground_regions_computed().0;
+    compositor.render(gpu(), &params, Layer::Composite).unwrap();
+    assert!(!compositor.passes_run().shadow_drawn && outlines > 0);
+    assert_eq!(compositor.ground_regions_computed().0, outlines, "a kept map computed the outline again");
     let after = settled_counters();
     levels.dedup();
     maps.dedup();

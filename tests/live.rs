@@ -139,6 +139,18 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     for stage in ["camera frame", "sensors + fusion", "sun (SPA)", "compositor (GPU)", "whole frame", "model turning"] {
         assert!(table.contains(stage), "{stage} missing from:\n{table}");
     }
+    // --json: the same stages, the ratio, and the profile's passes by name (GPU ms).
+    let out = previz(
+        &dir,
+        &["bench", "live", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "2", "--warmup", "1", "--json"],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["stages"].as_array().unwrap().len(), previz::bench::live::STAGES.len(), "{v}");
+    assert!(v["compositor_over_floor"].as_f64().unwrap() > 0.0, "{v}");
+    for pass in ["total_ms", "background_ms", "model_ms", "ground_ms"] {
+        assert!(v["profile"][pass].as_f64().is_some_and(|ms| ms > 0.0), "{pass}: {v}");
+    }
 
     let bad = tempdir("live", "bad");
     // -o creates a missing folder, but not over a file.

@@ -76,8 +76,9 @@ fn the_dragon_chain_reaches_a_few_thousand_triangles() {
 
 /// The shadow and ground passes run only when they have something to do: with the sun up and
 /// the model in view both run; with no measured sun or the sun below the horizon the ground
-/// pass is skipped (the model still samples the map) unless the sky's occlusion darkens the
-/// ground; looking away, neither. The map is drawn again only when its shadow changed (here:
+/// pass is skipped unless the sky's occlusion darkens the ground; with no measured sun the map
+/// is not drawn either (the model samples whatever it holds, times no sunlight); looking away,
+/// neither. The map is drawn again only when its shadow changed (here:
 /// the sun's direction).
 #[test]
 fn shadow_and_ground_passes_run_only_when_needed() {
@@ -104,6 +105,13 @@ fn shadow_and_ground_passes_run_only_when_needed() {
     // Under an overcast sky the ground still darkens where the model hides the sky.
     overcast.lighting.sky_occlusion = 1.0;
     assert_eq!(run(&mut c, &overcast), passes(true, false, true));
+    // A fresh compositor under that sky draws no map at all (every lookup is multiplied by the
+    // sunlight), and its frame is the one drawn with the sunny frame's map, byte for byte.
+    let (mut fresh, _) = prepare(gpu(), &s, &i).unwrap();
+    let image = |c: &mut previz::render::Compositor| c.render(gpu(), &overcast, Layer::Composite).unwrap().rgba;
+    let (without, with) = (image(&mut fresh), image(&mut c));
+    assert_eq!(fresh.passes_run(), passes(true, false, true));
+    assert!(without == with, "overcast: {} bytes differ without the map", without.iter().zip(&with).filter(|(a, b)| a != b).count());
     let mut down = up;
     down.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, -0.2);
     assert_eq!(run(&mut c, &down), passes(true, true, false));
@@ -217,50 +225,66 @@ fn a_small_shadow_from_a_small_map_matches_the_full_map() {
     assert!(c.shadow_map_size() > small_size, "{} near vs {small_size} far", c.shadow_map_size());
 }
 
-/// The ground's shadow lookup runs only where the shadow can fall (the shadow map's rectangle
-/// swept onto the ground, widened by what the soft lookup reaches; the rest of the ground is
-/// drawn by a pipeline without the lookup), and nothing visible changes: the frame is within a
-/// mean FLIP of 1e-4 of the same frame with the lookup over the whole ground quad, with the
-/// same 2048² map (a footprint wider than 1024 px), for a low sun whose long shadow crosses
-/// the sky's square and a high one inside it. Not vacuous: the shadow and the sky's occlusion
-/// themselves differ from no ground pass by far more.
+/// The ground draws only where it can darken anything, and nothing visible changes: its shadow
+/// lookup only inside the shadow's outline (the model's silhouette seen from the sun, widened
+/// by what the soft lookup reaches, swept onto the ground; render::shadow_fit::
+/// silhouette_outline), the sky's occlusion only where it moves an 8-bit value by more than a
+/// level (shadow_fit::sky_region), nothing elsewhere. The frame is within a mean FLIP of 1e-4
+/// of the same frame with the lookup over the whole ground quad, with the same 2048² map (a
+/// footprint wider than 1024 px), for a cube and a sphere (whose silhouette is not its box), a
+/// low sun whose long shadow crosses the sky's square and a high one inside it. Not vacuous:
+/// the shadow and the sky's occlusion themselves differ from no ground pass by far more.
 #[test]
-fn the_shadow_lookup_is_skipped_only_where_no_shadow_can_fall() {
+fn the_ground_is_drawn_only_where_it_can_darken() {
     let (w, h) = (1280, 720);
     let s = scene(&format!("width = {w}\nheight = {h}\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.8\n"));
-    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
-    let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
-    p.lighting.sunlight = 1.0;
-    p.lighting.shadow_opacity = 0.8;
-    p.lighting.sky_occlusion = 0.4;
-    // Near: the cube and its shadow span more than 1024 px.
-    p.placement.position = p.camera.position + 0.5 * (p.placement.position - p.camera.position);
-    let frame =
-        |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| rgb(&c.render(gpu(), p, Layer::Composite).unwrap().rgba);
-    let flip = |a: &[u8], b: &[u8]| previz::capture::replay::mean_flip(a, b, w, h).unwrap();
-    for (el, az) in [(15f32, 225f32), (60.0, 135.0)] {
-        let (el, az) = (el.to_radians(), az.to_radians());
-        p.lighting.sun_dir = glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
-        c.set_full_shadow(false);
-        let split = frame(&mut c, &p);
-        let (shadowed, sky_only) = c.ground_vertices();
-        eprintln!("sun {:.0}°: {}² map, {shadowed} + {sky_only} ground vertices", el.to_degrees(), c.shadow_map_size());
-        assert_eq!(c.shadow_map_size(), 2048, "the test needs the same map both ways");
-        assert!(shadowed > 0 && sky_only > 0, "the ground is split: {shadowed} + {sky_only} vertices");
-        c.set_full_shadow(true);
-        let everywhere = frame(&mut c, &p);
-        assert_eq!((c.shadow_map_size(), c.ground_vertices().1), (2048, 0));
-        let mut bare = p;
-        (bare.lighting.shadow_opacity, bare.lighting.sky_occlusion) = (0.0, 0.0);
-        let unshadowed = frame(&mut c, &bare);
-        let (split_flip, ground_flip) = (flip(&everywhere, &split), flip(&everywhere, &unshadowed));
-        let differing = split.iter().zip(&everywhere).filter(|(a, b)| a != b).count();
-        eprintln!(
-            "sun {:.0}°: split vs everywhere mean FLIP {split_flip} ({differing} bytes differ); the ground itself {ground_flip}",
-            el.to_degrees()
-        );
-        assert!(split_flip <= 1e-4, "sun {el}: the split ground vs the lookup everywhere: mean FLIP {split_flip}");
-        assert!(ground_flip > 1e-3, "the ground's darkening itself: {ground_flip}");
+    let sphere = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();
+    for (name, model) in [("cube", cube()), ("sphere", sphere)] {
+        let i = Inputs { model, env: inputs(&s).env, background: None };
+        let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
+        p.lighting.sunlight = 1.0;
+        p.lighting.shadow_opacity = 0.8;
+        p.lighting.sky_occlusion = 0.4;
+        // Near: the model and its shadow span more than 1024 px.
+        p.placement.position = p.camera.position + 0.5 * (p.placement.position - p.camera.position);
+        let frame =
+            |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| rgb(&c.render(gpu(), p, Layer::Composite).unwrap().rgba);
+        let flip = |a: &[u8], b: &[u8]| previz::capture::replay::mean_flip(a, b, w, h).unwrap();
+        for (el, az) in [(15f32, 225f32), (60.0, 135.0)] {
+            let (el, az) = (el.to_radians(), az.to_radians());
+            p.lighting.sun_dir = glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+            c.set_full_shadow(false);
+            let split = frame(&mut c, &p);
+            let (shadowed, sky_only) = c.ground_vertices();
+            eprintln!("{name}, sun {:.0}°: {}² map, {shadowed} + {sky_only} ground vertices", el.to_degrees(), c.shadow_map_size());
+            assert_eq!(c.shadow_map_size(), 2048, "the test needs the same map both ways");
+            assert!(shadowed > 0 && sky_only > 0, "the ground is split: {shadowed} + {sky_only} vertices");
+            // ... and draws less than its quad (the unit square, area 4, in the mesh's units; main
+            // drew all of it).
+            let mesh = c.frame_uniforms(&p).unwrap().ground_mesh;
+            let drawn: f32 = (mesh.vertices[..(mesh.shadowed + mesh.sky_only) as usize].chunks_exact(3))
+                .map(|t| {
+                    0.5 * (glam::Vec2::from(t[1]) - glam::Vec2::from(t[0])).perp_dot(glam::Vec2::from(t[2]) - glam::Vec2::from(t[0])).abs()
+                })
+                .sum();
+            eprintln!("{name}, sun {:.0}°: the ground draws {:.0} % of its quad", el.to_degrees(), 25.0 * drawn);
+            assert!(drawn < 0.99 * 4.0, "{name}: the ground draws {:.0} % of its quad", 25.0 * drawn);
+            c.set_full_shadow(true);
+            let everywhere = frame(&mut c, &p);
+            assert_eq!((c.shadow_map_size(), c.ground_vertices().1), (2048, 0));
+            let mut bare = p;
+            (bare.lighting.shadow_opacity, bare.lighting.sky_occlusion) = (0.0, 0.0);
+            let unshadowed = frame(&mut c, &bare);
+            let (split_flip, ground_flip) = (flip(&everywhere, &split), flip(&everywhere, &unshadowed));
+            let differing = split.iter().zip(&everywhere).filter(|(a, b)| a != b).count();
+            let most = split.iter().zip(&everywhere).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(0);
+            eprintln!(
+                "{name}, sun {:.0}°: split vs everywhere mean FLIP {split_flip} ({differing} bytes differ, by at most {most}); the ground itself {ground_flip}",
+                el.to_degrees()
+            );
+            assert!(split_flip <= 1e-4, "{name}, sun {el}: the split ground vs the lookup everywhere: mean FLIP {split_flip}");
+            assert!(ground_flip > 1e-3, "the ground's darkening itself: {ground_flip}");
+        }
     }
 }
 
@@ -391,4 +415,27 @@ fn fxaa_brings_the_silhouette_towards_4x_msaa() {
     assert!(n > 50, "only {n} silhouette pixels");
     assert!(one > 5.0, "1x is within {one} of 4x on the silhouette: nothing to antialias");
     assert!(fxaa < one, "FXAA {fxaa} is no closer to 4x than 1x {one}");
+}
+
+/// `previz bench frame --json` carries the per-pass profile beside the rows: each main path
+/// with its passes' GPU time by name (null where a pass did not run: the floor draws no model).
+#[test]
+fn bench_frame_json_carries_the_per_pass_profile() {
+    use common::cli::{previz, tempdir};
+    let dir = tempdir("lod", "bench-frame-json");
+    let (env, model) = (common::data("cubemaps/humus_Park2_512"), common::data("meshes/icosphere-320.obj"));
+    let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
+    let args =
+        ["bench", "frame", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "1", "--warmup", "0", "--json"];
+    let out = previz(&dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["rows"].as_array().is_some_and(|r| r.len() > 5), "{v}");
+    let profile = v["profile"].as_array().unwrap();
+    let path = |name: &str| profile.iter().find(|r| r["path"] == name).unwrap_or_else(|| panic!("no {name} in {v}"));
+    let (floor, default) = (path(previz::bench::frame::FLOOR), path(previz::bench::frame::DEFAULT));
+    assert!(floor["background_ms"].as_f64().unwrap() > 0.0 && floor["model_ms"].is_null(), "{floor}");
+    for pass in ["total_ms", "background_ms", "model_ms"] {
+        assert!(default[pass].as_f64().is_some_and(|ms| ms > 0.0), "{pass}: {default}");
+    }
 }

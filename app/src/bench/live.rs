@@ -10,13 +10,17 @@ use crate::setup::scene_file::Scene;
 use anyhow::{Result, anyhow};
 use std::sync::Arc;
 
-/// The stages, in the order of a frame, then the floor: the same frame's background alone
-/// (rendered after it, not part of the frame), what issue 11 compares the compositor with.
-pub const STAGES: [&str; 15] = [
+/// The stages, in the order of a frame (the compositor's GPU time, then its CPU encode and the
+/// wall time from submit until the pixels are in memory), then the floor: the same frame's
+/// background alone (rendered after it, not part of the frame), what issue 11 compares the
+/// compositor with.
+pub const STAGES: [&str; 17] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
     "compositor (GPU)",
+    "compositor: CPU encode (uniforms, ground regions, passes)",
+    "compositor: submit until the pixels are in memory (wall)",
     "whole frame incl. readback (wall)",
     "floor: background only (GPU)",
     "environment fold: frame's thread (fold, readback, writes; when applied)",
@@ -31,19 +35,19 @@ pub const STAGES: [&str; 15] = [
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
-pub const FLOOR: usize = 5;
-pub const FOLD: usize = 6;
-pub const FOLD_THREAD: usize = 7;
+pub const FLOOR: usize = 7;
+pub const FOLD: usize = 8;
+pub const FOLD_THREAD: usize = 9;
 /// Index of the profile's first row: after the measured frames, as many again with each pass
 /// timed alone (`Compositor::set_pass_timing`), then the passes one by one.
-pub const PROFILE: usize = 8;
+pub const PROFILE: usize = 10;
 /// Index of the turning model's rows: after the profile, as many frames again turning the model
 /// 2° each (a new placement every frame: the ground's rays cast again), timed on the frame's
 /// thread with the rays on the worker, then as many waiting for them.
-pub const TURN: usize = 13;
+pub const TURN: usize = 15;
 
 /// One stage's median and 95th percentile, ms.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct StageRow {
     pub stage: &'static str,
     pub median_ms: f64,
@@ -74,7 +78,7 @@ pub fn run(
     let mut session = LiveSession::simulated(gpu, Arc::new(inputs.env), &inputs.model, scene, cfg)?;
     session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
-    let mut samples: [Vec<f64>; 15] = Default::default();
+    let mut samples: [Vec<f64>; STAGES.len()] = Default::default();
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let folds = session.fold_refreshes().map_or(0, |r| r.0);
@@ -85,7 +89,8 @@ pub fn run(
         let floor = session.render_layer(gpu, crate::render::Layer::Background)?;
         if i >= warmup {
             let gpu_ms = |r: &crate::render::Rendered| r.timings.gpu_ms.unwrap_or(f64::NAN);
-            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), wall, gpu_ms(&floor)]) {
+            let (encode, submitted) = (r.timings.encode_ms, r.timings.readback_ms);
+            for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), encode, submitted, wall, gpu_ms(&floor)]) {
                 v.push(x);
             }
             if let Some((_, frame_ms, cpu_ms)) = fold {
@@ -129,6 +134,23 @@ pub fn run(
 /// The compositor's median GPU time over the floor's (issue 11's goal: at most 1.5).
 pub fn floor_ratio(rows: &[StageRow]) -> f64 {
     rows[COMPOSITOR].median_ms / rows[FLOOR].median_ms
+}
+
+/// The rows as JSON (`previz bench live --json`): the stages, the compositor's ratio to the
+/// floor, and the profile's passes by name (GPU medians, ms; null: the pass did not run).
+pub fn json(rows: &[StageRow]) -> serde_json::Value {
+    let ms = |k: usize| rows.get(k).map(|r| r.median_ms).filter(|v| v.is_finite());
+    serde_json::json!({
+        "stages": rows,
+        "compositor_over_floor": floor_ratio(rows),
+        "profile": {
+            "total_ms": ms(PROFILE),
+            "shadow_ms": ms(PROFILE + 1),
+            "background_ms": ms(PROFILE + 2),
+            "model_ms": ms(PROFILE + 3),
+            "ground_ms": ms(PROFILE + 4),
+        },
+    })
 }
 
 /// The rows as a markdown table, then the compositor's ratio to the floor.

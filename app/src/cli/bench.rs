@@ -21,13 +21,13 @@ pub enum What {
     /// reference (mean FLIP), the same at a quarter of the fill, every lighting method, each
     /// colour correction, and 1x/2x/4x MSAA and FXAA (FLIP of the model's edges against a
     /// 16-sample render); then issue 11's goals, met or not; then where the main paths' time
-    /// goes (the same frames with each pass timed alone; not in --json or --csv).
+    /// goes (the same frames with each pass timed alone; in --json too, not in --csv).
     Frame(FrameArgs),
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
     /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames; then as
-    /// many frames again with each pass timed alone (the profile rows); then as many turning the
-    /// model 2° a frame, the ground's rays on their worker, and as many with the frame waiting
-    /// for them (the frame's thread's time).
+    /// many frames again with each pass timed alone (the profile rows; --json also as named
+    /// passes); then as many turning the model 2° a frame, the ground's rays on their worker,
+    /// and as many with the frame waiting for them (the frame's thread's time).
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model
@@ -96,6 +96,12 @@ pub struct LiveArgs {
     /// Warm-up frames, not measured.
     #[arg(long, default_value_t = 10)]
     pub warmup: usize,
+    /// Print the stages as JSON instead of a table: {"stages": [{stage, median_ms, p95_ms}],
+    /// "compositor_over_floor", "profile": {"total_ms", "shadow_ms", "background_ms",
+    /// "model_ms", "ground_ms"}} (the profile: GPU medians with each pass timed alone; null
+    /// for a pass that did not run).
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -112,7 +118,9 @@ pub struct FrameArgs {
     /// Also write the rows as CSV.
     #[arg(long)]
     pub csv: Option<PathBuf>,
-    /// Print the rows as JSON instead of a table.
+    /// Print the rows as JSON instead of a table: {"rows": [...], "profile": [{path, frames,
+    /// total_ms, shadow_ms, background_ms, model_ms, ground_ms, fxaa_ms}]} (the profile: GPU
+    /// medians of each pass timed alone; null for a pass that did not run).
     #[arg(long)]
     pub json: bool,
 }
@@ -183,7 +191,7 @@ fn run_frame(a: FrameArgs) -> Result<()> {
         crate::output::write_atomic(path, frame::csv(&rows).as_bytes())?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
+        println!("{}", serde_json::to_string_pretty(&serde_json::json!({ "rows": rows, "profile": profile }))?);
     } else {
         println!(
             "{}x{}, {} triangles, {} on {}; medians of {} frames after {} warm-up\n",
@@ -207,6 +215,10 @@ fn run_live(a: LiveArgs) -> Result<()> {
     let triangles = inputs.model.triangle_count();
     let rows = live::run(&gpu, &scene, inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&live::json(&rows))?);
+        return Ok(());
+    }
     println!(
         "{}x{}, {triangles} model triangles, phone-grade simulated sensors, on {}; {} frames after {} warm-up\n",
         scene.width,

@@ -7,13 +7,14 @@
 use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment, EnvironmentTextures};
 use super::frame::{
-    FrameContext, FrameData, colour_correction, fit_shadow, frame_uniforms, ground_mesh, light_uniforms, lod_level, sky_square,
+    FrameContext, FrameData, GroundMesh, GroundRegions, colour_correction, fit_shadow, frame_uniforms, ground_mesh, light_uniforms,
+    lod_level, sky_square,
 };
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
 use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
-use super::passes::ground::GroundPass;
+use super::passes::ground::{GroundPass, INVISIBLE_LOSS, RegionCache, sky_loss_per_occlusion};
 use super::passes::model::{ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::pipelines::Pipelines;
@@ -134,6 +135,9 @@ pub struct Compositor {
     /// Cast a new placement's ground rays on the model cache's worker, drawing the previous map
     /// meanwhile (the live view), instead of waiting for them (a composite).
     ground_in_background: bool,
+    /// The ground's regions (the shadow's outline, the sky's visible occlusion), computed once
+    /// per shadow map drawn and per sky map.
+    ground_regions: RegionCache,
 }
 
 /// Which of the optional passes a frame ran.
@@ -143,7 +147,7 @@ pub struct PassesRun {
     pub shadow: bool,
     /// The shadow pass drew that map this frame: false when the map already held the same
     /// shadow (`shadow_fit::map_still_valid`: same model, transform and level, the sun moved
-    /// less than an eighth of a texel).
+    /// less than an eighth of a texel) or when there is no sunlight (nothing to shadow).
     pub shadow_drawn: bool,
     pub ground: bool,
 }
@@ -170,6 +174,7 @@ impl Compositor {
         let targets = Targets::new(device, (width, height), aa)?;
         let fxaa = targets.aa_input().map(|input| FxaaPass::new(device, &pipelines, input));
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
+        shadow.clear_all(device, &gpu.queue);
         let background = BackgroundPass::new(device, &pipelines, (width, height));
         let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
@@ -204,6 +209,7 @@ impl Compositor {
             ground_sky_uploaded: None,
             ground_sky_updates: 0,
             ground_in_background: false,
+            ground_regions: RegionCache::default(),
         })
     }
 
@@ -355,6 +361,13 @@ impl Compositor {
         self.ground_sky_updates
     }
 
+    /// How many times the ground's regions were computed: the shadow's outline (once per
+    /// shadow map drawn for the ground) and the sky's visible occlusion (once per sky map and
+    /// visible threshold, render::passes::ground::RegionCache).
+    pub fn ground_regions_computed(&self) -> (usize, usize) {
+        (self.ground_regions.outlines_computed, self.ground_regions.sky_regions_computed)
+    }
+
     /// What was computed from the loaded model's content (shared with every compositor on the
     /// device that loads the same model).
     pub fn prepared_model(&self) -> Option<&Arc<PreparedModel>> {
@@ -384,6 +397,14 @@ impl Compositor {
     /// model's colour priors (computed on the first frame that asks); a model without any
     /// (every texel masked out) is an error then.
     pub fn frame_uniforms(&self, p: &FrameParams) -> Result<FrameData> {
+        Ok(self.frame_data(p, Layer::Composite, &mut RegionCache::default())?.0)
+    }
+
+    /// [`Compositor::frame_uniforms`] for a frame of `layer`, with the ground's regions from
+    /// (and into) `regions`; also the shadow map this frame keeps (None: it draws the map, or
+    /// has none): a frame whose shadow would come out the same as the map's keeps the map and
+    /// the sun camera it was drawn with, so lookups match it.
+    fn frame_data(&self, p: &FrameParams, layer: Layer, regions: &mut RegionCache) -> Result<(FrameData, Option<ShadowDrawn>)> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let sizes = self.shadow.sizes();
@@ -411,8 +432,7 @@ impl Compositor {
         // sunlight and opacity above zero: exactly where its alpha is non-zero).
         let shadow_pass = shadow.footprint.is_some();
         let ground_pass = (shadow.needed && p.lighting.shadow_opacity > 0.0) || (shadow_pass && p.lighting.sky_occlusion > 0.0);
-        let ground_mesh = ground_mesh(p, &context, &shadow, self.full_shadow);
-        Ok(FrameData {
+        let mut data = FrameData {
             frame,
             instance,
             ground,
@@ -423,8 +443,50 @@ impl Compositor {
             shadow_pass,
             ground_pass,
             shadow_map_size: shadow.map_size,
-            ground_mesh,
-        })
+            ground_mesh: GroundMesh::EMPTY,
+        };
+        let shadow_index = self.shadow.index_of(shadow.map_size);
+        let now = ShadowDrawn {
+            light_view_proj: glam::Mat4::from_cols_array_2d(&data.frame.light_view_proj),
+            model: glam::Mat4::from_cols_array_2d(&data.instance.model),
+            level,
+        };
+        let corners = shadow_fit::box_corners(model.bounds(), now.model);
+        let size = self.shadow.sizes()[shadow_index];
+        let casting = layer != Layer::Background && shadow_pass;
+        let kept = self.shadow_held[shadow_index].filter(|held| casting && shadow_fit::map_still_valid(held, &now, &corners, size));
+        if let Some(held) = kept {
+            data.frame.light_view_proj = held.light_view_proj.to_cols_array_2d();
+        }
+        if layer == Layer::Composite && ground_pass {
+            // Where the ground can darken anything: the shadow's outline in the map the frame
+            // looks up, and where the sky's occlusion is visible.
+            let outline = match shadow.needed && p.lighting.shadow_opacity > 0.0 && !self.full_shadow {
+                true => {
+                    let radius = (0.5 * (context.bounds.1 - context.bounds.0).length() * p.placement.scale).max(1e-4);
+                    let vertices = || model.prepared.vertices.iter().flatten().map(|v| Vec3::from(v.position));
+                    let reach = (size, p.lighting.sun_angular_radius.tan(), radius);
+                    let placed = (glam::Mat4::from_cols_array_2d(&data.frame.light_view_proj), now.model);
+                    regions.outline(placed, vertices, p.placement.position.z, reach).to_vec()
+                }
+                false => Vec::new(),
+            };
+            let sky = match p.lighting.sky_occlusion > 0.0 && !self.full_shadow {
+                true => {
+                    let map = self.ground_sky(p)?;
+                    let per_occlusion = sky_loss_per_occlusion(&data.light, p.lighting.shadow_opacity);
+                    // The region is in the map's square, which moves with the model.
+                    let [x0, y0, x1, y1] = data.light.ground_square;
+                    let (min, max) = (glam::Vec2::new(x0, y0), glam::Vec2::new(x1, y1));
+                    let region = regions.sky(&map, INVISIBLE_LOSS / per_occlusion.max(1e-12));
+                    Some(region.iter().map(|&uv| min + uv * (max - min)).collect::<Vec<_>>())
+                }
+                false => None,
+            };
+            let parts = GroundRegions { outline: &outline, sky: sky.as_deref() };
+            data.ground_mesh = ground_mesh(p, &context, &shadow, parts, self.full_shadow);
+        }
+        Ok((data, kept))
     }
 
     /// Render one image of `layer` and read it back.
@@ -527,7 +589,10 @@ impl Compositor {
 
     /// Write the frame's uniforms; note its level of detail and the passes it runs.
     fn write_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<FrameData> {
-        let mut data = self.frame_uniforms(p)?;
+        let mut regions = std::mem::take(&mut self.ground_regions);
+        let data = self.frame_data(p, layer, &mut regions);
+        self.ground_regions = regions;
+        let (data, kept) = data?;
         let composite = layer == Layer::Composite;
         if composite && data.ground_pass && p.lighting.sky_occlusion > 0.0 {
             self.update_ground_sky(gpu, p)?;
@@ -535,20 +600,16 @@ impl Compositor {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let shadow_index = self.shadow.index_of(data.shadow_map_size);
         let shadow = layer != Layer::Background && data.shadow_pass;
-        // Keep the map (and the sun camera it was drawn with, so lookups match it) when this
-        // frame's shadow would come out the same.
-        let now = ShadowDrawn {
-            light_view_proj: glam::Mat4::from_cols_array_2d(&data.frame.light_view_proj),
-            model: glam::Mat4::from_cols_array_2d(&data.instance.model),
-            level: data.level,
-        };
-        let corners = shadow_fit::box_corners(model.bounds(), now.model);
-        let size = self.shadow.sizes()[shadow_index];
-        let kept = self.shadow_held[shadow_index].filter(|held| shadow && shadow_fit::map_still_valid(held, &now, &corners, size));
-        match kept {
-            Some(held) => data.frame.light_view_proj = held.light_view_proj.to_cols_array_2d(),
-            None if shadow => self.shadow_held[shadow_index] = Some(now),
-            None => {}
+        // Without sunlight (overcast, night) the map is not drawn: every lookup of it is
+        // multiplied by the sunlight (model.wgsl, sh9_ggx.wgsl) or skipped (ground.wgsl), so
+        // whatever it holds (cleared at creation, or an earlier shadow) changes no pixel.
+        let drawn = shadow && kept.is_none() && p.lighting.sunlight > 0.0;
+        if drawn {
+            self.shadow_held[shadow_index] = Some(ShadowDrawn {
+                light_view_proj: glam::Mat4::from_cols_array_2d(&data.frame.light_view_proj),
+                model: glam::Mat4::from_cols_array_2d(&data.instance.model),
+                level: data.level,
+            });
         }
         let queue = &gpu.queue;
         queue.write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&data.frame));
@@ -558,9 +619,28 @@ impl Compositor {
         self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull);
         self.level = data.level;
         self.shadow_index = shadow_index;
-        self.passes_run =
-            PassesRun { shadow, shadow_drawn: shadow && kept.is_none(), ground: composite && data.ground_pass && data.shadow_pass };
+        self.passes_run = PassesRun { shadow, shadow_drawn: drawn, ground: composite && data.ground_pass && data.shadow_pass };
         Ok(data)
+    }
+
+    /// The ground's sky visibility under the model as `p` places it and its sky lights it, from
+    /// the device's model cache (computed there once per turn or scale of the model and sky
+    /// shape; the same `Arc` while they stay).
+    fn ground_sky(&self, p: &FrameParams) -> Result<Arc<occlusion::GroundSky>> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let matrix = super::view::model_matrix(model.bounds(), &p.placement);
+        // The map moves with the model (its square is centred under it, in the plane of its
+        // base), so only a turn or a scale computes it again: dragging the model costs nothing.
+        let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
+        let shape = crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading);
+        // Computed by the device's model cache once per key (shared by every compositor on the
+        // device); in the live view on its worker, drawing the previous map meanwhile.
+        Ok(if self.ground_in_background {
+            model.prepared.ground_sky_without_waiting(key, shape)
+        } else {
+            model.prepared.ground_sky(key, shape)
+        })
     }
 
     /// The ground's sky visibility under the model as `p` places it and its sky lights it
@@ -568,20 +648,7 @@ impl Compositor {
     /// when the model's turn or scale or the sky's shape differs from the last one it was
     /// computed for.
     fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
-        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
-        let matrix = super::view::model_matrix(model.bounds(), &p.placement);
-        // The map moves with the model (its square is centred under it, in the plane of its
-        // base), so only a turn or a scale computes it again: dragging the model costs nothing.
-        let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
-        // Computed by the device's model cache once per key (shared by every compositor on the
-        // device), uploaded here when it is not the map this compositor holds.
-        let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-        let shape = crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading);
-        let sky = if self.ground_in_background {
-            model.prepared.ground_sky_without_waiting(key, shape)
-        } else {
-            model.prepared.ground_sky(key, shape)
-        };
+        let sky = self.ground_sky(p)?;
         if self.ground_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &sky)) {
             return Ok(());
         }

@@ -60,7 +60,7 @@ pub struct FrameData {
 }
 
 /// Most vertices the ground pass draws (its vertex buffer, made once).
-pub const GROUND_VERTICES: usize = 128;
+pub const GROUND_VERTICES: usize = 512;
 
 /// The ground pass's triangles, in the ground quad's unit square ([-1, 1]², z = 0, placed by the
 /// ground's instance matrix): first `shadowed` vertices where the sun's shadow can fall (drawn
@@ -83,7 +83,9 @@ impl GroundMesh {
         let c = 0.5 * (quad.min + quad.max);
         let h = (0.5 * (quad.max - quad.min)).max(Vec2::splat(1e-12));
         let mut mesh = GroundMesh::EMPTY;
-        // split_rect gives at most 12 rays (8 clipped outline vertices and 4 corners): 36 + 72.
+        // split_convex gives 9 vertices a ray: at most 48 rays (the 12-sided outline clipped
+        // to the quad, 16, and the hull of it and the 16-sided sky region clipped to the quad,
+        // 32): 432.
         let all = shadowed.iter().chain(sky_only).take(GROUND_VERTICES);
         for (v, p) in mesh.vertices.iter_mut().zip(all) {
             *v = ((*p - c) / h).to_array();
@@ -197,36 +199,55 @@ fn ground_rect(p: &FrameParams, bounds: (Vec3, Vec3), shadow: &shadow_fit::Shado
     ground_quad(shadow.receiver, sky)
 }
 
-/// The ground pass's triangles for a frame whose shadow is `shadow` ([`fit_shadow`]): where
-/// the sun's shadow lookup can find the sun blocked (`shadow_fit::shadow_outline` within the
-/// ground quad) with the lookup, the rest of the quad without it — or not at all when the
-/// sky's occlusion is off (nothing to darken there). All of the quad without the lookup when
-/// the ground has no sun shadow (sun down, no sunlight, no shadow opacity). `everywhere`: all
-/// of the quad with the lookup (the full-shadow reference; the shader then skips the lookup
-/// itself where the ground has no sun shadow, as it did before the split).
-pub fn ground_mesh(p: &FrameParams, c: &FrameContext, shadow: &shadow_fit::ShadowFit, everywhere: bool) -> GroundMesh {
+/// Where the ground pass's two parts can darken anything, as convex polygons (world x/y,
+/// counter-clockwise): the sun's shadow (`shadow_fit::silhouette_outline`: the lookup can find
+/// the sun blocked only inside) and the sky's occlusion (`shadow_fit::sky_region`: visible
+/// only inside; None: anywhere on the quad).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GroundRegions<'a> {
+    pub outline: &'a [Vec2],
+    pub sky: Option<&'a [Vec2]>,
+}
+
+/// The ground pass's triangles for a frame whose shadow is `shadow` ([`fit_shadow`]): inside
+/// the shadow's outline (within the ground quad) with the sun's shadow lookup; around it,
+/// where the sky's occlusion is visible, without it (the convex hull of the two within the
+/// quad, less the outline); nothing elsewhere, and no sky part when the sky's occlusion is off.
+/// Only the sky's part, without the lookup, when the ground has no sun shadow (sun down, no
+/// sunlight, no shadow opacity). `everywhere`: all of the quad with the lookup (the
+/// full-shadow reference; the shader then skips the lookup itself where the ground has no sun
+/// shadow, as it did before the split).
+pub fn ground_mesh(
+    p: &FrameParams,
+    c: &FrameContext,
+    shadow: &shadow_fit::ShadowFit,
+    regions: GroundRegions,
+    everywhere: bool,
+) -> GroundMesh {
+    use shadow_fit::{clip_convex, convex_hull, rect_polygon, split_convex};
     let Some(quad) = ground_rect(p, c.bounds, shadow) else {
         return GroundMesh::EMPTY;
     };
+    let rect = rect_polygon(quad.min, quad.max);
     if everywhere {
-        return GroundMesh::new(&quad, &shadow_fit::split_rect(&[], quad.min, quad.max).1, &[]);
+        return GroundMesh::new(&quad, &split_convex(&[], &rect).1, &[]);
     }
-    let sky = p.lighting.sky_occlusion > 0.0;
-    let (min, max) = (quad.min, quad.max);
-    if !(shadow.needed && p.lighting.shadow_opacity > 0.0) {
-        let (_, all) = shadow_fit::split_rect(&[], min, max);
-        return GroundMesh::new(&quad, &[], if sky { &all } else { &[] });
+    let sky = match regions.sky {
+        _ if p.lighting.sky_occlusion <= 0.0 => Vec::new(),
+        Some(r) if r.len() >= 3 => clip_convex(r, &rect),
+        Some(_) => Vec::new(),
+        None => rect.to_vec(),
+    };
+    let outline = regions.outline;
+    if !(shadow.needed && p.lighting.shadow_opacity > 0.0) || outline.len() < 3 {
+        return GroundMesh::new(&quad, &[], &split_convex(&[], &sky).1);
     }
-    let bounds = c.bounds;
-    let model = view::model_matrix(bounds, &p.placement);
-    let centre = model.transform_point3(0.5 * (bounds.0 + bounds.1));
-    let radius = (0.5 * (bounds.1 - bounds.0).length() * p.placement.scale).max(1e-4);
-    let sun = p.lighting.sun_dir.normalize_or(Vec3::Z);
-    let corners = shadow_fit::box_corners(bounds, model);
-    let outline =
-        shadow_fit::shadow_outline(sun, &corners, (centre, radius), quad.z, (shadow.map_size, p.lighting.sun_angular_radius.tan()));
-    let (shadowed, rest) = shadow_fit::split_rect(&outline, min, max);
-    GroundMesh::new(&quad, &shadowed, if sky { &rest } else { &[] })
+    if sky.len() < 3 {
+        return GroundMesh::new(&quad, &split_convex(outline, &rect).0, &[]);
+    }
+    let outer = clip_convex(&convex_hull(&[outline, &sky].concat()), &rect);
+    let (shadowed, rest) = split_convex(outline, &outer);
+    GroundMesh::new(&quad, &shadowed, &rest)
 }
 
 /// The ground quad the ground pass draws: where the sun's shadow can fall (`receiver`) and,
@@ -500,7 +521,17 @@ mod tests {
         let area = |v: &[[f32; 2]]| -> f32 {
             v.chunks_exact(3).map(|t| 0.5 * (Vec2::from(t[1]) - Vec2::from(t[0])).perp_dot(Vec2::from(t[2]) - Vec2::from(t[0])).abs()).sum()
         };
-        let m = ground_mesh(&p, &c, &shadow, false);
+        // The cube's corners as its vertices, in the frame's own shadow map.
+        let outline_of = |p: &FrameParams| {
+            let (f, instance, _) = frame_uniforms(p, &c);
+            let lvp = Mat4::from_cols_array_2d(&f.light_view_proj);
+            let model = Mat4::from_cols_array_2d(&instance.model);
+            let corners = shadow_fit::box_corners(c.bounds, Mat4::IDENTITY);
+            shadow_fit::silhouette_outline(lvp, (model, corners), p.placement.position.z, (1024, 0.01, 2.0 * 3f32.sqrt()))
+        };
+        let outline = outline_of(&p);
+        let regions = GroundRegions { outline: &outline, sky: None };
+        let m = ground_mesh(&p, &c, &shadow, regions, false);
         let (lit, rest) = (m.shadowed as usize, (m.shadowed + m.sky_only) as usize);
         let (a_lit, a_rest) = (area(&m.vertices[..lit]), area(&m.vertices[lit..rest]));
         assert!((a_lit + a_rest - 4.0).abs() < 1e-3, "{a_lit} + {a_rest}");
@@ -508,16 +539,32 @@ mod tests {
         // shadow (the cube and 4 m / tan 30° = 6.9 m of shadow to the North-West) is a small
         // part of it.
         assert!(a_lit > 0.05 && a_lit < 1.0, "{a_lit}");
+        // The sky's occlusion visible only in a square of 4 x 4 m around the cube (0.16 of the
+        // unit square's 4): the rest is the hull of it and the outline, less the outline.
+        let near = shadow_fit::rect_polygon(Vec2::new(-2.0, -2.0), Vec2::new(2.0, 2.0));
+        let m = ground_mesh(&p, &c, &shadow, GroundRegions { outline: &outline, sky: Some(&near) }, false);
+        let (lit2, all) = (m.shadowed as usize, (m.shadowed + m.sky_only) as usize);
+        assert!((area(&m.vertices[..lit2]) - a_lit).abs() < 1e-4, "{}", area(&m.vertices[..lit2]));
+        let quad = ground_rect(&p, c.bounds, &shadow).unwrap();
+        let h = 0.5 * (quad.max - quad.min);
+        let to_unit = |q: Vec2| (q - 0.5 * (quad.min + quad.max)) / h;
+        let hull = shadow_fit::convex_hull(&[outline.clone(), near.to_vec()].concat());
+        let hull_unit: Vec<Vec2> = hull.iter().map(|&q| to_unit(q)).collect();
+        let hull_area = 0.5 * (0..hull_unit.len()).map(|i| hull_unit[i].perp_dot(hull_unit[(i + 1) % hull_unit.len()])).sum::<f32>();
+        assert!((area(&m.vertices[..all]) - hull_area).abs() < 1e-3 && hull_area < 1.0, "{} vs {hull_area}", area(&m.vertices[..all]));
+        // Nowhere visible: only the outline.
+        let m = ground_mesh(&p, &c, &shadow, GroundRegions { outline: &outline, sky: Some(&[]) }, false);
+        assert!(m.sky_only == 0 && (area(&m.vertices[..m.shadowed as usize]) - a_lit).abs() < 1e-4);
         // Without the sky's occlusion only the outline is drawn; the sun down: only the rest;
         // the reference: all of it with the lookup.
         p.lighting.sky_occlusion = 0.0;
-        let m = ground_mesh(&p, &c, &fit_shadow(&p, &c), false);
+        let m = ground_mesh(&p, &c, &fit_shadow(&p, &c), regions, false);
         assert!(m.shadowed > 0 && m.sky_only == 0, "{} {}", m.shadowed, m.sky_only);
         p.lighting.sky_occlusion = 0.5;
-        let all = ground_mesh(&p, &c, &shadow, true);
+        let all = ground_mesh(&p, &c, &shadow, regions, true);
         assert!(all.sky_only == 0 && (area(&all.vertices[..all.shadowed as usize]) - 4.0).abs() < 1e-4);
         p.lighting.sun_dir = Vec3::new(0.0, 0.9, -0.1);
-        let m = ground_mesh(&p, &c, &fit_shadow(&p, &c), false);
+        let m = ground_mesh(&p, &c, &fit_shadow(&p, &c), GroundRegions { outline: &[], sky: None }, false);
         assert!(m.shadowed == 0 && (area(&m.vertices[..m.sky_only as usize]) - 4.0).abs() < 1e-4);
     }
 

@@ -121,30 +121,86 @@ pub fn lookup_reach(size: u32, extent: Vec2, radius: f32, tan_radius: f32) -> f3
     1.25 * penumbra + 2.0 * texel
 }
 
-/// Where on the ground z = `ground_z` the ground's sun-shadow lookup can find the sun blocked:
-/// the `size`² shadow map's rectangle across the sun ([`light_view_proj`]'s) widened on every
-/// side by what the lookup reaches ([`lookup_reach`], a sun of angular radius tan =
-/// `tan_radius`), swept along the sun onto the ground — a parallelogram,
-/// counter-clockwise seen from above. Outside it every comparison tap reads a texel the model
-/// does not cover (or lies off the map), so the lookup returns "lit": the ground pass skips it
-/// there. `sun.z` must be positive.
-pub fn shadow_outline(
-    sun: Vec3,
-    corners: &[Vec3; 8],
-    (centre, radius): (Vec3, f32),
+/// How many directions across the sun the shadow's outline takes the model's support along
+/// ([`silhouette_outline`]): a 12-gon hugging the model's silhouette seen from the sun.
+pub const OUTLINE_DIRECTIONS: usize = 12;
+
+/// The `n` unit directions at equal angles from +x, counter-clockwise.
+pub fn directions(n: usize) -> Vec<Vec2> {
+    (0..n).map(|i| Vec2::from_angle(std::f32::consts::TAU * i as f32 / n as f32)).collect()
+}
+
+/// The convex polygon { x : x · dirs[i] <= heights[i] for every i } for `dirs` at equal angles
+/// counter-clockwise ([`directions`]) and `heights` the support of some set along them (so that
+/// every side touches it): vertex i is where sides i and i + 1 meet; counter-clockwise.
+pub fn polygon_from_supports(dirs: &[Vec2], heights: &[f32]) -> Vec<Vec2> {
+    let n = dirs.len();
+    (0..n)
+        .map(|i| {
+            let (u, v, hu, hv) = (dirs[i], dirs[(i + 1) % n], heights[i], heights[(i + 1) % n]);
+            let det = u.perp_dot(v);
+            Vec2::new(hu * v.y - hv * u.y, hv * u.x - hu * v.x) / det
+        })
+        .collect()
+}
+
+/// The support of `points` along each of `dirs` (the largest `p · dir`); −∞ without points.
+pub fn supports(points: impl IntoIterator<Item = Vec2>, dirs: &[Vec2]) -> Vec<f32> {
+    let mut h = vec![f32::NEG_INFINITY; dirs.len()];
+    for p in points {
+        for (h, d) in h.iter_mut().zip(dirs) {
+            *h = h.max(p.dot(*d));
+        }
+    }
+    h
+}
+
+/// Where on the ground z = `ground_z` the ground's sun-shadow lookup can find the sun blocked
+/// in a `size`² shadow map drawn through `light_view_proj` ([`light_view_proj`]; the frame's,
+/// or the held one when the map is kept) of the model `vertices` (model space; every level of
+/// detail indexes them, scene::lod) placed by `model`: the vertices' support in the map along
+/// [`OUTLINE_DIRECTIONS`] directions (a polygon around the model's silhouette seen from the
+/// sun: every triangle's projection lies inside it), widened on every side by what the lookup
+/// reaches ([`lookup_reach`], a sun of angular radius tan = `tan_radius`, a model of bounding
+/// `radius`), swept along the sun onto the ground — counter-clockwise seen from above. Outside
+/// it every comparison tap reads a texel the model does not cover, so the lookup returns
+/// "lit": the ground pass skips it there. Empty without vertices or with the sun on the
+/// horizon.
+pub fn silhouette_outline(
+    light_view_proj: Mat4,
+    (model, vertices): (Mat4, impl IntoIterator<Item = Vec3>),
     ground_z: f32,
-    (size, tan_radius): (u32, f32),
-) -> [Vec2; 4] {
-    let (view, lo, hi) = light_frame(sun, corners, centre, radius);
-    let reach = lookup_reach(size, hi - lo, radius, tan_radius);
-    let (lo, hi) = (lo - Vec2::splat(reach), hi + Vec2::splat(reach));
-    let to_world = view.inverse();
-    let outline = [(lo.x, lo.y), (hi.x, lo.y), (hi.x, hi.y), (lo.x, hi.y)].map(|(x, y)| {
-        // Along the sun through this point of the map, down (or up) to the ground.
-        let p = to_world.transform_point3(Vec3::new(x, y, 0.0));
-        (p - sun * ((p.z - ground_z) / sun.z)).xy()
-    });
-    if signed_area(&outline) < 0.0 { [outline[0], outline[3], outline[2], outline[1]] } else { outline }
+    (size, tan_radius, radius): (u32, f32, f32),
+) -> Vec<Vec2> {
+    let to_map = light_view_proj * model;
+    let dirs = directions(OUTLINE_DIRECTIONS);
+    let heights = supports(vertices.into_iter().map(|v| to_map.transform_point3(v).xy()), &dirs);
+    if heights.iter().any(|h| !h.is_finite()) {
+        return Vec::new();
+    }
+    // Metres per map unit: the map's x and y (NDC, 2 across) over its extent across the sun.
+    let m = light_view_proj;
+    let per_unit =
+        Vec2::new(Vec3::new(m.x_axis.x, m.y_axis.x, m.z_axis.x).length(), Vec3::new(m.x_axis.y, m.y_axis.y, m.z_axis.y).length());
+    let extent = 2.0 / per_unit.max(Vec2::splat(1e-12));
+    let reach = lookup_reach(size, extent, radius, tan_radius) * per_unit;
+    // A side along u pushed out by the reach (an ellipse in map units) holds every point within
+    // the reach of the polygon.
+    let grown: Vec<f32> = dirs.iter().zip(&heights).map(|(u, h)| h + (reach * *u).length()).collect();
+    let to_world = m.inverse();
+    let outline: Vec<Vec2> = polygon_from_supports(&dirs, &grown)
+        .into_iter()
+        .map(|q| {
+            // Along the sun through this point of the map, down (or up) to the ground.
+            let a = to_world.project_point3(q.extend(0.0));
+            let d = to_world.project_point3(q.extend(1.0)) - a;
+            (a + d * ((ground_z - a.z) / d.z)).xy()
+        })
+        .collect();
+    if outline.iter().any(|p| !p.is_finite()) {
+        return Vec::new();
+    }
+    if signed_area(&outline) < 0.0 { outline.into_iter().rev().collect() } else { outline }
 }
 
 /// Twice the signed area of a polygon (positive: counter-clockwise).
@@ -152,50 +208,81 @@ fn signed_area(poly: &[Vec2]) -> f32 {
     (0..poly.len()).map(|i| poly[i].perp_dot(poly[(i + 1) % poly.len()])).sum()
 }
 
-/// The convex polygon `poly` (counter-clockwise) clipped to the rectangle `min`..`max`
-/// (Sutherland-Hodgman); empty when they do not overlap.
-pub fn clip_to_rect(poly: &[Vec2], min: Vec2, max: Vec2) -> Vec<Vec2> {
-    // Each side as (axis, bound, keep the side above the bound).
-    let sides = [(0, min.x, true), (0, max.x, false), (1, min.y, true), (1, max.y, false)];
+/// The convex polygon `poly` (counter-clockwise) clipped to the convex polygon `to`
+/// (counter-clockwise; Sutherland-Hodgman); empty when they do not overlap.
+pub fn clip_convex(poly: &[Vec2], to: &[Vec2]) -> Vec<Vec2> {
     let mut out = poly.to_vec();
-    for (axis, bound, above) in sides {
-        let inside = |p: Vec2| if above { p[axis] >= bound } else { p[axis] <= bound };
+    for (i, &a) in to.iter().enumerate() {
+        let b = to[(i + 1) % to.len()];
+        // Inside: on the left of the edge a -> b.
+        let side = |p: Vec2| (b - a).perp_dot(p - a);
         let input = std::mem::take(&mut out);
-        for (i, &a) in input.iter().enumerate() {
-            let b = input[(i + 1) % input.len()];
-            if inside(a) {
-                out.push(a);
+        for (k, &p) in input.iter().enumerate() {
+            let q = input[(k + 1) % input.len()];
+            let (sp, sq) = (side(p), side(q));
+            if sp >= 0.0 {
+                out.push(p);
             }
-            if inside(a) != inside(b) {
-                let t = (bound - a[axis]) / (b[axis] - a[axis]);
-                let mut q = a + (b - a) * t;
-                q[axis] = bound;
-                out.push(q);
+            if (sp >= 0.0) != (sq >= 0.0) {
+                out.push(p + (q - p) * (sp / (sp - sq)));
             }
         }
     }
     out
 }
 
-/// The rectangle `min`..`max` split into the part inside the convex polygon `inner`
-/// (counter-clockwise) and the rest, as triangle lists (three points each). Both share every
-/// edge exactly (no T-junctions), so together they cover the rectangle once: a fan around the
-/// inner part's centroid, and the ring between its boundary and the rectangle's cut along the
-/// same rays (each ray through a vertex of either), one convex quad per sector.
-pub fn split_rect(inner: &[Vec2], min: Vec2, max: Vec2) -> (Vec<Vec2>, Vec<Vec2>) {
-    let inner = clip_to_rect(inner, min, max);
-    let rect = [min, Vec2::new(max.x, min.y), max, Vec2::new(min.x, max.y)];
-    if inner.len() < 3 || signed_area(&inner) <= 1e-9 * (max - min).element_product() {
-        return (Vec::new(), vec![rect[0], rect[1], rect[2], rect[0], rect[2], rect[3]]);
+/// The convex hull of `points`, counter-clockwise, without collinear points (Andrew's monotone
+/// chain).
+pub fn convex_hull(points: &[Vec2]) -> Vec<Vec2> {
+    let mut p = points.to_vec();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let mut hull: Vec<Vec2> = Vec::with_capacity(2 * p.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        for &q in p.iter() {
+            while hull.len() >= start + 2 && (hull[hull.len() - 1] - hull[hull.len() - 2]).perp_dot(q - hull[hull.len() - 2]) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+        if pass == 0 {
+            p.reverse();
+        }
+    }
+    hull
+}
+
+/// The rectangle `min`..`max` as a counter-clockwise polygon.
+pub fn rect_polygon(min: Vec2, max: Vec2) -> [Vec2; 4] {
+    [min, Vec2::new(max.x, min.y), max, Vec2::new(min.x, max.y)]
+}
+
+/// The convex polygon `outer` (counter-clockwise) split into the part inside the convex polygon
+/// `inner` (counter-clockwise) and the rest, as triangle lists (three points each). Both share
+/// every edge exactly (no T-junctions), so together they cover `outer` once: a fan around the
+/// inner part's centroid, and the ring between its boundary and the outer one cut along the
+/// same rays (each ray through a vertex of either), one convex quad per sector. With no inner
+/// part, the outer polygon as a fan.
+pub fn split_convex(inner: &[Vec2], outer: &[Vec2]) -> (Vec<Vec2>, Vec<Vec2>) {
+    let area = signed_area(outer).abs();
+    let inner = if inner.len() >= 3 { clip_convex(inner, outer) } else { Vec::new() };
+    if inner.len() < 3 || signed_area(&inner) <= 1e-9 * area {
+        let ring = (1..outer.len().saturating_sub(1)).flat_map(|i| [outer[0], outer[i], outer[i + 1]]).collect();
+        return (Vec::new(), ring);
     }
     let c = inner.iter().copied().sum::<Vec2>() / inner.len() as f32;
-    // Each ray's points on the inner boundary and on the rectangle, in angle order.
+    // Each ray's points on the inner boundary and on the outer one, in angle order.
     let angle = |p: Vec2| (p - c).y.atan2((p - c).x);
-    let mut rays: Vec<(f32, Vec2, Vec2)> = Vec::with_capacity(inner.len() + 4);
+    let mut rays: Vec<(f32, Vec2, Vec2)> = Vec::with_capacity(inner.len() + outer.len());
     for &p in &inner {
-        rays.push((angle(p), p, ray_exit_rect(c, p - c, min, max)));
+        rays.push((angle(p), p, ray_exit_convex(c, p - c, outer)));
     }
-    for &r in &rect {
+    for &r in outer {
         rays.push((angle(r), ray_exit_convex(c, r - c, &inner), r));
     }
     rays.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -208,16 +295,6 @@ pub fn split_rect(inner: &[Vec2], min: Vec2, max: Vec2) -> (Vec<Vec2>, Vec<Vec2>
         ring.extend([p0, r0, r1, p0, r1, p1]);
     }
     (fan, ring)
-}
-
-/// Where the ray from `c` along `d` leaves the rectangle `min`..`max` (`c` inside).
-fn ray_exit_rect(c: Vec2, d: Vec2, min: Vec2, max: Vec2) -> Vec2 {
-    let t = |axis: usize| match d[axis] {
-        v if v > 0.0 => (max[axis] - c[axis]) / v,
-        v if v < 0.0 => (min[axis] - c[axis]) / v,
-        _ => f32::INFINITY,
-    };
-    (c + d * t(0).min(t(1))).clamp(min, max)
 }
 
 /// Where the ray from `c` along `d` leaves the convex polygon `poly` (counter-clockwise, `c`
@@ -234,6 +311,38 @@ fn ray_exit_convex(c: Vec2, d: Vec2, poly: &[Vec2]) -> Vec2 {
         }
     }
     if t.is_finite() { c + d * t } else { c }
+}
+
+/// How many directions the sky-occlusion region takes the occluded texels' support along
+/// ([`sky_region`]).
+pub const SKY_REGION_DIRECTIONS: usize = 16;
+
+/// Where on the ground the sky's occlusion under the model reaches `min_occlusion` (the share
+/// of the sky hidden): a convex polygon (counter-clockwise) around every texel of `sky` (as the
+/// ground pass holds it: R8, passes::ground::sky_texels) hiding at least that much, widened by
+/// a texel on every side (the bilinear lookup's reach), from their support along
+/// [`SKY_REGION_DIRECTIONS`] directions; in the map's square as the ground pass places it (0..1
+/// from its min to its max corner: the map moves with the model). Outside it every lookup
+/// blends texels that hide less, so the sky's occlusion there is below `min_occlusion`. Empty
+/// when no texel reaches it.
+pub fn sky_region(sky: &crate::scene::occlusion::GroundSky, min_occlusion: f32) -> Vec<Vec2> {
+    let n = sky.size.max(1) as usize;
+    let texel = 1.0 / n as f32;
+    let corners = [Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 1.0), Vec2::new(-1.0, 1.0)];
+    let texels = crate::render::passes::ground::sky_texels(sky);
+    let points = (texels.iter().enumerate())
+        // In whole 255ths, as the R8 texture holds them.
+        .filter(|(_, v)| f32::from(255 - **v) >= min_occlusion * 255.0 - 1e-3)
+        .flat_map(|(i, _)| {
+            let centre = (Vec2::new((i % n) as f32, (i / n) as f32) + 0.5) * texel;
+            corners.map(|c| centre + c * texel)
+        });
+    let dirs = directions(SKY_REGION_DIRECTIONS);
+    let heights = supports(points, &dirs);
+    if heights.iter().any(|h| !h.is_finite()) {
+        return Vec::new();
+    }
+    polygon_from_supports(&dirs, &heights)
 }
 
 /// The pixel rectangle (min, max) that the convex hull of `points` covers on a `size` image
@@ -510,51 +619,121 @@ mod tests {
         assert!((lookup_reach(512, Vec2::new(1.0, 2.0), 1.0, 0.0) - 3.25 * 2.0 / 512.0).abs() < 1e-7);
     }
 
+    /// The bounding box of a polygon.
+    fn bbox(o: &[Vec2]) -> (Vec2, Vec2) {
+        o.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+    }
+
     #[test]
-    fn the_outline_is_the_maps_rectangle_swept_onto_the_ground() {
+    fn the_outline_is_the_silhouette_widened_and_swept_onto_the_ground() {
         let corners = cube();
         let sphere = (Vec3::new(0.0, 0.0, 0.5), 0.75f32.sqrt());
-        // The sun overhead: the map covers the cube's 1 x 1 m footprint, so the outline is that
-        // square widened by the reach on every side.
+        let outline = |sun: Vec3, vertices: &[Vec3], size: u32, tan: f32| {
+            let lvp = light_view_proj(sun, &corners, sphere.0, sphere.1);
+            silhouette_outline(lvp, (Mat4::IDENTITY, vertices.iter().copied()), 0.0, (size, tan, sphere.1))
+        };
+        // The sun overhead: the cube's silhouette is its 1 x 1 m footprint, and the outline is
+        // that square widened by the reach (the 12 directions include the map's axes).
         let reach = lookup_reach(1024, Vec2::ONE, sphere.1, 0.01);
-        let o = shadow_outline(Vec3::Z, &corners, sphere, 0.0, (1024, 0.01));
-        let (lo, hi) = o.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let o = outline(Vec3::Z, &corners, 1024, 0.01);
+        let (lo, hi) = bbox(&o);
         assert!(close2(lo, Vec2::splat(-0.5 - reach)) && close2(hi, Vec2::splat(0.5 + reach)), "{o:?} reach {reach}");
-        assert!(signed_area(&o) > 0.0, "counter-clockwise: {o:?}");
+        assert!(o.len() == OUTLINE_DIRECTIONS && signed_area(&o) > 0.0, "counter-clockwise: {o:?}");
         // The sun 45° up in the south: the cube and its shadow cover x in [-0.5, 0.5], y in
-        // [-0.5, 1.5]. Across the sun the map's x is world x (reach r on the ground), its y
-        // rises towards the sun at 45°, so r across the sun is r·√2 along the ground.
+        // [-0.5, 1.5]. The cube seen from the sun is a 1 x √2 m rectangle (map x: world x; map
+        // y: (0, 1, 1)/√2); a reach r across the sun is r·√2 along the ground northwards.
         let sun = Vec3::new(0.0, -1.0, 1.0).normalize();
-        let o = shadow_outline(sun, &corners, sphere, 0.0, (1024, 0.0));
-        let (lo, hi) = o.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-        // The map's extent across the sun: x 1 m; y: the cube's corners project onto the
-        // map's up axis (0, 1, 1)/√2 from -0.5/√2 to 1.5/√2, √2 m.
+        let (lo, hi) = bbox(&outline(sun, &corners, 1024, 0.0));
         let reach = lookup_reach(1024, Vec2::new(1.0, 2f32.sqrt()), sphere.1, 0.0);
         let want_lo = Vec2::new(-0.5 - reach, -0.5 - reach * 2f32.sqrt());
         let want_hi = Vec2::new(0.5 + reach, 1.5 + reach * 2f32.sqrt());
         assert!((lo - want_lo).abs().max_element() < 1e-4 && (hi - want_hi).abs().max_element() < 1e-4, "{lo} {hi} vs {want_lo} {want_hi}");
+        // A model whose silhouette is not its box: the octahedron in the cube, seen from above,
+        // is the diamond |x| + |y| <= 0.5 (area 0.5), half of its box. Its support along the 12
+        // directions is 0.5 on the axes and 0.5 cos 30° at ±30° from them; sides 30° and 60°
+        // meet at (a, a), a = (√3/4) / ((1 + √3)/2), so the polygon's area is 8 · ½ · 0.5 · a
+        // = √3 / (1 + √3) = 0.634, where the map's rectangle gave 1; plus the reach (a point
+        // sun, 3.25 texels of 2048) around its perimeter (< 3.5).
+        let octahedron = [(0.5, 0.0, 0.5), (-0.5, 0.0, 0.5), (0.0, 0.5, 0.5), (0.0, -0.5, 0.5), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)]
+            .map(|(x, y, z)| Vec3::new(x, y, z));
+        let o = outline(Vec3::Z, &octahedron, 2048, 0.0);
+        let area = 0.5 * signed_area(&o);
+        let (want, reach) = (3f32.sqrt() / (1.0 + 3f32.sqrt()), lookup_reach(2048, Vec2::ONE, sphere.1, 0.0));
+        assert!(area > want && area < want + 3.5 * reach, "{area} vs {want} + reach {reach}");
+        assert!(octahedron.iter().all(|p| clip_convex(&[p.truncate()], &o).len() == 1), "{o:?}");
+        // No vertices: no outline.
+        assert!(outline(Vec3::Z, &[], 1024, 0.0).is_empty());
     }
 
     #[test]
-    fn clipping_a_polygon_to_a_rectangle() {
+    fn support_polygons_and_hulls() {
+        // The unit square's corners along 4 and 8 directions: the square itself (the diagonal
+        // sides touch it at the corners, zero length).
+        let square = [Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 1.0), Vec2::new(-1.0, 1.0)];
+        for n in [4, 8] {
+            let dirs = directions(n);
+            let p = polygon_from_supports(&dirs, &supports(square, &dirs));
+            assert!((0.5 * signed_area(&p) - 4.0).abs() < 1e-5, "{n}: {p:?}");
+        }
+        // A point along 4 directions: a square of side 0 at the point.
+        let dirs = directions(4);
+        let p = polygon_from_supports(&dirs, &supports([Vec2::new(2.0, 3.0)], &dirs));
+        assert!(p.iter().all(|q| close2(*q, Vec2::new(2.0, 3.0))), "{p:?}");
+        // The hull of the square's corners, its centre, an edge's midpoint and a repeat:
+        // the four corners, counter-clockwise.
+        let mut points = square.to_vec();
+        points.extend([Vec2::ZERO, Vec2::new(1.0, 0.0), square[2]]);
+        let h = convex_hull(&points);
+        assert!(h.len() == 4 && (0.5 * signed_area(&h) - 4.0).abs() < 1e-6, "{h:?}");
+    }
+
+    #[test]
+    fn the_sky_region_holds_every_texel_hiding_enough() {
+        // A 4 x 4 map (texels a quarter of the square); texel (1, 2) hides 10/255 of the sky,
+        // (3, 3) 2/255, the rest nothing.
+        let mut visibility = vec![1.0; 16];
+        visibility[2 * 4 + 1] = 245.0 / 255.0;
+        visibility[3 * 4 + 3] = 253.0 / 255.0;
+        let sky = crate::scene::occlusion::GroundSky { min: Vec2::splat(7.0), max: Vec2::splat(11.0), z: 0.0, size: 4, visibility };
+        // At 10/255: texel (1, 2), centre (1.5, 2.5)/4, widened by a texel: [0.5, 2.5] x [1.5,
+        // 3.5] quarters (the map's own placement does not matter: the ground square places it).
+        let r = sky_region(&sky, 10.0 / 255.0);
+        let (lo, hi) = bbox(&r);
+        assert!(close2(lo * 4.0, Vec2::new(0.5, 1.5)) && close2(hi * 4.0, Vec2::new(2.5, 3.5)), "{r:?}");
+        assert!((0.5 * signed_area(&r) - 0.25).abs() < 1e-5, "{r:?}");
+        // At 2/255 both: [0.5, 4.5] x [1.5, 4.5]; above 10/255 none.
+        let (lo, hi) = bbox(&sky_region(&sky, 2.0 / 255.0));
+        assert!(close2(lo * 4.0, Vec2::new(0.5, 1.5)) && close2(hi * 4.0, Vec2::new(4.5, 4.5)), "{lo} {hi}");
+        assert!(sky_region(&sky, 11.0 / 255.0).is_empty());
+    }
+
+    #[test]
+    fn clipping_a_polygon_to_a_convex_polygon() {
         // A diamond of half-diagonal 2 clipped to the unit square [-1, 1]²: all of the square
         // (the diamond contains it): area 4.
+        let square = rect_polygon(Vec2::splat(-1.0), Vec2::splat(1.0));
         let diamond = [Vec2::new(2.0, 0.0), Vec2::new(0.0, 2.0), Vec2::new(-2.0, 0.0), Vec2::new(0.0, -2.0)];
-        let c = clip_to_rect(&diamond, Vec2::splat(-1.0), Vec2::splat(1.0));
+        let c = clip_convex(&diamond, &square);
         assert!((0.5 * signed_area(&c) - 4.0).abs() < 1e-5, "{c:?}");
         // Shifted right by 2: the triangle x + |y| <= 2 ... inside the square: x from 0 to 1,
         // |y| <= x: area 1.
         let shifted = diamond.map(|p| p + Vec2::new(2.0, 0.0));
-        let c = clip_to_rect(&shifted, Vec2::splat(-1.0), Vec2::splat(1.0));
+        let c = clip_convex(&shifted, &square);
         assert!((0.5 * signed_area(&c) - 1.0).abs() < 1e-5, "{c:?}");
+        // The square clipped to the unshifted diamond |x| + |y| <= 2: all of it; to the diamond
+        // of half-diagonal 1: that diamond (area 2).
+        assert!((0.5 * signed_area(&clip_convex(&square, &diamond)) - 4.0).abs() < 1e-5);
+        let small = diamond.map(|p| p * 0.5);
+        assert!((0.5 * signed_area(&clip_convex(&square, &small)) - 2.0).abs() < 1e-5);
         // Apart: nothing.
         let far = diamond.map(|p| p + Vec2::new(10.0, 0.0));
-        assert!(clip_to_rect(&far, Vec2::splat(-1.0), Vec2::splat(1.0)).is_empty());
+        assert!(clip_convex(&far, &square).is_empty());
     }
 
     #[test]
-    fn the_split_covers_the_rectangle_once() {
+    fn the_split_covers_the_outer_polygon_once() {
         let (min, max) = (Vec2::new(-1.0, -2.0), Vec2::new(3.0, 1.0));
+        let rect = rect_polygon(min, max);
         // A square inside, one across the edge, a parallelogram across a corner, one apart.
         let inside = [Vec2::new(0.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
         let across = inside.map(|p| p + Vec2::new(2.5, 0.0));
@@ -568,13 +747,25 @@ mod tests {
             let q = [Vec2::new(2.0, 0.0), Vec2::new(3.0, 0.25), Vec2::new(3.0, 1.0), Vec2::new(2.0 + 1.0 / 3.0, 1.0)];
             0.5 * signed_area(&q)
         };
-        for (poly, area) in [(&inside[..], 1.0), (&across[..], 0.5), (&corner[..], corner_area), (&apart[..], 0.0)] {
-            let (fan, ring) = split_rect(poly, min, max);
+        // The rectangle with its corners cut at 45° (1 m legs): area 12 - 4 x 0.5 = 10; the
+        // inside square lies in it, so its part is still 1.
+        let cut = [(0.0, -2.0), (2.0, -2.0), (3.0, -1.0), (3.0, 0.0), (2.0, 1.0), (0.0, 1.0), (-1.0, 0.0), (-1.0, -1.0)]
+            .map(|(x, y)| Vec2::new(x, y));
+        let cases = [
+            (&inside[..], &rect[..], 1.0, 12.0),
+            (&across[..], &rect[..], 0.5, 12.0),
+            (&corner[..], &rect[..], corner_area, 12.0),
+            (&apart[..], &rect[..], 0.0, 12.0),
+            (&[][..], &rect[..], 0.0, 12.0),
+            (&inside[..], &cut[..], 1.0, 10.0),
+        ];
+        for (poly, outer, area, total) in cases {
+            let (fan, ring) = split_convex(poly, outer);
             assert!((triangles_area(&fan) - area).abs() < 1e-4, "{poly:?}: fan {}", triangles_area(&fan));
-            assert!((triangles_area(&fan) + triangles_area(&ring) - 12.0).abs() < 1e-4, "{poly:?}: ring {}", triangles_area(&ring));
-            assert!(fan.len() + ring.len() <= 108, "{}", fan.len() + ring.len());
+            assert!((triangles_area(&fan) + triangles_area(&ring) - total).abs() < 1e-4, "{poly:?}: ring {}", triangles_area(&ring));
+            assert!(fan.len() + ring.len() <= 9 * (poly.len() + 4 + outer.len()), "{}", fan.len() + ring.len());
             // Every point of a grid (none on an edge by construction of the odd offsets) lies
-            // in exactly one triangle of the two lists.
+            // in exactly one triangle of the two lists, or in none outside the outer polygon.
             for i in 0..40 {
                 for j in 0..30 {
                     let q = min + Vec2::new((i as f32 + 0.437) * 0.1, (j as f32 + 0.291) * 0.1);
@@ -583,7 +774,8 @@ mod tests {
                         .chunks_exact(3)
                         .chain(ring.chunks_exact(3))
                         .any(|t| (0..3).any(|k| (t[(k + 1) % 3] - t[k]).perp_dot(q - t[k]).abs() <= 1e-6));
-                    assert!(hits == 1 || on_edge, "{poly:?}: {q} in {hits} triangles");
+                    let want = usize::from(clip_convex(&[q], outer).len() == 1);
+                    assert!(hits == want || on_edge, "{poly:?}: {q} in {hits} triangles");
                 }
             }
         }

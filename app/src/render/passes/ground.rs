@@ -5,13 +5,15 @@
 //! PreparedModel::ground_sky) is a small texture written once per placement and sky shape, never
 //! per frame.
 
-use super::super::uniforms::InstanceUniforms;
+use super::super::uniforms::{InstanceUniforms, LightUniforms};
 use crate::gpu::build;
 use crate::render::frame::{GROUND_VERTICES, GroundMesh};
 use crate::render::pipelines::{COLOR_FORMAT, Pipelines, depth_state};
 use crate::render::shaders::{Technique, source};
+use crate::render::shadow_fit;
 use crate::scene::occlusion::{self, GroundSky};
 use anyhow::{Result, bail};
+use std::sync::Arc;
 use wgpu::ShaderStages;
 
 /// The ground's pipelines: with the sun's shadow lookup (where the shadow can fall) and without
@@ -115,6 +117,84 @@ pub fn sky_texels(sky: &GroundSky) -> Vec<u8> {
     sky.visibility.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect()
 }
 
+/// The largest loss of light (the fraction the ground pass takes, [`DARKEN`]) that moves no
+/// 8-bit sRGB-encoded value (IEC 61966-2-1) by more than one level: a loss L moves encoding e
+/// by at most 255 · y e'(y) · L / (1 − L) with y the darkened value (e is concave), and y e'(y)
+/// is largest at y = 1, 1.055 / 2.4; so 1 / (255 · 1.055 / 2.4 + 1). The ground skips the sky's
+/// occlusion where it would darken less than this (one level of a smooth gradient is below
+/// what the eye resolves; tests/lod.rs measures the frame against the whole square by FLIP).
+pub const INVISIBLE_LOSS: f32 = 1.0 / (255.0 * 1.055 / 2.4 + 1.0);
+
+/// The most any colour channel loses per unit of the sky's occlusion (the share of the sky the
+/// model hides) where the sun's shadow is not looked up: shaders/ground.wgsl `ground_loss` with
+/// no sun lost, for the `light` uniform and the frame's `shadow_opacity` (the sun's share).
+pub fn sky_loss_per_occlusion(light: &LightUniforms, shadow_opacity: f32) -> f32 {
+    let sky_share = light.ground_sky[0];
+    let total = shadow_opacity + sky_share;
+    if total <= 0.0 {
+        return 0.0;
+    }
+    (0..3)
+        .map(|c| {
+            let (sun, sky) = (light.sun[c], light.ground_sky[c + 1]);
+            let light = (shadow_opacity * sun + sky_share * sky) / total;
+            sky_share * sky / light.max(1e-6)
+        })
+        .fold(0.0, f32::max)
+}
+
+/// The ground's regions (render::frame::GroundRegions) as last computed, and what for: the
+/// shadow's outline once per shadow map drawn (sun camera, model transform, map size, sun size),
+/// the sky's region once per sky map (a placement and sky shape: the `Arc` the model cache
+/// hands out) and visible threshold. A frame whose map is kept recomputes neither.
+#[derive(Debug, Default)]
+pub struct RegionCache {
+    outline: Option<([u32; 35], Vec<glam::Vec2>)>,
+    sky: Option<(Arc<GroundSky>, u32, Vec<glam::Vec2>)>,
+    /// How many outlines and sky regions were computed (the tests count them).
+    pub outlines_computed: usize,
+    pub sky_regions_computed: usize,
+}
+
+impl RegionCache {
+    /// `shadow_fit::silhouette_outline` of `vertices` (model space, placed by `model`) in the
+    /// map drawn through `light_view_proj`, onto the ground z = `ground_z`, for a `size`² map,
+    /// a sun of angular radius tan = `tan_radius` and a model of bounding `radius`.
+    pub fn outline<I: IntoIterator<Item = glam::Vec3>>(
+        &mut self,
+        (light_view_proj, model): (glam::Mat4, glam::Mat4),
+        vertices: impl FnOnce() -> I,
+        ground_z: f32,
+        (size, tan_radius, radius): (u32, f32, f32),
+    ) -> &[glam::Vec2] {
+        let mut key = [0u32; 35];
+        let values = light_view_proj.to_cols_array().into_iter().chain(model.to_cols_array()).chain([ground_z, tan_radius, radius]);
+        for (k, v) in key.iter_mut().zip(values) {
+            *k = v.to_bits();
+        }
+        key[34] = size;
+        if self.outline.as_ref().is_none_or(|(held, _)| *held != key) {
+            let outline = shadow_fit::silhouette_outline(light_view_proj, (model, vertices()), ground_z, (size, tan_radius, radius));
+            self.outlines_computed += 1;
+            self.outline = Some((key, outline));
+        }
+        self.outline.as_ref().map_or(&[], |(_, o)| o)
+    }
+
+    /// `shadow_fit::sky_region` of `sky` where its occlusion reaches `min_occlusion`. The map's
+    /// texels hide whole 255ths of the sky, so the region only changes when the threshold
+    /// crosses one.
+    pub fn sky(&mut self, sky: &Arc<GroundSky>, min_occlusion: f32) -> &[glam::Vec2] {
+        let levels = (min_occlusion.max(0.0) * 255.0 - 1e-3).ceil().clamp(1.0, 256.0) as u32;
+        if self.sky.as_ref().is_none_or(|(held, l, _)| !Arc::ptr_eq(held, sky) || *l != levels) {
+            let region = shadow_fit::sky_region(sky, levels as f32 / 255.0);
+            self.sky_regions_computed += 1;
+            self.sky = Some((sky.clone(), levels, region));
+        }
+        self.sky.as_ref().map_or(&[], |(_, _, r)| r)
+    }
+}
+
 impl GroundPass {
     /// Reads the Frame and Light uniform buffers, one of the sun's `shadow_maps` per frame and the
     /// ground's sky visibility.
@@ -214,5 +294,40 @@ impl GroundPass {
         pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.draw(0..shadowed + sky_only, 0..1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::colour::linear_to_srgb;
+
+    #[test]
+    fn an_invisible_loss_moves_no_srgb_value_by_more_than_a_level() {
+        // 1 / (255 * 1.055 / 2.4 + 1) = 1 / 113.094 = 0.0088422.
+        assert!((INVISIBLE_LOSS - 0.008_842_2).abs() < 1e-6, "{INVISIBLE_LOSS}");
+        let moved = |x: f32, loss: f32| 255.0 * (linear_to_srgb(x) - linear_to_srgb(x * (1.0 - loss)));
+        let worst = (1..=10_000).map(|i| moved(i as f32 / 10_000.0, INVISIBLE_LOSS)).fold(0.0, f32::max);
+        // Tight: white moves by just under a level; twice the loss moves it by two.
+        assert!(worst <= 1.0 && worst > 0.98, "{worst}");
+        assert!(moved(1.0, 2.0 * INVISIBLE_LOSS) > 1.97);
+    }
+
+    #[test]
+    fn the_sky_loss_per_occlusion_is_the_skys_share_per_channel() {
+        let light = |sun: [f32; 3], sky_share: f32, sky: [f32; 3]| LightUniforms {
+            sh: [[0.0; 4]; 9],
+            sun: [sun[0], sun[1], sun[2], 0.0],
+            ground_square: [0.0; 4],
+            ground_sky: [sky_share, sky[0], sky[1], sky[2]],
+        };
+        // Grey light: the sky's share of the ground's light, 0.3 / (0.7 + 0.3).
+        assert!((sky_loss_per_occlusion(&light([1.0; 3], 0.3, [1.0; 3]), 0.7) - 0.3).abs() < 1e-6);
+        // Overcast (no sun share): the sky's own strength.
+        assert!((sky_loss_per_occlusion(&light([1.0; 3], 0.6, [1.0; 3]), 0.0) - 0.6).abs() < 1e-6);
+        // A warm sun (1.2, 1, 0.6) under a blue sky (0.8, 1, 1.4), shares 0.7 : 0.3: blue loses
+        // most, 0.3 * 1.4 / ((0.7 * 0.6 + 0.3 * 1.4) / 1.0) = 0.42 / 0.84 = 0.5.
+        assert!((sky_loss_per_occlusion(&light([1.2, 1.0, 0.6], 0.3, [0.8, 1.0, 1.4]), 0.7) - 0.5).abs() < 1e-6);
+        assert_eq!(sky_loss_per_occlusion(&light([1.0; 3], 0.0, [1.0; 3]), 0.0), 0.0);
     }
 }

@@ -58,6 +58,17 @@ impl ShadowPass {
         ShadowPass { pipeline: pipelines.shadow.pipeline.clone(), bind_group, maps, sizes }
     }
 
+    /// Clear every map to the far plane (nothing blocks the sun), once when the maps are made:
+    /// a frame that skips the pass (no sunlight: every lookup is multiplied by it) samples a map
+    /// that is either that or an earlier frame's shadow, never undefined depths.
+    pub fn clear_all(&self, device: &wgpu::Device, queue: &wgpu::Queue) {
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("shadow maps cleared") });
+        for index in 0..self.maps.len() {
+            drop(self.begin(&mut encoder, index, None));
+        }
+        queue.submit([encoder.finish()]);
+    }
+
     /// The depth views of the maps, in the order of [`ShadowPass::sizes`].
     pub fn maps(&self) -> &[wgpu::TextureView] {
         &self.maps

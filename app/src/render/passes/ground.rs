@@ -319,6 +319,7 @@ mod tests {
             sh: [[0.0; 4]; 9],
             sun: [sun[0], sun[1], sun[2], 0.0],
             ground_square: [0.0; 4],
+            ground: [0.0; 4],
             ground_sky: [sky_share, sky[0], sky[1], sky[2]],
         };
         // Grey light: the sky's share of the ground's light, 0.3 / (0.7 + 0.3).

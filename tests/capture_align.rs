@@ -475,7 +475,7 @@ fn quality_errors() {
         };
         let clip = clip_radiance(&BRACKET_EV.map(|ev| settings.with_ev(ev)));
         let mut line =
-            format!("seed {seed}: {} shots, turns {t_turns:.1} s, refine {t_refine:.1} s ({} pairs) |", taken.len(), refinement.pairs);
+            format!("seed {seed}: {} shots, turns {t_turns:.2} s, refine {t_refine:.2} s ({} pairs) |", taken.len(), refinement.pairs);
         let mut maps = Vec::new();
         for (vi, poses) in variants.iter().enumerate() {
             let (db, flip) = stitch_scores(&env, &trace, &r, &cfg, poses);

@@ -26,9 +26,8 @@ use anyhow::Result;
 use glam::Quat;
 use std::sync::Arc;
 
-/// Least 1σ (degrees) of a heading drift measured by matching a shot against the earlier ones
-/// (the match's fine search steps 0.1° and fits a parabola; a few texels of the small study
-/// frames); a match whose cost curves less around its minimum has its own, larger σ.
+/// 1σ (degrees) of a heading drift measured by matching a shot against the earlier ones (the
+/// match's fine search steps 0.1° and fits a parabola; a few texels of the small study frames).
 pub const IMAGE_TURN_SIGMA_DEG: f64 = 0.3;
 
 /// A shot's image match against an earlier shot while capturing.

@@ -638,24 +638,14 @@ fn the_capture_guidance_holds_its_heading_at_bad_noise() {
     );
     assert!(compared > 100, "only {compared} frames compared");
     // The path is pre-recorded: its user visits the plan's views once, in the guidance's tour,
-    // and never a repair view the guidance adds for a gap the held heading's error left. Since
-    // the tour sweeps by the phone's rotation (capture::targets), seed 2 ends one repair short
-    // (front 97.7 % covered, the guidance pointing at front+fix1 55° away); with the old tour it
-    // completed after 676 frames. A user following the guidance takes that shot (the stability
-    // study's guided users: docs/capture.md). So: complete, or at most one repair view left,
-    // the guidance pointing at it and every face at least 95 % seen.
-    let guidance = app.guidance();
-    let repair_left = guidance.as_ref().is_some_and(|g| {
-        g.shots_total == g.shots_done + 1
-            && g.next.as_ref().is_some_and(|n| n.name.contains("+fix"))
-            && g.face_progress.iter().all(|p| *p >= 0.95)
-    });
-    let left = guidance.map(|g| (g.face_progress, g.shots_done, g.shots_total, g.next.map(|n| n.name)));
+    // and never a repair view the guidance would add for a gap the held heading's error left.
+    // With the rotation tour (sixth session) seed 2 ended one repair short (front 97.7 % seen);
+    // since the held heading's image matches search the relative tilt and teach it the
+    // gyroscope's bias (capture::aim_heading), its views land where they were taken and the
+    // capture completes.
+    let left = app.guidance().map(|g| (g.face_progress, g.shots_done, g.shots_total, g.next.map(|n| n.name)));
     eprintln!("left (faces seen, shots, of, next): {left:?}");
-    assert!(
-        app.mode() == AppMode::CaptureDone || repair_left,
-        "the capture at bad noise neither completed in 55 s nor is left with one repair view: {left:?}"
-    );
+    assert_eq!(app.mode(), AppMode::CaptureDone, "the capture at bad noise did not complete in 55 s: {left:?}");
     assert!(aim_shots.len() >= 6, "{} shots compared", aim_shots.len());
     assert!(
         rms(&aim_shots) <= 0.75 * rms(&fused_shots),

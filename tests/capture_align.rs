@@ -147,6 +147,42 @@ fn bad_noise_stitch_captures_that_failed_complete_with_the_rotation_tour() {
     }
 }
 
+/// `bad` noise, 50° lens, stitch mode, the guided user at the study's frame size: seeds 22, 28
+/// and 39 failed in the sixth session's study (the back face: the held heading drifted 23–48°
+/// over the capture). The guidance's held pose was tilted by 1–4° at `bad` noise, so a new
+/// shot's turn searched alone against an earlier shot's often found a wrong minimum (up to 7°
+/// off), which the heading fix then took as drift; the match now searches the relative tilt
+/// too, and the matched turns between views near the horizon teach the held filter the
+/// gyroscope's bias. Measured (320×240 frames): all three complete in the first pass, the held
+/// heading's drift since the tap at the end 0.38°, 0.17° and 4.23° (before, in the last of three
+/// passes: 20.6°, 17.0° and 43.6°).
+#[test]
+fn bad_noise_captures_that_drifted_complete_and_the_held_heading_stays_within_five_degrees() {
+    let env = Arc::new(load_environment(&data("hdri/polyhaven_1k/quarry_01_1k.hdr")).unwrap());
+    for seed in [22u64, 28, 39] {
+        let cfg = ReplayConfig {
+            mode: Mode::Stitch,
+            noise: NoiseLevel::Bad,
+            seed,
+            width: 320,
+            height: 240,
+            face_size: 32,
+            render_threads: 2,
+            score: false,
+            ..ReplayConfig::default()
+        };
+        let run = replay_guided(&env, &cfg, seed, &UserPathParams::default(), GUIDED_ATTEMPTS).unwrap();
+        let r = &run.result;
+        assert!(r.incomplete.is_none(), "seed {seed}: {:?}", r.incomplete);
+        let tap = r.tap_t.unwrap();
+        let yaw = |(_, e, q): &(f64, glam::Quat, DQuat)| yaw_error_deg(e.as_dquat(), *q);
+        let at_tap = yaw(r.track.iter().find(|(t, _, _)| *t >= tap).unwrap());
+        let drift = yaw(r.track.last().unwrap()) - at_tap;
+        eprintln!("seed {seed}: complete in {} pass(es), held heading's drift since the tap at the end {drift:.2} deg", run.attempts);
+        assert!(drift.abs() < 5.0, "seed {seed}: the held heading drifted {drift:.2} deg");
+    }
+}
+
 fn env_or(name: &str, default: &str) -> String {
     std::env::var(name).unwrap_or_else(|_| default.to_string())
 }
@@ -264,6 +300,39 @@ fn detail(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> String {
         _ => return String::new(),
     };
     let tap = r.tap_t.unwrap_or(0.0);
+    // Per image match: when, against which shot, the measured turn, the true one (the drift of
+    // the guidance's heading since the earlier shot's placed pose), and whether the bias
+    // learnt from it.
+    let psi = |t: f64| r.track.iter().find(|(tt, _, _)| *tt >= t - 1e-9).map_or(f64::NAN, |(_, e, q)| yaw_error_deg(e.as_dquat(), *q));
+    let turn_at = |t: f64| r.matches.iter().find(|m| m.t == t).map_or(0.0, |m| m.turn_deg);
+    // The error rotation est · truth⁻¹ and the true camera's elevation at a frame.
+    let at = |t: f64| {
+        r.track.iter().find(|(tt, _, _)| *tt >= t - 1e-9).map(|(_, e, q)| {
+            let err = e.as_dquat() * q.inverse();
+            let axis = *q * glam::DVec3::NEG_Z;
+            (err, axis.z.asin().to_degrees())
+        })
+    };
+    // Tilt (degrees) of a rotation: the angle between where it takes the vertical and the vertical.
+    let tilt = |q: DQuat| (q * glam::DVec3::Z).angle_between(glam::DVec3::Z).to_degrees();
+    let mut matches = String::new();
+    for m in &r.matches {
+        let truth = -(psi(m.t) - psi(m.against_t) - turn_at(m.against_t));
+        let ((ei, eli), (ej, elj)) = (at(m.t).unwrap(), at(m.against_t).unwrap());
+        matches += &format!(
+            "\n    {:5.1}s vs {:5.1}s turn {:6.2} true {:6.2}{} elev {:4.0} {:4.0} tilt err {:.1} {:.1} rel {:.1}",
+            m.t - tap,
+            m.against_t - tap,
+            m.turn_deg,
+            truth,
+            if m.bias_learnt { " bias" } else { "     " },
+            eli,
+            elj,
+            tilt(ei),
+            tilt(ej),
+            tilt(ei * ej.inverse()),
+        );
+    }
     let at_tap = r.track.iter().find(|(t, _, _)| *t >= tap).map_or(0.0, |(_, e, q)| yaw_error_deg(e.as_dquat(), *q));
     let mut worst = (0.0f64, 0.0f64);
     let mut series = String::new();
@@ -277,13 +346,15 @@ fn detail(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> String {
         }
     }
     format!(
-        "fixes {}/{} drift max {:.1} at {:.1}s [{}] end {}",
+        "fixes {}/{} (bias {}) drift max {:.1} at {:.1}s [{}] end {}{}",
         r.drift_fixes,
         r.shots,
+        r.matches.iter().filter(|m| m.bias_learnt).count(),
         worst.0,
         worst.1,
         series.trim(),
-        r.incomplete.map(|s| s.replace('\n', " | ")).unwrap_or_default()
+        r.incomplete.map(|s| s.replace('\n', " | ")).unwrap_or_default(),
+        matches
     )
 }
 
@@ -467,7 +538,7 @@ fn quality_errors() {
         };
         let clip = clip_radiance(&BRACKET_EV.map(|ev| settings.with_ev(ev)));
         let mut line =
-            format!("seed {seed}: {} shots, turns {t_turns:.1} s, refine {t_refine:.1} s ({} pairs) |", taken.len(), refinement.pairs);
+            format!("seed {seed}: {} shots, turns {t_turns:.2} s, refine {t_refine:.2} s ({} pairs) |", taken.len(), refinement.pairs);
         let mut maps = Vec::new();
         for (vi, poses) in variants.iter().enumerate() {
             let (db, flip) = stitch_scores(&env, &trace, &r, &cfg, poses);

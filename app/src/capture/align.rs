@@ -121,9 +121,14 @@ fn overlap(camera: &Pinhole, a: &Shot, b: &Shot) -> Vec<Vec3> {
 /// Mean squared difference (linear light) between shot a's colours `ca` at `dirs` and shot b
 /// turned by `deg`, sampled by `sample_b` at pixel positions.
 fn cost(camera: &Pinhole, dirs: &[Vec3], ca: &[[f32; 3]], b: &Shot, deg: f32, sample_b: &impl Fn(Vec2) -> [f32; 3]) -> f64 {
-    // Shot b turned by +deg: its pose is Rz(deg)·R_b, so a world direction d lands where
-    // R_b⁻¹·Rz(−deg)·d does.
-    let inv = b.pose.inverse() * turn(-deg);
+    cost_rotated(camera, dirs, ca, b, turn(deg), sample_b)
+}
+
+/// [`cost`] with shot b rotated by any world-frame rotation `rot`.
+fn cost_rotated(camera: &Pinhole, dirs: &[Vec3], ca: &[[f32; 3]], b: &Shot, rot: Quat, sample_b: &impl Fn(Vec2) -> [f32; 3]) -> f64 {
+    // Shot b rotated: its pose is rot·R_b, so a world direction d lands where R_b⁻¹·rot⁻¹·d
+    // does.
+    let inv = b.pose.inverse() * rot.inverse();
     let mut sum = 0.0f64;
     let mut n = 0usize;
     for (d, c) in dirs.iter().zip(ca) {
@@ -175,20 +180,93 @@ pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> 
     (delta.abs() < f64::from(SEARCH_DEG)).then_some((delta, dirs.len()))
 }
 
+/// Relative tilt searched (degrees, about each world-horizontal axis) when a new shot is
+/// matched while capturing ([`turn_against`]): the guidance's held pose is tilted by up to
+/// ~4° at `bad` noise (the gyroscope bias's lag in the fusion filter, the accelerometer's
+/// bias), and a turn searched alone over a tilted overlap finds a wrong minimum.
+const TILT_SEARCH_DEG: f32 = 4.5;
+/// Coarse tilt step (degrees) on the half-resolution level.
+const TILT_COARSE_STEP_DEG: f32 = 1.5;
+
+/// [`match_pair`] with the relative tilt of the two shots searched too (a coarse search over
+/// turn × tilt on the half-resolution level, a finer one around its best, then the turn at full
+/// resolution with a parabola): the turn about the vertical (degrees) that best matches b to a.
+fn match_pair_tilted(camera: &Pinhole, a: &Shot, b: &Shot, dirs: &[Vec3]) -> Option<f64> {
+    if dirs.len() < MIN_OVERLAP {
+        return None;
+    }
+    let inv_a = a.pose.inverse();
+    let ca: Vec<[f32; 3]> =
+        dirs.iter().map(|d| camera.to_ndc(inv_a * *d).map_or([0.0; 3], |n| sample_linear(&a.image, camera.ndc_to_pixel(n)))).collect();
+    let mean: f32 = ca.iter().map(|c| c[1]).sum::<f32>() / ca.len() as f32;
+    let var: f32 = ca.iter().map(|c| (c[1] - mean).powi(2)).sum::<f32>() / ca.len() as f32;
+    if var < 1e-6 {
+        return None;
+    }
+    let rot = |yaw: f32, tx: f32, ty: f32| turn(yaw) * Quat::from_scaled_axis(Vec3::new(tx.to_radians(), ty.to_radians(), 0.0));
+    let half = Level::half(b);
+    let coarse = |p: Vec2| half.sample(p * 0.5);
+    // Every other direction for the coarse search (it only has to land near the minimum).
+    let (sub_dirs, sub_ca): (Vec<Vec3>, Vec<[f32; 3]>) = dirs.iter().zip(&ca).step_by(2).map(|(d, c)| (*d, *c)).unzip();
+    let search = |yaws: &[f32], tilts: &[f32], centre: (f32, f32, f32), dirs: &[Vec3], ca: &[[f32; 3]]| {
+        let mut best = (centre, f64::INFINITY);
+        for &y in yaws {
+            for &tx in tilts {
+                for &ty in tilts {
+                    let at = (centre.0 + y, centre.1 + tx, centre.2 + ty);
+                    let c = cost_rotated(camera, dirs, ca, b, rot(at.0, at.1, at.2), &coarse);
+                    if c < best.1 {
+                        best = (at, c);
+                    }
+                }
+            }
+        }
+        best.0
+    };
+    let steps = |range: f32, step: f32| {
+        let k = (range / step).round() as i32;
+        (-k..=k).map(|i| i as f32 * step).collect::<Vec<_>>()
+    };
+    let best =
+        search(&steps(SEARCH_DEG, COARSE_STEP_DEG), &steps(TILT_SEARCH_DEG, TILT_COARSE_STEP_DEG), (0.0, 0.0, 0.0), &sub_dirs, &sub_ca);
+    let best = search(&steps(COARSE_STEP_DEG, 0.25), &steps(TILT_COARSE_STEP_DEG, 0.5), best, dirs, &ca);
+    let full = |p: Vec2| sample_linear(&b.image, p);
+    let k = (COARSE_STEP_DEG / FINE_STEP_DEG) as i32;
+    let fine: Vec<(f32, f64)> = (-k..=k)
+        .map(|i| best.0 + i as f32 * FINE_STEP_DEG)
+        .map(|deg| (deg, cost_rotated(camera, dirs, &ca, b, rot(deg, best.1, best.2), &full)))
+        .collect();
+    let (i, _) = fine.iter().enumerate().min_by(|x, y| x.1.1.total_cmp(&y.1.1))?;
+    let delta = if i == 0 || i + 1 == fine.len() {
+        f64::from(fine[i].0)
+    } else {
+        let (c0, c1, c2) = (fine[i - 1].1, fine[i].1, fine[i + 1].1);
+        let denom = c0 - 2.0 * c1 + c2;
+        let off = if denom > 0.0 { 0.5 * (c0 - c2) / denom } else { 0.0 };
+        f64::from(fine[i].0) + off.clamp(-0.5, 0.5) * f64::from(FINE_STEP_DEG)
+    };
+    (delta.abs() < f64::from(SEARCH_DEG)).then_some(delta)
+}
+
 /// The turn about the world vertical (degrees) that best aligns a new shot with the earlier
-/// shots: matched against each earlier shot whose view overlaps it ([`match_pair`]), the match
-/// with the largest overlap. `None` when no earlier shot overlaps it enough or every overlap
-/// is featureless. While capturing, this measures the drift of the heading the guidance uses
-/// (the gyroscope's, whose bias about the vertical is not observable by the accelerometer).
-pub fn turn_against(camera: &Pinhole, earlier: &[Shot], new: &Shot) -> Option<f64> {
+/// shots, and the index in `earlier` of the shot it was matched against: of the earlier shots
+/// whose view overlaps it, the one with the largest overlap that can be matched, the relative
+/// tilt searched too ([`match_pair_tilted`]). `None` when no earlier shot overlaps it enough or
+/// every overlap is featureless. While capturing, this measures the drift of the heading the
+/// guidance uses (the gyroscope's, whose bias about the vertical is not observable by the
+/// accelerometer) since that earlier shot.
+pub fn turn_against(camera: &Pinhole, earlier: &[Shot], new: &Shot) -> Option<(usize, f64)> {
     let diag = (camera.tan_half_h.hypot(camera.tan_half_v)).atan() * 2.0;
     let axis = new.pose * Vec3::NEG_Z;
-    earlier
+    let mut candidates: Vec<(usize, Vec<Vec3>)> = earlier
         .iter()
-        .filter(|s| (s.pose * Vec3::NEG_Z).angle_between(axis) < diag)
-        .filter_map(|s| match_pair(camera, s, new))
-        .max_by_key(|(_, samples)| *samples)
-        .map(|(delta, _)| delta)
+        .enumerate()
+        .filter(|(_, s)| (s.pose * Vec3::NEG_Z).angle_between(axis) < diag)
+        .map(|(i, s)| (i, overlap(camera, s, new)))
+        .filter(|(_, dirs)| dirs.len() >= MIN_OVERLAP)
+        .collect();
+    candidates.sort_by_key(|(_, dirs)| std::cmp::Reverse(dirs.len()));
+    candidates.iter().find_map(|(i, dirs)| match_pair_tilted(camera, &earlier[*i], new, dirs).map(|delta| (*i, delta)))
 }
 
 /// Solve `min Σ w (h_j − h_i − δ)² + PRIOR_WEIGHT Σ h²` with `h[fixed] = 0` (dense normal
@@ -699,12 +777,22 @@ mod tests {
         let earlier = [shot(0, 0.0, 0.0, 0.0), shot(1, 120.0, 0.0, 0.0)];
         // 30° to the right of the front, 2.5° of drift: the turn that takes it off is +2.5°,
         // found against the front (the shot 120° away does not overlap).
-        let turn = turn_against(&cam, &earlier, &shot(2, 30.0, 0.0, 2.5)).unwrap();
-        assert!((turn - 2.5).abs() < 0.1, "{turn}");
-        let turn = turn_against(&cam, &earlier, &shot(2, 95.0, 5.0, -4.0)).unwrap();
-        assert!((turn + 4.0).abs() < 0.1, "{turn}");
+        let (against, turn) = turn_against(&cam, &earlier, &shot(2, 30.0, 0.0, 2.5)).unwrap();
+        assert!(against == 0 && (turn - 2.5).abs() < 0.1, "{against} {turn}");
+        let (against, turn) = turn_against(&cam, &earlier, &shot(2, 95.0, 5.0, -4.0)).unwrap();
+        assert!(against == 1 && (turn + 4.0).abs() < 0.1, "{against} {turn}");
         // Nothing overlaps the back: no measurement.
         assert_eq!(turn_against(&cam, &earlier, &shot(2, 240.0, 0.0, 1.0)), None);
+        // The new shot's pose also tilted by 2.5° (the held filter's tilt error at `bad` noise):
+        // the turn is still found, where a search of the turn alone errs.
+        let tilted = |drift: f32| {
+            let s = shot(2, 10.0, 30.0, drift);
+            Shot { pose: (Quat::from_rotation_x(2.5f32.to_radians()) * s.pose).normalize(), ..s }
+        };
+        let (_, turn) = turn_against(&cam, &earlier, &tilted(2.0)).unwrap();
+        assert!((turn - 2.0).abs() < 0.3, "{turn}");
+        let (yaw_only, _) = match_pair(&cam, &earlier[0], &tilted(2.0)).unwrap();
+        eprintln!("tilted 2.5 deg, drift 2 deg: turn found {turn:.2}, by the turn alone {yaw_only:.2}");
     }
 
     #[test]

@@ -178,6 +178,8 @@ pub struct ReplayResult {
     pub shot_t: Vec<Option<f64>>,
     /// Shots whose image matched an earlier shot's and corrected the guidance's heading drift.
     pub drift_fixes: usize,
+    /// Those matches ([`super::aim_heading::ShotMatch`]).
+    pub matches: Vec<super::aim_heading::ShotMatch>,
     /// The shots as taken (pose before the alignment), in the assistant's target order (the
     /// front first), for studies of the alignment.
     pub taken_shots: Vec<super::reproject::Shot>,
@@ -381,6 +383,7 @@ pub fn replay(env: &Arc<CubeMap>, trace: &TruthTrace, cfg: &ReplayConfig) -> Res
         shot_t,
         repairs,
         drift_fixes: aim.drift_fixes(),
+        matches: aim.matches().to_vec(),
         taken_shots: (0..targets).filter_map(|i| assistant.shot(i).cloned()).collect(),
         reference_heading_deg: assistant.reference_heading_deg(),
         reference_heading_error_deg: tapped

@@ -47,7 +47,7 @@ use super::tilt_compass::tilt_compass;
 use super::{HeadingSource, OrientationEstimator, Pose};
 use crate::sensors::{North, Reading};
 use anyhow::Result;
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 
 /// Standard gravity (m/s²).
 const G: f64 = crate::sensors::STANDARD_GRAVITY;
@@ -163,6 +163,35 @@ struct SunFix {
     turned: f64,
 }
 
+/// What the heading estimate went through since the filter started, for measurements of how it
+/// turned relative to the truth between two instants ([`OrientationFilter::relative_heading`]).
+/// The estimate's yaw error ψ (anticlockwise about the world vertical, estimate against truth)
+/// grows at `u · (b − b̂)` — `u` the world vertical in the device frame, `b` the gyroscope's
+/// true bias and `b̂` the filter's estimate — plus the corrections turned in about the vertical.
+/// So between two instants ψ₁ − ψ₀ = b · Δ`up_integral` − Δ`bias_integral` + Δ`turns`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct YawTrack {
+    /// ∫ u dt (s): the lever of each component of the gyroscope's bias on the heading.
+    pub up_integral: DVec3,
+    /// ∫ u · b̂ dt (radians): what the bias estimate took off the heading.
+    pub bias_integral: f64,
+    /// Corrections turned in about the world vertical (radians, anticlockwise): the compass's,
+    /// the sun's and image fixes ([`OrientationFilter::heading_fix`]). A caller that turns a
+    /// pose taken at this instant adds that turn here.
+    pub turns: f64,
+}
+
+/// 1σ per axis (rad/s) of the gyroscope bias left when image measurements of the heading's
+/// drift start to learn it ([`OrientationFilter::relative_heading`]): a phone gyroscope's zero
+/// rate offset after the OS's calibration is up to about 1°/s (the simulator's `bad` preset;
+/// `phone`: 0.1°/s).
+const RELATIVE_BIAS_SIGMA: f64 = 1.0 * std::f64::consts::PI / 180.0;
+/// Random walk (rad/s per √s) of that bias (the simulator's `bad` preset, 0.02°/s per √s).
+const RELATIVE_BIAS_WALK: f64 = 0.02 * std::f64::consts::PI / 180.0;
+/// Relative heading measurements whose innovation exceeds this many σ are rejected (a wrong
+/// image match).
+const RELATIVE_GATE_SIGMAS: f64 = 3.0;
+
 /// Readings older than this (s) are not used for corrections.
 const FRESH_S: f64 = 0.25;
 /// A gap in gyroscope readings longer than this (s) restarts the integration.
@@ -228,6 +257,10 @@ pub struct OrientationFilter {
     sun: Option<SunFix>,
     /// Low-passed disagreement of the compass with the estimate (radians, before the offset).
     compass_lp: Option<f64>,
+    yaw_track: YawTrack,
+    /// Covariance (rad²/s²) of the gyroscope bias estimate as learnt from relative heading
+    /// measurements; None before the first.
+    bias_cov: Option<DMat3>,
 }
 
 impl OrientationFilter {
@@ -268,6 +301,8 @@ impl OrientationFilter {
             pending_turn: 0.0,
             sun: None,
             compass_lp: None,
+            yaw_track: YawTrack::default(),
+            bias_cov: None,
         }
     }
 
@@ -323,6 +358,48 @@ impl OrientationFilter {
             self.heading_sigma_at_loss = after;
         }
         Some((correction, after))
+    }
+
+    /// What the heading estimate went through so far ([`YawTrack`]): take it at an instant
+    /// whose heading error relative to a later one will be measured.
+    pub fn yaw_track(&self) -> YawTrack {
+        self.yaw_track
+    }
+
+    /// A measurement of the heading's drift relative to the truth between an earlier instant
+    /// and now: since `then` (the [`OrientationFilter::yaw_track`] of that instant) the
+    /// estimate's heading became `error` radians more clockwise than the truth's (1σ `sigma`)
+    /// — e.g. a new shot's image matched against an earlier shot's
+    /// ([`crate::capture::align::turn_against`]). The drift is the gyroscope's residual bias
+    /// integrated about the world vertical ([`YawTrack`]), which the accelerometer cannot see
+    /// and a held heading does not take from the compass; each such measurement sees the bias
+    /// along the device axes that were vertical in between, so as the phone turns through
+    /// different attitudes all three components are learnt. A Kalman update of the bias
+    /// (prior 1σ [`RELATIVE_BIAS_SIGMA`] per axis, random walk [`RELATIVE_BIAS_WALK`]); an
+    /// innovation beyond [`RELATIVE_GATE_SIGMAS`] σ is rejected. The heading itself is not
+    /// changed (that is [`OrientationFilter::heading_fix`]'s). Returns the change of the bias
+    /// estimate (rad/s, device frame), or None (rejected, not initialised, or not finite).
+    pub fn relative_heading(&mut self, then: &YawTrack, error: f64, sigma: f64) -> Option<DVec3> {
+        if !(self.initialised && error.is_finite() && sigma.is_finite() && sigma > 0.0) {
+            return None;
+        }
+        let now = self.yaw_track;
+        let g = now.up_integral - then.up_integral;
+        // ψ now − ψ then = −error = b · g − Δbias_integral + Δturns; the innovation is what the
+        // bias left in the estimate now, (b − b̂)·g, explains of it.
+        let innovation = -error + (now.bias_integral - then.bias_integral) - (now.turns - then.turns) - self.bias.dot(g);
+        let p = *self.bias_cov.get_or_insert(DMat3::from_diagonal(DVec3::splat(RELATIVE_BIAS_SIGMA.powi(2))));
+        let pg = p * g;
+        let s = g.dot(pg) + sigma * sigma;
+        if innovation * innovation > RELATIVE_GATE_SIGMAS.powi(2) * s {
+            return None;
+        }
+        let k = pg / s;
+        let before = self.bias;
+        self.bias = (self.bias + k * innovation).clamp_length_max(MAX_BIAS);
+        let p = p - DMat3::from_cols(k * pg.x, k * pg.y, k * pg.z);
+        self.bias_cov = Some((p + p.transpose()) * 0.5);
+        Some(self.bias - before)
     }
 
     /// How far clockwise of the model's magnetic north the magnetometer sees the field, as
@@ -527,6 +604,14 @@ impl OrientationFilter {
     fn step(&mut self, t: f64, dt: f64, omega: DVec3, integrate_bias: bool) {
         let rate = omega - if integrate_bias { self.bias } else { DVec3::ZERO };
         self.rate = rate.length();
+        let up = self.up_in_device();
+        self.yaw_track.up_integral += up * dt;
+        if integrate_bias {
+            self.yaw_track.bias_integral += up.dot(self.bias) * dt;
+        }
+        if let Some(p) = self.bias_cov.as_mut() {
+            *p += DMat3::from_diagonal(DVec3::splat(RELATIVE_BIAS_WALK * RELATIVE_BIAS_WALK * dt));
+        }
         self.q = (self.q * DQuat::from_scaled_axis(rate * dt)).normalize();
 
         let scale = self.gain_scale();
@@ -591,6 +676,8 @@ impl OrientationFilter {
             self.bias -= (self.cfg.k_bias * bias_error + k_tilt * tilt_error) * dt;
             self.bias = self.bias.clamp_length_max(MAX_BIAS);
         }
+        // The correction's turn about the world vertical (device frame: along `up`).
+        self.yaw_track.turns += correction.dot(self.up_in_device()) * dt;
         self.q = (self.q * DQuat::from_scaled_axis(correction * dt)).normalize();
         if self.pending_turn != 0.0 {
             // A turn about the world vertical by +θ takes θ off the heading (clockwise).
@@ -598,6 +685,7 @@ impl OrientationFilter {
             let step = if self.pending_turn.abs() < 1e-9 { self.pending_turn } else { step };
             self.q = (DQuat::from_rotation_z(step) * self.q).normalize();
             self.pending_turn -= step;
+            self.yaw_track.turns += step;
         }
         if let Some(fix) = self.sun.as_mut() {
             fix.turned += self.rate * dt;
@@ -1153,6 +1241,75 @@ mod tests {
         f.update(&Reading::Gps(crate::sensors::GpsFix { lat_deg: 51.9, ..fix })).unwrap();
         assert_eq!(f.reference(), Some(&MagneticReference::wmm(51.9, -2.5879, 20.0, date).unwrap()));
         assert!(f.update(&Reading::Gps(crate::sensors::GpsFix { lon_deg: f64::NAN, ..fix })).is_err());
+    }
+
+    /// Yaw (radians, anticlockwise about the world vertical) of the error rotation est · truth⁻¹.
+    fn yaw_error(est: DQuat, truth: DQuat) -> f64 {
+        let e = est * truth.inverse();
+        let e = if e.w < 0.0 { -e } else { e };
+        2.0 * e.z.atan2(e.w)
+    }
+
+    #[test]
+    fn relative_heading_measurements_teach_the_gyroscope_bias_about_every_axis() {
+        // Exact accelerometer and magnetometer readings, a gyroscope with a constant bias of
+        // ~1°/s per axis (the simulator's `bad` preset). After start-up the heading is held
+        // (a capture), and the phone turns through six attitudes; at each, the true change of
+        // the estimate's heading error since the previous one is given as a relative heading
+        // measurement (what matching two shots' images measures). The bias about every axis
+        // is learnt from them — the accelerometer alone, in the same time, learns only what
+        // was horizontal — so the held heading then barely drifts.
+        let bias = DVec3::new(0.015, -0.018, 0.016);
+        let turns = [
+            DVec3::new(0.0, 0.8, 0.0),
+            DVec3::new(0.7, 0.0, 0.0),
+            DVec3::new(0.0, -0.8, 0.3),
+            DVec3::new(-0.7, 0.2, 0.0),
+            DVec3::new(0.0, 0.0, 0.9),
+            DVec3::new(0.5, 0.5, 0.0),
+        ];
+        let run = |measure: bool| {
+            let mut f = OrientationFilter::new(FusionConfig::default());
+            f.set_reference(reference());
+            let dt = 0.01;
+            // Upright, as a phone held to take a picture.
+            let mut q = DQuat::from_rotation_z(0.3) * DQuat::from_rotation_x(1.2);
+            let mut t = 0.0;
+            let mut feed = |f: &mut OrientationFilter, q: &mut DQuat, omega: DVec3, secs: f64| {
+                for _ in 0..(secs / dt).round() as usize {
+                    t += dt;
+                    *q = (*q * DQuat::from_scaled_axis(omega * dt)).normalize();
+                    f.update(&Reading::Accel { t, v: q.inverse() * DVec3::new(0.0, 0.0, G) }).unwrap();
+                    f.update(&Reading::Mag { t, v: q.inverse() * FIELD }).unwrap();
+                    f.update(&Reading::Gyro { t, v: omega + bias }).unwrap();
+                }
+                t
+            };
+            let t0 = feed(&mut f, &mut q, DVec3::ZERO, 4.0);
+            f.hold_heading(t0, true);
+            let mut last = (f.yaw_track(), yaw_error(f.device_orientation().unwrap(), q));
+            let mut learnt = 0;
+            for omega in turns {
+                feed(&mut f, &mut q, omega, 1.0);
+                feed(&mut f, &mut q, DVec3::ZERO, 1.0);
+                let psi = yaw_error(f.device_orientation().unwrap(), q);
+                if measure && f.relative_heading(&last.0, -(psi - last.1), 0.1f64.to_radians()).is_some() {
+                    learnt += 1;
+                }
+                last = (f.yaw_track(), psi);
+            }
+            // Then the drift of the held heading over 10 s still in the last attitude.
+            let before = yaw_error(f.device_orientation().unwrap(), q);
+            feed(&mut f, &mut q, DVec3::ZERO, 10.0);
+            let drift = (yaw_error(f.device_orientation().unwrap(), q) - before).to_degrees();
+            ((f.gyro_bias() - bias).length().to_degrees(), drift, learnt)
+        };
+        let (without, drift_without, _) = run(false);
+        let (with, drift_with, learnt) = run(true);
+        eprintln!("bias error {without:.3} -> {with:.3} deg/s; drift over 10 s {drift_without:.2} -> {drift_with:.2} deg; {learnt} learnt");
+        assert_eq!(learnt, turns.len());
+        assert!(with < 0.1 && without > 0.3, "{without} {with}");
+        assert!(drift_with.abs() < 0.5 && drift_without.abs() > 3.0, "{drift_without} {drift_with}");
     }
 
     #[test]

@@ -140,6 +140,17 @@ fn cost_rotated(camera: &Pinhole, dirs: &[Vec3], ca: &[[f32; 3]], b: &Shot, rot:
     if n == 0 { f64::INFINITY } else { sum / n as f64 }
 }
 
+/// Shot a's colours along the overlap's directions, or `None` when the overlap is featureless
+/// (flat sky: no variance in green), which cannot be matched.
+fn overlap_colours(camera: &Pinhole, a: &Shot, dirs: &[Vec3]) -> Option<Vec<[f32; 3]>> {
+    let inv_a = a.pose.inverse();
+    let ca: Vec<[f32; 3]> =
+        dirs.iter().map(|d| camera.to_ndc(inv_a * *d).map_or([0.0; 3], |n| sample_linear(&a.image, camera.ndc_to_pixel(n)))).collect();
+    let mean: f32 = ca.iter().map(|c| c[1]).sum::<f32>() / ca.len() as f32;
+    let var: f32 = ca.iter().map(|c| (c[1] - mean).powi(2)).sum::<f32>() / ca.len() as f32;
+    (var >= 1e-6).then_some(ca)
+}
+
 /// The relative turn of shot b against shot a that best matches their overlap, or `None` when
 /// they overlap too little or the overlap is featureless.
 pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> {
@@ -147,15 +158,7 @@ pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> 
     if dirs.len() < MIN_OVERLAP {
         return None;
     }
-    let inv_a = a.pose.inverse();
-    let ca: Vec<[f32; 3]> =
-        dirs.iter().map(|d| camera.to_ndc(inv_a * *d).map_or([0.0; 3], |n| sample_linear(&a.image, camera.ndc_to_pixel(n)))).collect();
-    // Featureless overlaps (flat sky) cannot be matched.
-    let mean: f32 = ca.iter().map(|c| c[1]).sum::<f32>() / ca.len() as f32;
-    let var: f32 = ca.iter().map(|c| (c[1] - mean).powi(2)).sum::<f32>() / ca.len() as f32;
-    if var < 1e-6 {
-        return None;
-    }
+    let ca = overlap_colours(camera, a, &dirs)?;
     let half = Level::half(b);
     let coarse = |p: Vec2| half.sample(p * 0.5);
     let steps = (SEARCH_DEG / COARSE_STEP_DEG) as i32;
@@ -195,14 +198,7 @@ fn match_pair_tilted(camera: &Pinhole, a: &Shot, b: &Shot, dirs: &[Vec3]) -> Opt
     if dirs.len() < MIN_OVERLAP {
         return None;
     }
-    let inv_a = a.pose.inverse();
-    let ca: Vec<[f32; 3]> =
-        dirs.iter().map(|d| camera.to_ndc(inv_a * *d).map_or([0.0; 3], |n| sample_linear(&a.image, camera.ndc_to_pixel(n)))).collect();
-    let mean: f32 = ca.iter().map(|c| c[1]).sum::<f32>() / ca.len() as f32;
-    let var: f32 = ca.iter().map(|c| (c[1] - mean).powi(2)).sum::<f32>() / ca.len() as f32;
-    if var < 1e-6 {
-        return None;
-    }
+    let ca = overlap_colours(camera, a, dirs)?;
     let rot = |yaw: f32, tx: f32, ty: f32| turn(yaw) * Quat::from_scaled_axis(Vec3::new(tx.to_radians(), ty.to_radians(), 0.0));
     let half = Level::half(b);
     let coarse = |p: Vec2| half.sample(p * 0.5);

@@ -167,9 +167,15 @@ pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> 
         .map(|deg| (deg, cost(camera, &dirs, &ca, b, deg, &coarse)))
         .min_by(|x, y| x.1.total_cmp(&y.1))?;
     let full = |p: Vec2| sample_linear(&b.image, p);
+    fine_turn(best, |deg| cost(camera, &dirs, &ca, b, deg, &full)).map(|delta| (delta, dirs.len()))
+}
+
+/// The turn (degrees) at full resolution around a coarse `best`: `cost` at every
+/// [`FINE_STEP_DEG`] within a coarse step, a parabola through the three costs around the
+/// minimum; `None` when it lands outside the search range.
+fn fine_turn(best: f32, cost: impl Fn(f32) -> f64) -> Option<f64> {
     let k = (COARSE_STEP_DEG / FINE_STEP_DEG) as i32;
-    let fine: Vec<(f32, f64)> =
-        (-k..=k).map(|i| best + i as f32 * FINE_STEP_DEG).map(|deg| (deg, cost(camera, &dirs, &ca, b, deg, &full))).collect();
+    let fine: Vec<(f32, f64)> = (-k..=k).map(|i| best + i as f32 * FINE_STEP_DEG).map(|deg| (deg, cost(deg))).collect();
     let (i, _) = fine.iter().enumerate().min_by(|x, y| x.1.1.total_cmp(&y.1.1))?;
     let delta = if i == 0 || i + 1 == fine.len() {
         f64::from(fine[i].0)
@@ -180,7 +186,7 @@ pub fn match_pair(camera: &Pinhole, a: &Shot, b: &Shot) -> Option<(f64, usize)> 
         let off = if denom > 0.0 { 0.5 * (c0 - c2) / denom } else { 0.0 };
         f64::from(fine[i].0) + off.clamp(-0.5, 0.5) * f64::from(FINE_STEP_DEG)
     };
-    (delta.abs() < f64::from(SEARCH_DEG)).then_some((delta, dirs.len()))
+    (delta.abs() < f64::from(SEARCH_DEG)).then_some(delta)
 }
 
 /// Relative tilt searched (degrees, about each world-horizontal axis) when a new shot is
@@ -227,21 +233,7 @@ fn match_pair_tilted(camera: &Pinhole, a: &Shot, b: &Shot, dirs: &[Vec3]) -> Opt
         search(&steps(SEARCH_DEG, COARSE_STEP_DEG), &steps(TILT_SEARCH_DEG, TILT_COARSE_STEP_DEG), (0.0, 0.0, 0.0), &sub_dirs, &sub_ca);
     let best = search(&steps(COARSE_STEP_DEG, 0.25), &steps(TILT_COARSE_STEP_DEG, 0.5), best, dirs, &ca);
     let full = |p: Vec2| sample_linear(&b.image, p);
-    let k = (COARSE_STEP_DEG / FINE_STEP_DEG) as i32;
-    let fine: Vec<(f32, f64)> = (-k..=k)
-        .map(|i| best.0 + i as f32 * FINE_STEP_DEG)
-        .map(|deg| (deg, cost_rotated(camera, dirs, &ca, b, rot(deg, best.1, best.2), &full)))
-        .collect();
-    let (i, _) = fine.iter().enumerate().min_by(|x, y| x.1.1.total_cmp(&y.1.1))?;
-    let delta = if i == 0 || i + 1 == fine.len() {
-        f64::from(fine[i].0)
-    } else {
-        let (c0, c1, c2) = (fine[i - 1].1, fine[i].1, fine[i + 1].1);
-        let denom = c0 - 2.0 * c1 + c2;
-        let off = if denom > 0.0 { 0.5 * (c0 - c2) / denom } else { 0.0 };
-        f64::from(fine[i].0) + off.clamp(-0.5, 0.5) * f64::from(FINE_STEP_DEG)
-    };
-    (delta.abs() < f64::from(SEARCH_DEG)).then_some(delta)
+    fine_turn(best.0, |deg| cost_rotated(camera, dirs, &ca, b, rot(deg, best.1, best.2), &full))
 }
 
 /// The turn about the world vertical (degrees) that best aligns a new shot with the earlier

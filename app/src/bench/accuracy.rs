@@ -578,10 +578,7 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
         // The default method against the path tracer's mean curve at its mean error.
         let ladder: Vec<super::equal_error::Rung> = means
             .iter()
-            .filter_map(|m| {
-                let spp = m.method.strip_prefix("path tracer ")?.strip_suffix(" spp")?.parse().ok()?;
-                Some(super::equal_error::Rung { spp, flip_roi: m.flip_roi, ms: m.ms })
-            })
+            .filter_map(|m| Some(super::equal_error::Rung { spp: super::equal_error::spp_of(&m.method)?, flip_roi: m.flip_roi, ms: m.ms }))
             .collect();
         let default = crate::setup::method_choice::ORDINARY.name();
         if let Some(d) = means.iter().find(|m| m.method == default)

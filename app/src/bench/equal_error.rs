@@ -78,15 +78,17 @@ pub struct SceneRatio {
     pub ratio: f64,
 }
 
+/// The samples per pixel of a path tracer's row (`path tracer N spp`), `None` for a method.
+pub fn spp_of(method: &str) -> Option<f64> {
+    method.strip_prefix("path tracer ")?.strip_suffix(" spp")?.parse().ok()
+}
+
 /// The path tracer's rows (`path tracer N spp`) of `scene` as a ladder, by spp.
 pub fn ladder_of(rows: &[AccuracyRow], scene: &str) -> Vec<Rung> {
     let mut ladder: Vec<Rung> = rows
         .iter()
         .filter(|r| r.scene == scene)
-        .filter_map(|r| {
-            let spp: f64 = r.method.strip_prefix("path tracer ")?.strip_suffix(" spp")?.parse().ok()?;
-            Some(Rung { spp, flip_roi: f64::from(r.flip_roi), ms: r.ms })
-        })
+        .filter_map(|r| Some(Rung { spp: spp_of(&r.method)?, flip_roi: f64::from(r.flip_roi), ms: r.ms }))
         .collect();
     ladder.sort_by(|a, b| a.spp.total_cmp(&b.spp));
     ladder

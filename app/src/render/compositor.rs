@@ -140,6 +140,10 @@ pub struct Compositor {
     ground_regions: RegionCache,
 }
 
+/// What [`Compositor::frame_data`] works out for a frame: its uniforms, the shadow map it keeps,
+/// and the ground's sky map it draws.
+type FrameFacts = (FrameData, Option<ShadowDrawn>, Option<Arc<occlusion::GroundSky>>);
+
 /// Which of the optional passes a frame ran.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PassesRun {
@@ -403,8 +407,10 @@ impl Compositor {
     /// [`Compositor::frame_uniforms`] for a frame of `layer`, with the ground's regions from
     /// (and into) `regions`; also the shadow map this frame keeps (None: it draws the map, or
     /// has none): a frame whose shadow would come out the same as the map's keeps the map and
-    /// the sun camera it was drawn with, so lookups match it.
-    fn frame_data(&self, p: &FrameParams, layer: Layer, regions: &mut RegionCache) -> Result<(FrameData, Option<ShadowDrawn>)> {
+    /// the sun camera it was drawn with, so lookups match it; and the ground's sky map the
+    /// frame draws (None: it draws no sky occlusion), looked up once so that the sky's region
+    /// and the uploaded map are the same map even while a new one arrives from the worker.
+    fn frame_data(&self, p: &FrameParams, layer: Layer, regions: &mut RegionCache) -> Result<FrameFacts> {
         let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let sizes = self.shadow.sizes();
@@ -458,6 +464,8 @@ impl Compositor {
         if let Some(held) = kept {
             data.frame.light_view_proj = held.light_view_proj.to_cols_array_2d();
         }
+        let sky_map =
+            if layer == Layer::Composite && ground_pass && p.lighting.sky_occlusion > 0.0 { Some(self.ground_sky(p)?) } else { None };
         if layer == Layer::Composite && ground_pass {
             // Where the ground can darken anything: the shadow's outline in the map the frame
             // looks up, and where the sky's occlusion is visible.
@@ -471,22 +479,21 @@ impl Compositor {
                 }
                 false => Vec::new(),
             };
-            let sky = match p.lighting.sky_occlusion > 0.0 && !self.full_shadow {
-                true => {
-                    let map = self.ground_sky(p)?;
+            let sky = match (&sky_map, self.full_shadow) {
+                (Some(map), false) => {
                     let per_occlusion = sky_loss_per_occlusion(&data.light, p.lighting.shadow_opacity);
                     // The region is in the map's square, which moves with the model.
                     let [x0, y0, x1, y1] = data.light.ground_square;
                     let (min, max) = (glam::Vec2::new(x0, y0), glam::Vec2::new(x1, y1));
-                    let region = regions.sky(&map, INVISIBLE_LOSS / per_occlusion.max(1e-12));
+                    let region = regions.sky(map, INVISIBLE_LOSS / per_occlusion.max(1e-12));
                     Some(region.iter().map(|&uv| min + uv * (max - min)).collect::<Vec<_>>())
                 }
-                false => None,
+                _ => None,
             };
             let parts = GroundRegions { outline: &outline, sky: sky.as_deref() };
             data.ground_mesh = ground_mesh(p, &context, &shadow, parts, self.full_shadow);
         }
-        Ok((data, kept))
+        Ok((data, kept, sky_map))
     }
 
     /// Render one image of `layer` and read it back.
@@ -592,10 +599,10 @@ impl Compositor {
         let mut regions = std::mem::take(&mut self.ground_regions);
         let data = self.frame_data(p, layer, &mut regions);
         self.ground_regions = regions;
-        let (data, kept) = data?;
+        let (data, kept, sky_map) = data?;
         let composite = layer == Layer::Composite;
-        if composite && data.ground_pass && p.lighting.sky_occlusion > 0.0 {
-            self.update_ground_sky(gpu, p)?;
+        if let Some(sky) = sky_map {
+            self.update_ground_sky(gpu, sky)?;
         }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         let shadow_index = self.shadow.index_of(data.shadow_map_size);
@@ -643,12 +650,9 @@ impl Compositor {
         })
     }
 
-    /// The ground's sky visibility under the model as `p` places it and its sky lights it
-    /// (the rays weighted by the sky's radiance, light::sh9::SkyShape), computed and uploaded
-    /// when the model's turn or scale or the sky's shape differs from the last one it was
-    /// computed for.
-    fn update_ground_sky(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<()> {
-        let sky = self.ground_sky(p)?;
+    /// Upload the ground's sky visibility map the frame draws ([`Compositor::ground_sky`]) when
+    /// it is not the map already uploaded: after a turn or scale of the model or a new sky shape.
+    fn update_ground_sky(&mut self, gpu: &Gpu, sky: Arc<occlusion::GroundSky>) -> Result<()> {
         if self.ground_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &sky)) {
             return Ok(());
         }

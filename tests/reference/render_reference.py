@@ -50,6 +50,16 @@ def srgb_decode(c):
     return np.where(c <= 0.04045, c / 12.92, np.power((c + 0.055) / 1.055, 2.4))
 
 
+def drjit_threads():
+    """Dr.Jit's worker threads (the LLVM backend's; by default one per core), None if unknown."""
+    try:
+        import drjit as dr
+
+        return dr.thread_count()
+    except Exception:
+        return None
+
+
 def pick_variant(requested):
     import mitsuba as mi
 
@@ -210,9 +220,16 @@ def main():
     ap.add_argument(
         "--time-frame",
         action="store_true",
-        help="render each lit layer (ground, black, full) twice and report the second renders' time as frame_seconds: "
-        "the path tracer's time per frame without its one-time start-up (loading, scene building, JIT compilation); "
-        "the same seed gives the same image",
+        help="render each lit layer (ground, black, full) once more than --time-repeats and report the sum of each layer's "
+        "median timed render as frame_seconds: the path tracer's time per frame without its one-time start-up (loading, "
+        "scene building, JIT compilation; the first render compiles the kernels), measured as previz's frames are "
+        "(median after warm-up); the same seed gives the same image",
+    )
+    ap.add_argument(
+        "--time-repeats",
+        type=int,
+        default=3,
+        help="timed renders per lit layer with --time-frame (their median counts)",
     )
     ap.add_argument("--previz-model", help="previz's model_rgba.png (composite --layers): print silhouette IoU")
     ap.add_argument("--previz-background", help="previz's background.png: print the mean background difference")
@@ -226,6 +243,8 @@ def main():
         sys.exit(f"render_reference: cannot read {frame_path}: {e}")
     if args.spp < 1:
         sys.exit("render_reference: --spp must be at least 1")
+    if args.time_repeats < 1:
+        sys.exit("render_reference: --time-repeats must be at least 1")
     mi = pick_variant(args.variant)
     t0 = time.time()
     env = load_env(mi, frame["environment"])
@@ -237,9 +256,12 @@ def main():
         scene = build_scene(mi, frame, args.frame_dir, env_bitmap, rho, "env" if what == "B" else what, spp, args.seed)
         if args.time_frame and what in ("ground", "black", "full"):
             render(mi, scene, spp, args.seed)  # start-up: the first render compiles its kernels
-            t = time.time()
-            layers[what] = render(mi, scene, spp, args.seed)
-            warm[what] = time.time() - t
+            times = []
+            for _ in range(args.time_repeats):
+                t = time.time()
+                layers[what] = render(mi, scene, spp, args.seed)
+                times.append(time.time() - t)
+            warm[what] = float(np.median(times))
         else:
             layers[what] = render(mi, scene, spp, args.seed)
     C, alpha, ratio = composite(layers["B"], layers["full"], layers["black"], layers["ground"], layers["alpha"])
@@ -262,10 +284,19 @@ def main():
         "variant": mi.variant(),
         "ground_albedo": [round(float(x), 4) for x in rho],
         "seconds": round(time.time() - t0, 2),
-        # The differential composite's lit renders at --spp, each timed on its second run: what one
-        # more frame of the same scene costs the path tracer (B is the camera image, alpha the
-        # coverage: previz has both without tracing).
-        **({"frame_seconds": round(sum(warm.values()), 3), "layer_seconds": {k: round(v, 3) for k, v in warm.items()}} if warm else {}),
+        # The differential composite's lit renders at --spp, each the median of its timed runs
+        # after the first: what one more frame of the same scene costs the path tracer (B is the
+        # camera image, alpha the coverage: previz has both without tracing).
+        **(
+            {
+                "frame_seconds": round(sum(warm.values()), 3),
+                "layer_seconds": {k: round(v, 3) for k, v in warm.items()},
+                "time_repeats": args.time_repeats,
+                "threads": drjit_threads(),
+            }
+            if warm
+            else {}
+        ),
         "model_pixels": int((alpha > 0.5).sum()),
         "roi_pixels": int(roi.sum()),
     }

@@ -31,7 +31,9 @@ pub enum What {
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references (mean FLIP over the frame and the model + shadow, model
-    /// luminance, time), the path tracer's own 1/4/16/64-spp ladder, and each scene's error
+    /// luminance, time per frame: the median GPU time of 15 frames after 3 warm-up, with the wall
+    /// clock including readback beside it), the path tracer's own 1/4/16/64-spp ladder, the
+    /// default method against it at equal error (both per frame), and each scene's error
     /// budget (model vs shadow, sunlit vs shaded side, shadow colour, the background's FLIP
     /// around the model + shadow). `--export-reference DIR
     /// SCENE` instead writes SCENE as previz draws it for tests/reference/render_reference.py.

@@ -54,6 +54,16 @@ const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_truck", 0.144, 0.04),
 ];
 
+/// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
+/// so this holds the background's agreement with the references' (eighth session, 2026-12-01:
+/// the background looked up in the equirect, frame FLIP 0.039, 0.018, 0.053, 0.031, 0.044 through
+/// the cube map → 0.0299, 0.0171, 0.0400, 0.0193, 0.0360; bounds = measured + 0.01 rounded up to
+/// three decimals, one thousandth more for courtyard_dragon and quarry_truck, whose sums land on a
+/// thousandth within the unprinted fifth decimal). The cube-map background fails city_spot and
+/// courtyard_dragon.
+const FRAME_BOUNDS: [(&str, f32); 5] =
+    [("quarry_bunny", 0.040), ("blouberg_teapot", 0.028), ("courtyard_dragon", 0.051), ("city_spot", 0.030), ("quarry_truck", 0.047)];
+
 #[test]
 fn default_method_against_path_traced_references() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference");
@@ -67,6 +77,8 @@ fn default_method_against_path_traced_references() {
         let (frame, roi, luminance) = score(&reference, &rgb).unwrap();
         eprintln!("{name}: {}: FLIP frame {frame:.4}, ROI {roi:.4}, model luminance / reference {luminance:.3}", scene.method.name());
         assert!(roi <= bound, "{name}: mean FLIP in the model + shadow {roi:.3} > {bound}");
+        let frame_bound = FRAME_BOUNDS.iter().find(|(n, _)| *n == name).map(|(_, b)| *b).unwrap();
+        assert!(frame <= frame_bound, "{name}: mean FLIP over the frame {frame:.3} > {frame_bound}");
         assert!(
             (luminance - 1.0).abs() <= luminance_error,
             "{name}: model luminance / reference {luminance:.2}, off by more than {luminance_error}"

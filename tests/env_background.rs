@@ -93,6 +93,18 @@ fn an_equirect_background_is_its_direct_lookup_and_the_cube_is_not() {
     eprintln!("through the cube map: largest difference {cube_max:.2}, mean {cube_mean:.3} levels");
     assert!(cube_mean > 5.0 * direct_mean && cube_max > 20.0, "cube map: largest {cube_max}, mean {cube_mean} levels");
 
+    // Across the map's seam (u = 0 and 1 meet at azimuth 25° + 180°) and up at the zenith, where
+    // the rows stop (the sampler wraps in u and clamps in v, as Equirect::sample_uv does).
+    compositor.set_equirect_background(gpu(), Some(map)).unwrap();
+    for (heading, pitch) in [(205.0f32, 0.0f32), (205.0, 80.0), (10.0, -80.0)] {
+        let mut p = params;
+        p.camera.pose = previz::render::view::camera_pose(heading.to_radians(), pitch.to_radians(), 0.0);
+        let want = expected(map, &p.camera, (w, h), 25f32.to_radians(), 0.8);
+        let (max, mean) = differences(&compositor.render(gpu(), &p, Layer::Background).unwrap(), &want);
+        eprintln!("heading {heading}°, pitch {pitch}°: largest difference {max:.2}, mean {mean:.3} levels");
+        assert!(max <= 1.0 && mean <= 0.3, "heading {heading}°, pitch {pitch}°: largest {max}, mean {mean} levels");
+    }
+
     // Set again, then a new environment: the cube map is seen until its equirect is set again.
     compositor.set_equirect_background(gpu(), Some(map)).unwrap();
     assert_eq!(differences(&compositor.render(gpu(), &params, Layer::Background).unwrap(), &want), (direct_max, direct_mean));

@@ -189,8 +189,7 @@ pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor,
 pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams, SceneLight)> {
     let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, Antialiasing::STILL)?;
     let (mut compositor, params, light) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
-    compositor.set_equirect_background(gpu, inputs.env_equirect.as_deref())?;
-    compositor.set_background(gpu, inputs.background.as_ref())?;
+    set_background(gpu, &mut compositor, inputs)?;
     Ok((compositor, params, light))
 }
 
@@ -199,9 +198,16 @@ pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(
 pub fn prepare_antialiased(gpu: &Gpu, scene: &Scene, inputs: &Inputs, aa: Antialiasing) -> Result<(Compositor, FrameParams)> {
     let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, aa)?;
     let (mut compositor, params, _) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
-    compositor.set_equirect_background(gpu, inputs.env_equirect.as_deref())?;
-    compositor.set_background(gpu, inputs.background.as_ref())?;
+    set_background(gpu, &mut compositor, inputs)?;
     Ok((compositor, params))
+}
+
+/// The inputs' background image, or without one the environment seen by the camera: in its
+/// equirectangular image when it was loaded from one (uploaded only then), else in the cube map.
+fn set_background(gpu: &Gpu, compositor: &mut Compositor, inputs: &Inputs) -> Result<()> {
+    let equirect = inputs.env_equirect.as_deref().filter(|_| inputs.background.is_none());
+    compositor.set_equirect_background(gpu, equirect)?;
+    compositor.set_background(gpu, inputs.background.as_ref())
 }
 
 /// A compositor with the scene's environment (at its exposure and heading) and model, and the

@@ -65,6 +65,15 @@ fn env_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(r.x, r.z, r.y);
 }
 
+// World direction of the camera ray through a point of the target (uv (0,0) = top-left).
+fn view_ray_world(frame: Frame, uv: vec2<f32>) -> vec3<f32> {
+    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let d_cam = vec3<f32>(ndc.x * frame.tan_half_vfov * frame.aspect, ndc.y * frame.tan_half_vfov, -1.0);
+    // view is a rigid transform: its rotation's transpose maps camera -> world.
+    let r = mat3x3<f32>(frame.view[0].xyz, frame.view[1].xyz, frame.view[2].xyz);
+    return normalize(transpose(r) * d_cam);
+}
+
 // Fraction of sunlight reaching world point p (1 = lit), 3x3 PCF over the sun's depth map.
 // Points outside the shadow camera's footprint are lit: every occluder (the model) is inside it.
 fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, p: vec3<f32>) -> f32 {

@@ -41,13 +41,28 @@ use std::path::Path;
 /// 0.96, 0.96, 1.06, 1.01, 1.00; bounds = measured + 0.01 FLIP (quarry_truck's 0.137 + 0.01 would
 /// loosen its 0.144: kept), luminance errors measured + 0.03 where that tightens them (dragon
 /// 0.29 → 0.09, truck 0.07 → 0.04; the bunny's 0.036 and blouberg's 0.041 keep 0.04 and 0.05).
+/// Eighth session (2026-12-01, s8-bg): the background looked up in the equirect, not through the
+/// cube map: ROI 0.1285, 0.0904, 0.1282, 0.0980, 0.1361 (unchanged within 0.0003; the frame's FLIP
+/// 0.039, 0.018, 0.053, 0.031, 0.044 → 0.0299, 0.0171, 0.0400, 0.0193, 0.0360) and luminance
+/// 0.964, 0.959, 1.059, 1.013, 1.001; bounds = measured + 0.01 rounded up to three decimals:
+/// city_spot 0.109 → 0.108, the others as they were.
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.139, 0.04),
     ("blouberg_teapot", 0.101, 0.05),
     ("courtyard_dragon", 0.139, 0.09),
-    ("city_spot", 0.109, 0.05),
+    ("city_spot", 0.108, 0.05),
     ("quarry_truck", 0.144, 0.04),
 ];
+
+/// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
+/// so this holds the background's agreement with the references' (eighth session, 2026-12-01:
+/// the background looked up in the equirect, frame FLIP 0.039, 0.018, 0.053, 0.031, 0.044 through
+/// the cube map → 0.0299, 0.0171, 0.0400, 0.0193, 0.0360; bounds = measured + 0.01 rounded up to
+/// three decimals, one thousandth more for courtyard_dragon and quarry_truck, whose sums land on a
+/// thousandth within the unprinted fifth decimal). The cube-map background fails city_spot and
+/// courtyard_dragon.
+const FRAME_BOUNDS: [(&str, f32); 5] =
+    [("quarry_bunny", 0.040), ("blouberg_teapot", 0.028), ("courtyard_dragon", 0.051), ("city_spot", 0.030), ("quarry_truck", 0.047)];
 
 #[test]
 fn default_method_against_path_traced_references() {
@@ -60,8 +75,10 @@ fn default_method_against_path_traced_references() {
         let image = common::render_with(&scene, &inputs, Layer::Composite);
         let rgb: Vec<u8> = image.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         let (frame, roi, luminance) = score(&reference, &rgb).unwrap();
-        eprintln!("{name}: {}: FLIP frame {frame:.3}, ROI {roi:.3}, model luminance / reference {luminance:.2}", scene.method.name());
+        eprintln!("{name}: {}: FLIP frame {frame:.4}, ROI {roi:.4}, model luminance / reference {luminance:.3}", scene.method.name());
         assert!(roi <= bound, "{name}: mean FLIP in the model + shadow {roi:.3} > {bound}");
+        let frame_bound = FRAME_BOUNDS.iter().find(|(n, _)| *n == name).map(|(_, b)| *b).unwrap();
+        assert!(frame <= frame_bound, "{name}: mean FLIP over the frame {frame:.3} > {frame_bound}");
         assert!(
             (luminance - 1.0).abs() <= luminance_error,
             "{name}: model luminance / reference {luminance:.2}, off by more than {luminance_error}"

@@ -7,14 +7,18 @@ mod common;
 use common::{FRAME_RESOURCES, assert_unchanged, gpu, scene, settled_counters, triangle};
 use previz::render::{Antialiasing, Layer};
 use previz::scene::CubeMap;
+use previz::scene::environment::Equirect;
 use previz::setup::{Inputs, prepare, prepare_antialiased};
 
 #[test]
 fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     let s = scene("width = 160\nheight = 120\n");
-    let inputs =
-        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    // The background is the environment's equirect, looked up directly (env_view_equirect.wgsl).
+    let equirect = Equirect::new(8, 4, vec![[0.5; 3]; 32]).unwrap();
+    let env = CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
+    let inputs = Inputs { model: triangle(), env, env_equirect: Some(std::sync::Arc::new(equirect)), background: None };
     let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
+    assert!(compositor.background_sees_equirect());
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
     let start = params;
     let before = settled_counters();
@@ -74,8 +78,12 @@ fn placements_write_the_ground_sky_once_each(compositor: &mut previz::render::Co
 /// allocate nothing either.
 fn antialiased_frames_allocate_nothing() {
     let s = scene("width = 160\nheight = 120\n");
-    let inputs =
-        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let inputs = Inputs {
+        model: triangle(),
+        env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) },
+        env_equirect: None,
+        background: None,
+    };
     for aa in [Antialiasing::Fxaa, Antialiasing::Msaa(4)] {
         let (mut compositor, mut params) = prepare_antialiased(gpu(), &s, &inputs, aa).unwrap();
         assert_eq!(compositor.antialiasing(), aa);
@@ -100,7 +108,12 @@ fill = 0.8
 ",
     );
     let model = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();
-    let inputs = Inputs { model, env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let inputs = Inputs {
+        model,
+        env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) },
+        env_equirect: None,
+        background: None,
+    };
     let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
     assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
     // A colour correction (the first asks for the model's statistics) and the sun up, so the
@@ -160,8 +173,12 @@ fill = 0.8
 /// Called from the one test: the counters are per device and tests run in parallel.
 fn a_second_composite_reuses_the_pipelines() {
     let s = scene("width = 96\nheight = 64\n");
-    let inputs =
-        Inputs { model: triangle(), env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) }, background: None };
+    let inputs = Inputs {
+        model: triangle(),
+        env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) },
+        env_equirect: None,
+        background: None,
+    };
     let (mut first, params) = prepare(gpu(), &s, &inputs).unwrap();
     first.render(gpu(), &params, Layer::Composite).unwrap();
     let before = settled_counters();

@@ -63,7 +63,7 @@ fn shader_applies_the_correction_built_from_the_priors() {
     let target = model_priors(&model).unwrap().stats;
     for env_dir in ["cubemaps/humus_Park2_512", "hdri/polyhaven_1k/venice_sunset_1k.hdr"] {
         let env = previz::scene::environment::load_environment(&data(env_dir)).unwrap();
-        let inputs = Inputs { model: model.clone(), env, background: None };
+        let inputs = Inputs { model: model.clone(), env, env_equirect: None, background: None };
         // One compositor per environment; the correction is a per-frame setting.
         let s = scene(&flat(env_dir, TransferMethod::None, 1.0));
         let source = environment_priors_scaled(&inputs.env, exposure(&s, &inputs.env)).unwrap().horizontal;
@@ -109,7 +109,7 @@ fn a_correction_needs_model_statistics() {
         }
     }
     let env = previz::scene::environment::load_environment(&data("cubemaps/humus_Park2_512")).unwrap();
-    let inputs = Inputs { model, env, background: None };
+    let inputs = Inputs { model, env, env_equirect: None, background: None };
     let plain = scene(&flat("cubemaps/humus_Park2_512", TransferMethod::None, 1.0));
     let (mut compositor, params) = prepare(gpu(), &plain, &inputs).unwrap();
     assert!(compositor.render(gpu(), &params, Layer::Model).is_ok());

@@ -69,7 +69,7 @@ fn sphere_radius() -> f64 {
 
 fn render(toml: &str, env: CubeMap, layer: Layer) -> Rendered {
     let s = scene(&format!("width = 240\nheight = 240\n{toml}"));
-    render_with(&s, &Inputs { model: sphere(), env, background: None }, layer)
+    render_with(&s, &Inputs { model: sphere(), env, env_equirect: None, background: None }, layer)
 }
 
 #[test]
@@ -182,7 +182,7 @@ fn an_overcast_sky_darkens_the_ground_under_the_model_and_nowhere_else() {
     // A uniform grey sky: no sun, all of the ground's light comes from the sky, so where the
     // model hides a share of the (cosine-weighted) sky the ground keeps the rest.
     let s = scene("width = 240\nheight = 240\nmethod = \"sh9-ggx\"\n[camera]\npitch = -30.0\n");
-    let inputs = Inputs { model: sphere(), env: solid_cube([[0.3; 3]; 6]), background: None };
+    let inputs = Inputs { model: sphere(), env: solid_cube([[0.3; 3]; 6]), env_equirect: None, background: None };
     let (mut compositor, params) = previz::setup::prepare(common::gpu(), &s, &inputs).unwrap();
     assert_eq!(params.lighting.shadow_opacity, 0.0);
     assert!((params.lighting.sky_occlusion - 1.0).abs() < 1e-6, "{}", params.lighting.sky_occlusion);

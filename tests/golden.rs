@@ -41,7 +41,7 @@ fn park() -> &'static previz::scene::CubeMap {
 }
 
 fn sphere_inputs() -> Inputs {
-    Inputs { model: uv_sphere(48, 96), env: park().clone(), background: None }
+    Inputs { model: uv_sphere(48, 96), env: park().clone(), env_equirect: None, background: None }
 }
 
 fn sphere_under_sun(name: &str, sun: &str) {

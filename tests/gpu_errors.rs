@@ -98,7 +98,7 @@ fn pipeline_creation_and_the_priors_reduction_return_gpu_errors() {
 fn a_rejected_model_or_environment_leaves_the_current_one() {
     let gpu = small_gpu(|_| {});
     let scene = SceneBuilder::from_toml("width = 64\nheight = 48\n", std::path::Path::new(".")).unwrap().build().unwrap();
-    let inputs = Inputs { model: model(grey(8, 8)), env: cube(8), background: None };
+    let inputs = Inputs { model: model(grey(8, 8)), env: cube(8), env_equirect: None, background: None };
     let (mut compositor, params) = prepare(&gpu, &scene, &inputs).unwrap();
     let before = compositor.render(&gpu, &params, Layer::Composite).unwrap().rgba;
     let background = compositor.render(&gpu, &params, Layer::Background).unwrap().rgba;

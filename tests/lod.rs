@@ -22,7 +22,7 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let chain = LodChain::build(&full.model);
     assert!(chain.len() >= 6, "the bunny's chain: {:?}", chain.triangles);
     let render = |model| {
-        let i = Inputs { model, env: full.env.clone(), background: None };
+        let i = Inputs { model, env: full.env.clone(), env_equirect: None, background: None };
         let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
         c.set_full_detail(true);
         rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba)
@@ -128,7 +128,7 @@ fn shadow_and_ground_passes_run_only_when_needed() {
 #[test]
 fn a_kept_shadow_map_gives_the_frame_a_fresh_one_gives() {
     let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.5\n");
-    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
+    let i = Inputs { model: cube(), env: inputs(&s).env, env_equirect: None, background: None };
     let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
     let sun = |az: f32| {
         let (el, az) = (35f32.to_radians(), az.to_radians());
@@ -192,7 +192,7 @@ fn cube() -> previz::scene::Model {
 #[test]
 fn a_small_shadow_from_a_small_map_matches_the_full_map() {
     let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.2\n");
-    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
+    let i = Inputs { model: cube(), env: inputs(&s).env, env_equirect: None, background: None };
     let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
     assert_eq!(c.lod_triangles().unwrap(), &[12], "the cube must have one level");
     // Sun 35° up in the south-west: the shadow falls north-east, beside the cube.
@@ -240,7 +240,7 @@ fn the_ground_is_drawn_only_where_it_can_darken() {
     let s = scene(&format!("width = {w}\nheight = {h}\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.8\n"));
     let sphere = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();
     for (name, model) in [("cube", cube()), ("sphere", sphere)] {
-        let i = Inputs { model, env: inputs(&s).env, background: None };
+        let i = Inputs { model, env: inputs(&s).env, env_equirect: None, background: None };
         let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
         p.lighting.sunlight = 1.0;
         p.lighting.shadow_opacity = 0.8;
@@ -337,7 +337,7 @@ fn auto_picks_the_method_each_scene_needs() {
         m
     };
     let method = |model: previz::scene::Model, env: &previz::scene::CubeMap| {
-        let i = Inputs { model, env: env.clone(), background: None };
+        let i = Inputs { model, env: env.clone(), env_equirect: None, background: None };
         prepare(gpu(), &s, &i).unwrap().1.method
     };
     assert_eq!(method(with(|_| {}), &park), LightingMethod::Sh9Ggx);
@@ -351,7 +351,7 @@ fn auto_picks_the_method_each_scene_needs() {
     // A method by name is kept.
     let mut named = s.clone();
     named.method = previz::setup::method_choice::MethodRequest::Fixed(LightingMethod::BlinnPhong);
-    let i = Inputs { model: with(chrome), env: park, background: None };
+    let i = Inputs { model: with(chrome), env: park, env_equirect: None, background: None };
     assert_eq!(prepare(gpu(), &named, &i).unwrap().1.method, LightingMethod::BlinnPhong);
 }
 
@@ -367,7 +367,7 @@ fn model_work_is_reused_until_the_model_changes() {
     // A model no other test uses (the cache is the device's, shared by the tests running in parallel).
     let mut model = cube();
     model.meshes[0].positions.iter_mut().for_each(|p| p[0] *= 1.25);
-    let i = Inputs { model: model.clone(), env: inputs(&s).env, background: None };
+    let i = Inputs { model: model.clone(), env: inputs(&s).env, env_equirect: None, background: None };
     let (mut first, p) = prepare(gpu(), &s, &i).unwrap();
     first.render(gpu(), &p, Layer::Composite).unwrap();
     let prepared = first.prepared_model().unwrap().clone();
@@ -395,7 +395,7 @@ fn fxaa_brings_the_silhouette_towards_4x_msaa() {
     use previz::render::Antialiasing;
     let s =
         scene("width = 160\nheight = 120\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.6\nrotation = [0, 0, 30]\n");
-    let i = Inputs { model: cube(), env: inputs(&s).env, background: None };
+    let i = Inputs { model: cube(), env: inputs(&s).env, env_equirect: None, background: None };
     let render = |aa, layer| {
         let (mut c, p) = previz::setup::prepare_antialiased(gpu(), &s, &i, aa).unwrap();
         c.render(gpu(), &p, layer).unwrap().rgba

@@ -345,7 +345,7 @@ fn supersampled(gpu: &Gpu, scene: &Scene, inputs: &Inputs, p: &FrameParams) -> R
     let (w, h) = (scene.width, scene.height);
     let big = Scene { width: 2 * w, height: 2 * h, ..scene.clone() };
     let background = inputs.background.as_ref().map(|b| crate::scene::background::fit(b, 2 * w, 2 * h));
-    let big_inputs = Inputs { model: inputs.model.clone(), env: inputs.env.clone(), background };
+    let big_inputs = Inputs { model: inputs.model.clone(), env: inputs.env.clone(), env_equirect: inputs.env_equirect.clone(), background };
     let (mut c, big_params): (Compositor, FrameParams) = prepare_antialiased(gpu, &big, &big_inputs, Antialiasing::Msaa(4))?;
     c.set_full_detail(true);
     c.set_full_shadow(true);

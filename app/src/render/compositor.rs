@@ -22,6 +22,7 @@ use super::shadow_fit::{self, ShadowDrawn};
 use super::targets::Targets;
 use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use crate::gpu::{Gpu, GpuTimer, build};
+use crate::scene::environment::Equirect;
 use crate::scene::{CubeMap, Model, Rgba8Image, occlusion};
 use anyhow::{Result, anyhow};
 use glam::Vec3;
@@ -242,6 +243,8 @@ impl Compositor {
     /// of the same `cube`, e.g. on another thread).
     pub fn set_prepared_environment(&mut self, gpu: &Gpu, cube: &CubeMap, prepared: environment::Prepared) -> Result<()> {
         let environment::Prepared { levels, env } = prepared;
+        // The camera sees the new cube map until its equirectangular source is set again.
+        self.background.use_cube();
         if let Some(textures) = self.env_textures.as_ref().filter(|t| t.size() == cube.size) {
             gpu.checked("the environment cube map", || textures.write(gpu, cube, &levels))?;
             self.env = Some(env);
@@ -267,6 +270,22 @@ impl Compositor {
         self.env = Some(env);
         self.environment_writes += 1;
         Ok(())
+    }
+
+    /// Draw the background of the environment (when no image is given) from `map`, the
+    /// equirectangular image the environment last set was made from (scene::environment::
+    /// load_environment_and_equirect; heading and exposure are the environment's), looked up
+    /// directly and not through the cube map: the cube map still lights the model. `None`, and
+    /// any later [`Compositor::set_environment`], go back to the cube map. A map beyond the
+    /// device's 2D texture size keeps the cube map.
+    pub fn set_equirect_background(&mut self, gpu: &Gpu, map: Option<&Equirect>) -> Result<()> {
+        self.background.set_equirect(gpu, &self.pipelines, &self.frame_buf, map)
+    }
+
+    /// Whether the background of the environment is looked up in an equirectangular map
+    /// ([`Compositor::set_equirect_background`]) rather than in the cube map.
+    pub fn background_sees_equirect(&self) -> bool {
+        self.background.sees_equirect()
     }
 
     /// How many environments have been set (made or refreshed in place) on this compositor.

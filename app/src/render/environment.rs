@@ -144,10 +144,13 @@ pub struct Environment {
     pub heading: f32,
 }
 
-/// One face's RGB texels as RGBA16F (alpha 1). The map is radiance: a negative value (which a
-/// loader should already have repaired) is clamped to 0.
+/// One face's (or an equirectangular map's) RGB texels as RGBA16F (alpha 1). The map is
+/// radiance: a negative value (which a loader should already have repaired) is clamped to 0, and
+/// one above the largest half float (65504; quarry_01's sun reaches 86528) to that, not to
+/// infinity, which the sampler's filter would turn into NaN beside it (0 × ∞).
 pub fn rgba16f_texels(face: &[[f32; 3]]) -> Vec<half::f16> {
-    face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.max(0.0))).collect()
+    let max = half::f16::MAX.to_f32();
+    face.iter().flat_map(|p| [p[0], p[1], p[2], 1.0]).map(|v| half::f16::from_f32(v.clamp(0.0, max))).collect()
 }
 
 /// The environment's views on the GPU.
@@ -312,10 +315,10 @@ mod tests {
     }
 
     #[test]
-    fn texels_are_rgba_halves_with_negatives_clamped() {
-        let t = rgba16f_texels(&[[0.5, -2.0, 1000.0], [0.0, 0.25, 65504.0]]);
+    fn texels_are_rgba_halves_clamped_to_zero_and_the_largest_half() {
+        let t = rgba16f_texels(&[[0.5, -2.0, 1000.0], [0.0, 0.25, 65504.0], [86528.0, 1e30, 2.0]]);
         let f: Vec<f32> = t.iter().map(|h| h.to_f32()).collect();
-        // 0.5, 0.25, 1000 and 65504 (the largest finite half) are exact in f16.
-        assert_eq!(f, [0.5, 0.0, 1000.0, 1.0, 0.0, 0.25, 65504.0, 1.0]);
+        // 0.5, 0.25, 1000 and 65504 (the largest finite half) are exact in f16; above it, 65504.
+        assert_eq!(f, [0.5, 0.0, 1000.0, 1.0, 0.0, 0.25, 65504.0, 1.0, 65504.0, 65504.0, 2.0, 1.0]);
     }
 }

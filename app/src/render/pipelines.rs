@@ -105,6 +105,8 @@ pub struct Pipelines {
     /// Samples per pixel of the composite's targets that these pipelines draw into.
     pub samples: u32,
     pub env_view: PassPipeline,
+    /// The environment view of an equirectangular map (no cube map in between).
+    pub env_view_equirect: PassPipeline,
     pub background: PassPipeline,
     pub shadow: PassPipeline,
     pub ground: ground::GroundPipelines,
@@ -113,6 +115,9 @@ pub struct Pipelines {
     pub fxaa: PassPipeline,
     pub linear_sampler: wgpu::Sampler,
     pub repeat_sampler: wgpu::Sampler,
+    /// Linear, wrapping around horizontally and clamped vertically: an equirectangular map's
+    /// azimuth goes round, its elevation stops at the poles.
+    pub equirect_sampler: wgpu::Sampler,
     pub shadow_sampler: wgpu::Sampler,
     /// Nearest texel, no comparison: the soft shadow's blocker search gathers the map's depths
     /// with it (frame.wgsl `sun_visibility_soft`).
@@ -142,6 +147,7 @@ impl Pipelines {
         Pipelines {
             samples,
             env_view: background::env_view_pipeline(device),
+            env_view_equirect: background::env_view_equirect_pipeline(device),
             background: background::pipeline(device, samples),
             shadow: shadow::pipeline(device),
             ground: ground::pipeline(device, samples),
@@ -149,6 +155,13 @@ impl Pipelines {
             fxaa: super::antialiasing::fxaa_pipeline(device),
             linear_sampler: build::linear_sampler(device, "clamp", wgpu::AddressMode::ClampToEdge),
             repeat_sampler: build::linear_sampler(device, "repeat", wgpu::AddressMode::Repeat),
+            equirect_sampler: device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("equirect"),
+                address_mode_u: wgpu::AddressMode::Repeat,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                ..Default::default()
+            }),
             shadow_sampler: device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("shadow"),
                 compare: Some(wgpu::CompareFunction::LessEqual),

@@ -6,6 +6,7 @@
 pub enum Technique {
     Background,
     EnvView,
+    EnvViewEquirect,
     Shadow,
     Ground,
     Model,
@@ -13,13 +14,21 @@ pub enum Technique {
 }
 
 impl Technique {
-    pub const ALL: [Technique; 6] =
-        [Technique::Background, Technique::EnvView, Technique::Shadow, Technique::Ground, Technique::Model, Technique::Fxaa];
+    pub const ALL: [Technique; 7] = [
+        Technique::Background,
+        Technique::EnvView,
+        Technique::EnvViewEquirect,
+        Technique::Shadow,
+        Technique::Ground,
+        Technique::Model,
+        Technique::Fxaa,
+    ];
 
     fn file(self) -> &'static str {
         match self {
             Technique::Background => include_str!("../../../shaders/background.wgsl"),
             Technique::EnvView => include_str!("../../../shaders/env_view.wgsl"),
+            Technique::EnvViewEquirect => include_str!("../../../shaders/env_view_equirect.wgsl"),
             Technique::Shadow => include_str!("../../../shaders/shadow.wgsl"),
             Technique::Ground => include_str!("../../../shaders/ground.wgsl"),
             Technique::Model => include_str!("../../../shaders/model.wgsl"),
@@ -46,6 +55,9 @@ pub fn source(t: Technique) -> String {
                 crate::colour::correction::COLOUR_CORRECT_WGSL,
                 t.file()
             )
+        }
+        Technique::EnvViewEquirect => {
+            format!("{FRAME_WGSL}\nconst ENV_VIEW_TAPS: u32 = {}u;\n{}", super::passes::background::ENV_VIEW_TAPS, t.file())
         }
         _ => format!("{FRAME_WGSL}\n{}", t.file()),
     };

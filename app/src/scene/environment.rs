@@ -68,8 +68,19 @@ pub fn load_environment_with(path: &Path, options: &EnvOptions) -> Result<CubeMa
         bail!("{}: unsupported environment (a folder of six faces, or an equirectangular .hdr, .exr, .jpg or .png)", path.display());
     }
     let equirect = load_equirect(path)?;
-    let size = options.face_size.unwrap_or_else(|| (equirect.width / 4).max(1).next_power_of_two().min(2048));
-    Ok(equirect.to_cube(size, heading))
+    Ok(equirect.to_cube(options.face_size.unwrap_or_else(|| equirect.default_face_size()), heading))
+}
+
+/// Load an environment as [`load_environment`] does, and keep an equirectangular source (None
+/// for a face folder) for the background, which looks it up directly (render::passes::background):
+/// the cube map is a second resampling that blurs what the camera sees of the map.
+pub fn load_environment_and_equirect(path: &Path) -> Result<(CubeMap, Option<Equirect>)> {
+    let image = |e: &std::ffi::OsStr| IMAGE_EXTS.contains(&e.to_string_lossy().to_ascii_lowercase().as_str());
+    if path.is_dir() || !path.extension().is_some_and(image) {
+        return Ok((load_environment(path)?, None));
+    }
+    let equirect = load_equirect(path)?;
+    Ok((equirect.to_cube(equirect.default_face_size(), 0.0), Some(equirect)))
 }
 
 /// Load an equirectangular image (.hdr, .exr, .jpg, .png) in linear light, without resampling.
@@ -352,6 +363,12 @@ impl Equirect {
             let bottom = c[i] + (d[i] - c[i]) * fx;
             top + (bottom - top) * fy
         })
+    }
+
+    /// The cube face size an environment of this width gets by default: a quarter of the width
+    /// rounded up to a power of two (1024×512 → 256), at most 2048.
+    pub fn default_face_size(&self) -> u32 {
+        (self.width / 4).max(1).next_power_of_two().min(2048)
     }
 
     /// Resample to a cube map of `size`×`size` faces. Each texel averages 2×2 bilinear samples

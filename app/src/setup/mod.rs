@@ -6,10 +6,12 @@
 
 use crate::gpu::Gpu;
 use crate::render::{Antialiasing, Camera, ColourSettings, Compositor, FrameParams, Lighting, MaterialTerms, Placement, view};
+use crate::scene::environment::Equirect;
 use crate::scene::{CubeMap, Model, Rgba8Image, demo};
 use crate::setup::scene_file::Scene;
 use anyhow::{Context, Result};
 use glam::Vec3;
+use std::sync::Arc;
 
 pub mod light;
 pub mod method_choice;
@@ -29,6 +31,10 @@ pub fn spa_sun(scene: &Scene) -> Result<Option<crate::sun::SunPosition>> {
 pub struct Inputs {
     pub model: Model,
     pub env: CubeMap,
+    /// The environment as the equirectangular image it was loaded from (None for cube faces):
+    /// without a background image the camera sees this, looked up directly
+    /// (Compositor::set_equirect_background), not through `env`.
+    pub env_equirect: Option<Arc<Equirect>>,
     pub background: Option<Rgba8Image>,
 }
 
@@ -38,9 +44,9 @@ pub fn load_inputs(scene: &Scene, demo: bool) -> Result<Inputs> {
         Some(p) => crate::scene::model::load_model(p)?,
         None => demo::model()?,
     };
-    let env = match &scene.environment {
-        Some(p) => crate::scene::environment::load_environment(p)?,
-        None => demo::environment()?,
+    let (env, env_equirect) = match &scene.environment {
+        Some(p) => crate::scene::environment::load_environment_and_equirect(p)?,
+        None => (demo::environment()?, None),
     };
     let background = match (&scene.background, demo) {
         (Some(p), _) => Some(crate::scene::background::load_image(p)?),
@@ -48,7 +54,7 @@ pub fn load_inputs(scene: &Scene, demo: bool) -> Result<Inputs> {
         (None, false) => None,
     };
     let background = background.map(|b| crate::scene::background::fit(&b, scene.width, scene.height));
-    Ok(Inputs { model, env, background })
+    Ok(Inputs { model, env, env_equirect: env_equirect.map(Arc::new), background })
 }
 
 /// Exposure for the environment: the scene's, else 1 for 8-bit maps (all values ≤ 1) and, for
@@ -183,7 +189,7 @@ pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor,
 pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams, SceneLight)> {
     let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, Antialiasing::STILL)?;
     let (mut compositor, params, light) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
-    compositor.set_background(gpu, inputs.background.as_ref())?;
+    set_background(gpu, &mut compositor, inputs)?;
     Ok((compositor, params, light))
 }
 
@@ -192,8 +198,16 @@ pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(
 pub fn prepare_antialiased(gpu: &Gpu, scene: &Scene, inputs: &Inputs, aa: Antialiasing) -> Result<(Compositor, FrameParams)> {
     let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, aa)?;
     let (mut compositor, params, _) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
-    compositor.set_background(gpu, inputs.background.as_ref())?;
+    set_background(gpu, &mut compositor, inputs)?;
     Ok((compositor, params))
+}
+
+/// The inputs' background image, or without one the environment seen by the camera: in its
+/// equirectangular image when it was loaded from one (uploaded only then), else in the cube map.
+fn set_background(gpu: &Gpu, compositor: &mut Compositor, inputs: &Inputs) -> Result<()> {
+    let equirect = inputs.env_equirect.as_deref().filter(|_| inputs.background.is_none());
+    compositor.set_equirect_background(gpu, equirect)?;
+    compositor.set_background(gpu, inputs.background.as_ref())
 }
 
 /// A compositor with the scene's environment (at its exposure and heading) and model, and the

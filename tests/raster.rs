@@ -1,4 +1,5 @@
-//! The model pass's raster side: which faces a material shows (glTF `doubleSided`).
+//! The model pass's raster side: which faces a material shows (glTF `doubleSided`) and the
+//! triangle order each level of detail is drawn in.
 
 mod common;
 
@@ -147,4 +148,133 @@ fn a_double_sided_back_face_is_lit_with_its_normal_reversed() {
     eprintln!("unspecified: front {front_u:?}, back {back_u:?}");
     assert_eq!(front_u, front, "the front-facing square does not depend on the material's sides");
     assert!(luma(back_u) < 0.8 * luma(front_u), "not reversed, the back face is lit from behind: {back_u:?} vs {front_u:?}");
+}
+
+/// What the model pass rasterises for the benchmarks' two scenes, `bench live`'s truck (the
+/// demo scene) and `bench frame`'s dragon (960×640, pisa, coffee.png): per draw order and face
+/// culling, fragments shaded per covered pixel from a software raster of the level drawn
+/// (`scene::lod::order::overdraw`, the camera's own view; also the lanes of the 2×2 quads and
+/// 4×4 blocks those fragments fall in, per triangle), and the model pass's GPU time (each
+/// pass timed alone, medians) culling as the frame may against every triangle after a depth
+/// pre-pass (what main drew for an open mesh). Run:
+/// `cargo test --release --test raster -- --ignored --nocapture bench_model_raster`.
+#[test]
+#[ignore = "a benchmark; run it in release with --ignored --nocapture"]
+fn bench_model_raster() {
+    use previz::scene::lod::order::{Draw, overdraw};
+    use previz::setup::scene_file::SceneBuilder;
+    let shared = |rel: &str| format!("{}/../shared/data/{rel}", env!("CARGO_MANIFEST_DIR"));
+    let demo = SceneBuilder::from_toml(previz::scene::demo::SCENE_TOML, std::path::Path::new(".")).unwrap().build().unwrap();
+    let dragon = scene(&format!(
+        "model = \"{}\"\nenvironment = \"{}\"\nbackground = \"{}\"\n",
+        shared("meshes/stanford-dragon-100k.obj"),
+        shared("cubemaps/pisa_ldr_png"),
+        shared("photos/colour_transfer/coffee.png")
+    ));
+    let frames = 15;
+    for (name, s, demo_inputs) in [("truck (demo scene)", &demo, true), ("dragon 100k (bench frame)", &dragon, false)] {
+        let i = previz::setup::load_inputs(s, demo_inputs).unwrap();
+        let aa = previz::render::Antialiasing::for_adapter(&gpu().adapter.get_info());
+        let (mut c, p) = previz::setup::prepare_antialiased(gpu(), s, &i, aa).unwrap();
+        c.render(gpu(), &p, Layer::Composite).unwrap();
+        let level = c.lod_level();
+        let fd = c.frame_uniforms(&p).unwrap();
+        let clip = glam::Mat4::from_cols_array_2d(&fd.frame.view_proj) * glam::Mat4::from_cols_array_2d(&fd.instance.model);
+        let prepared = c.prepared_model().unwrap().clone();
+        let meshes: Vec<&previz::scene::Mesh> = i.model.meshes.iter().filter(|m| !m.indices.is_empty()).collect();
+        let simplified: Vec<Vec<u32>> = meshes
+            .iter()
+            .map(|m| {
+                let chain = previz::scene::lod::simplify_chain(m);
+                chain[level.min(chain.len() - 1)].0.clone()
+            })
+            .collect();
+        let ordered: Vec<Vec<u32>> = prepared
+            .chain
+            .meshes
+            .iter()
+            .filter(|l| !l.indices.is_empty())
+            .map(|l| {
+                let r = l.levels[level.min(l.levels.len() - 1)];
+                l.indices[r.first as usize..(r.first + r.count) as usize].to_vec()
+            })
+            .collect();
+        let closed: Vec<bool> = prepared.chain.meshes.iter().filter(|l| !l.indices.is_empty()).map(|l| l.closed[level]).collect();
+        let sides: Vec<Sides> = meshes.iter().map(|m| i.model.materials[m.material].sides).collect();
+        println!(
+            "\n{name}: {}x{}, level {level} ({} triangles), materials {:?}, closed {:?}",
+            s.width, s.height, prepared.chain.triangles[level], sides, closed
+        );
+        println!(
+            "| order | faces | fragments shaded / covered | rasterised / covered | 2x2 quad lanes / covered | 4x4 block lanes / covered | covered px |\n|---|---|---:|---:|---:|---:|---:|"
+        );
+        for (order, indices) in [("as simplified", &simplified), ("draw order", &ordered)] {
+            // Main culled closed meshes only; now single-sided materials too. Each mesh drawn
+            // without culling has a depth pre-pass.
+            for (faces, culled) in [
+                ("every triangle, pre-pass", vec![false; meshes.len()]),
+                ("closed culled (main)", closed.clone()),
+                (
+                    "closed and single-sided culled",
+                    closed.iter().zip(&sides).map(|(&c, &s)| s == Sides::Front || (s == Sides::Unspecified && c)).collect(),
+                ),
+            ] {
+                let draws: Vec<Draw<'_>> = meshes
+                    .iter()
+                    .zip(indices)
+                    .zip(&culled)
+                    .map(|((m, ix), &cull)| Draw { positions: &m.positions, indices: ix, cull, prepass: !cull })
+                    .collect();
+                let o = overdraw(&draws, clip, (s.width, s.height));
+                let per = |n: u64| n as f64 / o.covered as f64;
+                println!(
+                    "| {order} | {faces} | {:.3} | {:.3} | {:.2} | {:.2} | {} |",
+                    per(o.shaded),
+                    per(o.rasterised),
+                    per(4 * o.quads),
+                    per(16 * o.blocks),
+                    o.covered
+                );
+            }
+        }
+        // The pixels: culling as the frame may against every triangle (main's pixels for an open
+        // mesh), written for looking at.
+        let mut image = |cull: bool| {
+            c.set_culling(cull);
+            let r = c.render(gpu(), &p, Layer::Composite).unwrap();
+            let rgb: Vec<u8> = r.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+            let path = std::env::temp_dir().join(format!(
+                "raster-{}-{}.png",
+                name.split(' ').next().unwrap(),
+                if cull { "culled" } else { "every" }
+            ));
+            image::save_buffer(&path, &rgb, r.width, r.height, image::ExtendedColorType::Rgb8).unwrap();
+            rgb
+        };
+        let (culled, every) = (image(true), image(false));
+        let differing = culled.iter().zip(&every).filter(|(a, b)| a != b).count();
+        let flip = previz::capture::replay::mean_flip(&every, &culled, s.width, s.height).unwrap();
+        println!("composite, culled vs every triangle: mean FLIP {flip:.5}, {differing} of {} bytes differ", culled.len());
+        // GPU: the model pass alone, interleaving the two ways frame by frame.
+        c.set_pass_timing(true);
+        let mut ms = [Vec::new(), Vec::new()];
+        for k in 0..2 * (frames + 2) {
+            c.set_culling(k % 2 == 0);
+            let mut q = p;
+            q.camera.pose *= glam::Quat::from_rotation_y(1e-4 * k as f32);
+            let r = c.render(gpu(), &q, Layer::Composite).unwrap();
+            if k >= 4 {
+                ms[k % 2].push(r.timings.passes.and_then(|t| t.model).unwrap());
+            }
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (culled, every) = (median(&mut ms[0]), median(&mut ms[1]));
+        println!(
+            "model pass (GPU, median of {frames}): culling as the frame may {culled:.2} ms, every triangle after a pre-pass {every:.2} ms ({:.2}x)",
+            culled / every
+        );
+    }
 }

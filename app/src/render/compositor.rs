@@ -304,9 +304,9 @@ impl Compositor {
         self.full_detail = on;
     }
 
-    /// Cull the back faces of closed meshes seen from outside (true, the default) or draw every
-    /// triangle (after a depth pre-pass): the same pixels, for the tests and benchmarks that
-    /// check and measure it.
+    /// Cull back faces where the frame may (true, the default: single-sided glTF materials, and
+    /// closed meshes seen from outside) or draw every triangle after a depth pre-pass: for a
+    /// closed mesh the same pixels, for the tests and benchmarks that check and measure it.
     pub fn set_culling(&mut self, on: bool) {
         self.model_pass.set_culling(on);
     }

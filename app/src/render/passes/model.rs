@@ -34,14 +34,15 @@ pub struct ModelPipelines {
     /// The shading pipelines, indexed by [`shading_index`]: one per method (the shader's
     /// `METHOD` is a pipeline-override constant, so each compiles only its own branches), with
     /// and without colour correction (`COLOUR_CORRECTION` false: no correction code at all, for
-    /// frames that ask for none), drawing every triangle or culling back faces (a closed mesh
-    /// seen from outside, whose back faces are hidden).
+    /// frames that ask for none), drawing every triangle or culling back faces (a single-sided
+    /// material's, or a closed mesh's seen from outside, whose back faces are hidden).
     pub shading: Vec<wgpu::RenderPipeline>,
     /// The depth pre-pass of a mesh drawn without culling: its depth alone, so that the
     /// shading pipelines (depth test less-or-equal) shade each pixel once, not every surface
-    /// behind the nearest. A culled closed mesh has no pre-pass: only where it overlaps itself
-    /// is a pixel shaded twice, which costs less on lavapipe than drawing it twice
-    /// (docs/PERFORMANCE.md, seventh session).
+    /// behind the nearest. A culled mesh has no pre-pass: only where it overlaps itself is a
+    /// pixel shaded twice (its triangles' draw order, `scene::lod::order`, puts the near ones
+    /// first), which costs less on lavapipe than drawing it twice (docs/PERFORMANCE.md, seventh
+    /// and eighth sessions).
     pub prepass: wgpu::RenderPipeline,
 }
 

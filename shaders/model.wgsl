@@ -28,7 +28,8 @@ struct Material {
     albedo: vec4<f32>,
     // rgb: specular colour (linear); a: gloss exponent g_f
     specular: vec4<f32>,
-    // x: ambient term a_c, y: diffuse term d_c, z: specular term s_c, w: unused
+    // x: ambient term a_c, y: diffuse term d_c, z: specular term s_c, w: 1 for a double-sided
+    // material (glTF 2.0 §3.9.5: a back face is lit with its normal reversed), else 0
     terms: vec4<f32>,
 };
 
@@ -121,12 +122,16 @@ fn specular_factor(n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> f32 {
 }
 
 @fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     let method = METHOD;
     if (method == METHOD_SH9_GGX) {
+        // Turns every normal to the viewer, a double-sided material's back faces' too.
         return shade_sh9_ggx(in);
     }
     var n = normalize(in.normal);
+    if (!front && material.terms.w > 0.5) {
+        n = -n;
+    }
     let e = normalize(frame.camera_pos - in.world); // towards the camera
     let l = frame.sun_dir;                               // towards the sun
     let l_s = frame.sunlight;

@@ -15,7 +15,7 @@ use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::{GroundPass, INVISIBLE_LOSS, RegionCache, sky_loss_per_occlusion};
-use super::passes::model::{ModelGpu, ModelPass};
+use super::passes::model::{Culling, ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::pipelines::Pipelines;
 use super::shadow_fit::{self, ShadowDrawn};
@@ -323,9 +323,9 @@ impl Compositor {
         self.full_detail = on;
     }
 
-    /// Cull the back faces of closed meshes seen from outside (true, the default) or draw every
-    /// triangle (after a depth pre-pass): the same pixels, for the tests and benchmarks that
-    /// check and measure it.
+    /// Cull back faces where the frame may (true, the default: single-sided glTF materials, and
+    /// closed meshes seen from outside) or draw every triangle after a depth pre-pass: for a
+    /// closed mesh the same pixels, for the tests and benchmarks that check and measure it.
     pub fn set_culling(&mut self, on: bool) {
         self.model_pass.set_culling(on);
     }
@@ -447,9 +447,14 @@ impl Compositor {
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
         let (lod, distance, _) = lod_level(model.lod_errors(), model.bounds(), p, self.height);
         let level = if self.full_detail || p.method.bends_rays() { 0 } else { lod };
-        // Back faces of a closed mesh are hidden from a camera outside its bounds, unless a
-        // mirroring transform turns its faces inside out.
-        let cull = distance > 0.0 && super::view::model_matrix(model.bounds(), &p.placement).determinant() > 0.0;
+        // Back faces of a closed mesh are hidden from a camera outside its bounds, those of a
+        // single-sided material culled wherever the camera is, unless a mirroring transform
+        // turns the faces inside out.
+        let cull = match (super::view::model_matrix(model.bounds(), &p.placement).determinant() > 0.0, distance > 0.0) {
+            (false, _) => Culling::Nothing,
+            (true, false) => Culling::SingleSided,
+            (true, true) => Culling::SingleSidedAndClosed,
+        };
         let shadow = fit_shadow(p, &context);
         // The model samples the map whatever the sun (its shading uses the visibility beyond the
         // sun's own term), so the shadow pass runs whenever the model or its shadow is on
@@ -705,8 +710,9 @@ impl Compositor {
             match step {
                 // 3b. Background pass: the camera image fills the target around the model.
                 0 => in_group(pass, "background pass", |pass| self.background.draw(pass)),
-                // 5. Model pass: shading, reflection/refraction and colour correction. A closed
-                // mesh with its back faces culled; any other after its depth (a pre-pass), so
+                // 5. Model pass: shading, reflection/refraction and colour correction. A
+                // single-sided material or a closed mesh with its back faces culled; any other
+                // after its depth (a pre-pass), so
                 // each pixel is shaded once.
                 1 => in_group(pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?,
                 // 4. Ground pass: the shadow catcher darkens the background under the model.

@@ -43,9 +43,9 @@ pub struct FrameData {
     pub light: LightUniforms,
     /// The level of detail drawn (0: the model as loaded).
     pub level: usize,
-    /// Whether the model pass may cull the back faces of closed meshes: the camera is outside
-    /// the model's bounds and the model's transform does not mirror it.
-    pub cull: bool,
+    /// Which back faces the model pass may cull: none when the model's transform mirrors it;
+    /// those of closed meshes only when the camera is outside the model's bounds.
+    pub cull: super::passes::model::Culling,
     /// Whether the shadow pass has anything to do: sunlight to block and the model or its
     /// shadow on screen (render::shadow_fit::shadow_needed).
     pub shadow_pass: bool,

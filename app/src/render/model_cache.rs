@@ -51,6 +51,7 @@ impl ModelKey {
         for m in &model.materials {
             let values = [m.diffuse.as_slice(), &m.specular, &[m.shininess, m.opacity]].concat();
             values.iter().for_each(|v| v.to_bits().hash(&mut h));
+            (m.sides as u8).hash(&mut h);
             match &m.texture {
                 Some(t) => (t.width, t.height, &t.pixels).hash(&mut h),
                 None => 0u8.hash(&mut h),

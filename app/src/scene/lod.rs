@@ -29,6 +29,8 @@
 //! Level choice: [`select_level`] takes the coarsest level whose error, projected at the
 //! model's distance, stays under half a pixel.
 
+pub mod order;
+
 use super::{Mesh, Model};
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
@@ -41,7 +43,8 @@ pub struct IndexRange {
 }
 
 /// The levels of one mesh, all in one index list (level 0 = the mesh as loaded), so a renderer
-/// uploads one index buffer and switching level allocates nothing.
+/// uploads one index buffer and switching level allocates nothing. Each level's triangles are
+/// in draw order ([`order::draw_order`]: vertex reuse, then the outward-facing first).
 #[derive(Clone, Debug, Default)]
 pub struct MeshLods {
     pub indices: Vec<u32>,
@@ -80,9 +83,11 @@ impl LodChain {
         for (mesh, chain_of_mesh) in model.meshes.iter().zip(&per_mesh) {
             let mut lods = MeshLods::default();
             let welded = position_ids(&mesh.positions);
+            let ordered: Vec<Vec<u32>> = chain_of_mesh.iter().map(|(indices, _)| order::draw_order(&mesh.positions, indices)).collect();
             for (level, err) in chain.errors.iter_mut().enumerate() {
-                let (indices, e) = &chain_of_mesh[level.min(chain_of_mesh.len() - 1)];
-                *err = err.max(*e);
+                let at = level.min(chain_of_mesh.len() - 1);
+                *err = err.max(chain_of_mesh[at].1);
+                let indices = &ordered[at];
                 lods.levels.push(IndexRange { first: lods.indices.len() as u32, count: indices.len() as u32 });
                 lods.indices.extend_from_slice(indices);
                 lods.closed.push(is_closed(&welded, indices));
@@ -869,7 +874,13 @@ mod tests {
         }
         for (lods, mesh) in chain.meshes.iter().zip(&model.meshes) {
             assert_eq!(lods.levels.len(), chain.len());
-            assert_eq!(&lods.indices[..mesh.indices.len()], &mesh.indices[..], "level 0 is the mesh as loaded");
+            let sorted = |indices: &[u32]| {
+                let mut t: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+                t.sort();
+                t
+            };
+            // In draw order ([`order::draw_order`]), each triangle with its corners as loaded.
+            assert_eq!(sorted(&lods.indices[..mesh.indices.len()]), sorted(&mesh.indices), "level 0 is the mesh as loaded");
             for r in &lods.levels {
                 assert!((r.first + r.count) as usize <= lods.indices.len());
                 assert!(lods.indices[r.first as usize..][..r.count as usize].iter().all(|&i| (i as usize) < mesh.positions.len()));

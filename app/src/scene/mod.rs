@@ -27,6 +27,22 @@ pub struct Material {
     pub shininess: f32,
     /// 1 = opaque; below 1 the material is drawn as the transparent material of Eq. 7.
     pub opacity: f32,
+    /// Which faces of its triangles are seen (glTF `doubleSided`).
+    pub sides: Sides,
+}
+
+/// Which faces of a material's triangles are seen: glTF 2.0 §3.9.5 ("Double Sided"), where a
+/// material without `doubleSided` is single-sided. Front faces wind counter-clockwise.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Sides {
+    /// Not said (an OBJ has no such flag): every face is drawn; back faces are culled only where
+    /// they are hidden anyway (a closed surface seen from outside, `scene::lod::is_closed`).
+    #[default]
+    Unspecified,
+    /// glTF `doubleSided: false` (its default): back faces are culled.
+    Front,
+    /// glTF `doubleSided: true`: both faces are drawn, a back face lit with its normal reversed.
+    Both,
 }
 
 impl Default for Material {
@@ -38,6 +54,7 @@ impl Default for Material {
             specular: [0.25, 0.25, 0.25],
             shininess: 32.0,
             opacity: 1.0,
+            sides: Sides::Unspecified,
         }
     }
 }

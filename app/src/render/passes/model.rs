@@ -13,8 +13,8 @@ use crate::render::params::MaterialTerms;
 use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
-use crate::scene::Model;
 use crate::scene::lod::IndexRange;
+use crate::scene::{Model, Sides};
 use anyhow::{Result, anyhow};
 use glam::Vec3;
 use std::sync::Arc;
@@ -34,14 +34,15 @@ pub struct ModelPipelines {
     /// The shading pipelines, indexed by [`shading_index`]: one per method (the shader's
     /// `METHOD` is a pipeline-override constant, so each compiles only its own branches), with
     /// and without colour correction (`COLOUR_CORRECTION` false: no correction code at all, for
-    /// frames that ask for none), drawing every triangle or culling back faces (a closed mesh
-    /// seen from outside, whose back faces are hidden).
+    /// frames that ask for none), drawing every triangle or culling back faces (a single-sided
+    /// material's, or a closed mesh's seen from outside, whose back faces are hidden).
     pub shading: Vec<wgpu::RenderPipeline>,
     /// The depth pre-pass of a mesh drawn without culling: its depth alone, so that the
     /// shading pipelines (depth test less-or-equal) shade each pixel once, not every surface
-    /// behind the nearest. A culled closed mesh has no pre-pass: only where it overlaps itself
-    /// is a pixel shaded twice, which costs less on lavapipe than drawing it twice
-    /// (docs/PERFORMANCE.md, seventh session).
+    /// behind the nearest. A culled mesh has no pre-pass: only where it overlaps itself is a
+    /// pixel shaded twice (its triangles' draw order, `scene::lod::order`, puts the near ones
+    /// first), which costs less on lavapipe than drawing it twice (docs/PERFORMANCE.md, seventh
+    /// and eighth sessions).
     pub prepass: wgpu::RenderPipeline,
 }
 
@@ -199,11 +200,11 @@ pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines) -> wgpu
     )
 }
 
-/// A material's uniform for this frame: its own colours with the frame's Eq. 3 terms, and the
-/// frame's gloss exponent in place of its own when one is given.
+/// A material's uniform for this frame: its own colours and sides with the frame's Eq. 3 terms,
+/// and the frame's gloss exponent in place of its own when one is given.
 pub fn material_uniforms(base: &MaterialUniforms, terms: &MaterialTerms) -> MaterialUniforms {
     let mut m = *base;
-    m.terms = [terms.ambient, terms.diffuse, terms.specular, 0.0];
+    m.terms = [terms.ambient, terms.diffuse, terms.specular, base.terms[3]];
     if let Some(g) = terms.gloss {
         m.specular[3] = g;
     }
@@ -227,6 +228,22 @@ struct MeshGpu {
     /// Per level, whether it is a closed surface (`MeshLods::closed`: its back faces may be
     /// culled).
     closed: Vec<bool>,
+    /// Which faces its material shows.
+    sides: Sides,
+}
+
+/// Which back faces a frame may cull (`FrameData::cull`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Culling {
+    /// None: the model's transform mirrors it, turning its faces inside out.
+    #[default]
+    Nothing,
+    /// Those of single-sided materials ([`Sides::Front`]): the camera is inside the model's
+    /// bounds, where a closed mesh's back faces may be what it sees.
+    SingleSided,
+    /// Those of single-sided materials and of closed meshes ([`Sides::Unspecified`] and
+    /// `MeshLods::closed`): the camera is outside the model's bounds.
+    SingleSidedAndClosed,
 }
 
 /// A model on the GPU.
@@ -284,9 +301,8 @@ pub struct ModelPass {
     /// Indexed by [`shading_index`].
     shading: Vec<wgpu::RenderPipeline>,
     prepass: wgpu::RenderPipeline,
-    /// Whether this frame may cull the back faces of closed meshes (the camera outside the
-    /// model's bounds, the model not mirrored, culling not turned off).
-    cull: bool,
+    /// Which back faces this frame may cull.
+    cull: Culling,
     /// Whether culling is on ([`ModelPass::set_culling`]).
     culling: bool,
     /// Whether this frame corrects the model's colour (its `ColourCorrection` is not "none").
@@ -313,7 +329,7 @@ impl ModelPass {
         let device = &gpu.device;
         ModelPass {
             shading: pipelines.model.shading.clone(),
-            cull: false,
+            cull: Culling::Nothing,
             culling: true,
             prepass: pipelines.model.prepass.clone(),
             corrected: false,
@@ -401,7 +417,7 @@ impl ModelPass {
             let uniforms = MaterialUniforms {
                 albedo: [material.diffuse[0], material.diffuse[1], material.diffuse[2], if material.texture.is_some() { 1.0 } else { 0.0 }],
                 specular: [material.specular[0], material.specular[1], material.specular[2], material.shininess],
-                terms: [1.0, 1.0, 1.0, 0.0],
+                terms: [1.0, 1.0, 1.0, if material.sides == Sides::Both { 1.0 } else { 0.0 }],
             };
             let material_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("material"),
@@ -433,6 +449,7 @@ impl ModelPass {
                 levels: lods.levels.clone(),
                 material: bind,
                 closed: lods.closed.clone(),
+                sides: material.sides,
             });
             materials.push((material_buf, uniforms));
         }
@@ -440,11 +457,10 @@ impl ModelPass {
     }
 
     /// This frame's colour correction and material terms; a frame without correction draws
-    /// with the pipelines that have no correction code. `cull`: the frame may cull the back
-    /// faces of closed meshes (the camera is outside the model's bounds and the model is not
-    /// mirrored).
-    pub fn write(&mut self, queue: &wgpu::Queue, model: &ModelGpu, (colour, terms): (&ColourCorrection, &MaterialTerms), cull: bool) {
-        self.cull = cull && self.culling;
+    /// with the pipelines that have no correction code. `cull`: which back faces the frame may
+    /// cull.
+    pub fn write(&mut self, queue: &wgpu::Queue, model: &ModelGpu, (colour, terms): (&ColourCorrection, &MaterialTerms), cull: Culling) {
+        self.cull = if self.culling { cull } else { Culling::Nothing };
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
         self.corrected = colour.method != crate::colour::transfer::TransferMethod::None.shader_id();
         for (buf, base) in &model.materials {
@@ -452,16 +468,17 @@ impl ModelPass {
         }
     }
 
-    /// Cull the back faces of closed meshes (true, the default) or draw every triangle: the two
-    /// draw the same pixels (what the tests check and the benchmark measures), from the next
-    /// frame written.
+    /// Cull back faces where the frame may (true, the default) or draw every triangle after a
+    /// depth pre-pass, from the next frame written. For a closed mesh seen from outside the two
+    /// draw the same pixels (what the tests check); a single-sided material's back faces, which
+    /// glTF culls, are then drawn as if it were double-sided.
     pub fn set_culling(&mut self, on: bool) {
         self.culling = on;
     }
 
     /// Draw `model` with `method`'s pipelines at level of detail `level`, sampling shadow map
-    /// `shadow_index`: a closed mesh seen from outside with its back faces culled, any other
-    /// after its depth pre-pass.
+    /// `shadow_index`: a single-sided material, and a closed mesh seen from outside, with its
+    /// back faces culled; any other after its depth pre-pass.
     pub fn draw(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
@@ -484,7 +501,11 @@ impl ModelPass {
 
     /// Whether this frame culls `mesh`'s back faces at `level`.
     fn culls(&self, mesh: &MeshGpu, level: usize) -> bool {
-        self.cull && mesh.closed[level.min(mesh.closed.len() - 1)]
+        match mesh.sides {
+            Sides::Front => self.cull != Culling::Nothing,
+            Sides::Both => false,
+            Sides::Unspecified => self.cull == Culling::SingleSidedAndClosed && mesh.closed[level.min(mesh.closed.len() - 1)],
+        }
     }
 
     /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from
@@ -513,7 +534,8 @@ mod tests {
         let base = MaterialUniforms { albedo: [0.5, 0.6, 0.7, 1.0], specular: [0.1, 0.2, 0.3, 40.0], terms: [1.0; 4] };
         let terms = MaterialTerms { ambient: 0.2, diffuse: 0.8, specular: 0.4, gloss: None };
         let m = material_uniforms(&base, &terms);
-        assert_eq!((m.albedo, m.specular, m.terms), (base.albedo, base.specular, [0.2, 0.8, 0.4, 0.0]));
+        // The terms replaced, the material's sides (w: double-sided) kept.
+        assert_eq!((m.albedo, m.specular, m.terms), (base.albedo, base.specular, [0.2, 0.8, 0.4, 1.0]));
         let m = material_uniforms(&base, &MaterialTerms { gloss: Some(8.0), ..terms });
         assert_eq!(m.specular, [0.1, 0.2, 0.3, 8.0]);
     }

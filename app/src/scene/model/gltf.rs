@@ -1,6 +1,7 @@
 //! glTF 2.0 (.gltf with its buffers and images beside it, or a single .glb), through the gltf
 //! crate: triangle primitives of the default scene with node transforms applied, TEXCOORD_0,
-//! and the metallic-roughness material's base colour (factor and texture).
+//! the metallic-roughness material's base colour (factor and texture), and whether the material
+//! is double-sided.
 //!
 //! The document is checked before it is walked (see [`validate`]): the gltf crate's accessors
 //! trust indices and sizes and panic or allocate without bound on a hostile file. Buffers and
@@ -9,7 +10,7 @@
 
 use super::{LoadedModel, finish_mesh};
 use crate::scene::background::rgba8_from_dynamic;
-use crate::scene::{Material, Mesh, Model, Rgba8Image};
+use crate::scene::{Material, Mesh, Model, Rgba8Image, Sides};
 use ::gltf::json;
 use ::gltf::mesh::Mode;
 use anyhow::{Context, Result, anyhow, bail};
@@ -508,9 +509,10 @@ impl Builder<'_> {
             return Ok(i);
         }
         let converted = match mat.index() {
-            // No material on the primitive: our default (the spec's default is a white metal,
-            // which looks wrong under a Blinn-Phong model).
-            None => Material::default(),
+            // No material on the primitive: our default colours (the spec's default is a white
+            // metal, which looks wrong under a Blinn-Phong model), single-sided as the spec's
+            // default material is (glTF 2.0 §3.9.6).
+            None => Material { sides: Sides::Front, ..Material::default() },
             Some(index) => self.convert_material(&mat, index)?,
         };
         self.materials.push(converted);
@@ -571,6 +573,8 @@ impl Builder<'_> {
                 ::gltf::material::AlphaMode::Blend => base[3].clamp(0.0, 1.0),
                 _ => 1.0,
             },
+            // glTF 2.0 §3.9.5: `doubleSided` false (the default) culls back faces.
+            sides: if mat.double_sided() { Sides::Both } else { Sides::Front },
         })
     }
 }

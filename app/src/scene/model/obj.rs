@@ -9,7 +9,7 @@
 use super::{LoadedModel, ModelOptions, finish_mesh};
 use crate::scene::background::load_image;
 use crate::scene::normals::DEFAULT_CREASE_DEG;
-use crate::scene::{Material, Mesh, Model, Rgba8Image};
+use crate::scene::{Material, Mesh, Model, Rgba8Image, Sides};
 use anyhow::{Context, Result, anyhow, bail};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -295,6 +295,8 @@ fn convert_materials(mats: &[tobj::Material], libs: &[MtlLib]) -> Result<Vec<Mat
             // often write Ns 0 meaning "no highlight" (together with Ks 0).
             shininess: finite_or(m.shininess.map(|s| [s]), [defaults.shininess])[0].max(1.0),
             opacity,
+            // MTL has no such flag.
+            sides: Sides::Unspecified,
         });
     }
     Ok(out)

@@ -78,7 +78,7 @@ fn a_single_sided_material_hides_its_back_faces() {
     unspecified.materials[0].sides = Sides::Unspecified;
     // The model layer: premultiplied RGBA over transparent black, alpha = coverage.
     let render = |model: &Model| {
-        let i = Inputs { model: model.clone(), env: env.clone(), background: None };
+        let i = Inputs { model: model.clone(), env: env.clone(), env_equirect: None, background: None };
         let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
         c.render(gpu(), &p, Layer::Model).unwrap()
     };
@@ -126,7 +126,7 @@ fn a_double_sided_back_face_is_lit_with_its_normal_reversed() {
     unspecified.materials[0].sides = Sides::Unspecified;
     // Mean RGB of each half's fully covered pixels.
     let halves = |model: &Model| {
-        let i = Inputs { model: model.clone(), env: env.clone(), background: None };
+        let i = Inputs { model: model.clone(), env: env.clone(), env_equirect: None, background: None };
         let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
         let r = c.render(gpu(), &p, Layer::Model).unwrap();
         let half = r.width / 2;

@@ -41,12 +41,16 @@ use std::path::Path;
 /// 0.96, 0.96, 1.06, 1.01, 1.00; bounds = measured + 0.01 FLIP (quarry_truck's 0.137 + 0.01 would
 /// loosen its 0.144: kept), luminance errors measured + 0.03 where that tightens them (dragon
 /// 0.29 → 0.09, truck 0.07 → 0.04; the bunny's 0.036 and blouberg's 0.041 keep 0.04 and 0.05).
+/// Eighth session (2026-12-01): large triangles sampled inside, each vertex the hat-weighted mean
+/// of its triangles' light (scene::occlusion::model_sky_ground): quarry_truck 0.137 → 0.128 and
+/// luminance 1.00 → 1.03, the others unchanged; the truck's bound 0.144 → 0.138 (its luminance
+/// error's 0.04 kept: measured + 0.03 would loosen it).
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.139, 0.04),
     ("blouberg_teapot", 0.101, 0.05),
     ("courtyard_dragon", 0.139, 0.09),
     ("city_spot", 0.109, 0.05),
-    ("quarry_truck", 0.144, 0.04),
+    ("quarry_truck", 0.138, 0.04),
 ];
 
 #[test]

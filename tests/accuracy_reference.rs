@@ -44,13 +44,17 @@ use std::path::Path;
 /// Eighth session (2026-12-01): large triangles sampled inside, each vertex the hat-weighted mean
 /// of its triangles' light (scene::occlusion::model_sky_ground): quarry_truck 0.137 → 0.128 and
 /// luminance 1.00 → 1.03, the others unchanged; the truck's bound 0.144 → 0.138 (its luminance
-/// error's 0.04 kept: measured + 0.03 would loosen it).
+/// error's 0.04 kept: measured + 0.03 would loosen it). Then the sky looked up along each
+/// vertex's bent normal (the mean direction of its rays that pass the model): 0.128, 0.090,
+/// 0.125, 0.092, 0.126 and 0.97, 0.97, 1.00, 0.99, 1.03; bounds = measured + 0.01 FLIP, the
+/// dragon's and Spot's luminance errors 0.09 → 0.04 and 0.05 → 0.04 (measured 0.002 and 0.006
+/// + 0.03, rounded up).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.139, 0.04),
-    ("blouberg_teapot", 0.101, 0.05),
-    ("courtyard_dragon", 0.139, 0.09),
-    ("city_spot", 0.109, 0.05),
-    ("quarry_truck", 0.138, 0.04),
+    ("quarry_bunny", 0.138, 0.04),
+    ("blouberg_teapot", 0.100, 0.05),
+    ("courtyard_dragon", 0.135, 0.04),
+    ("city_spot", 0.102, 0.04),
+    ("quarry_truck", 0.136, 0.04),
 ];
 
 #[test]

@@ -299,8 +299,10 @@ fn parallel_map<I: Sync, T: Send + Clone>(items: &[I], empty: T, f: impl Fn(usiz
 /// against `occluders` (the model's triangles, which the renderer keeps for the ground's
 /// [`ground_transfer`]). The model stands upright on its bounding box's base (model space y up,
 /// render::view::model_matrix without a tilt).
-pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<[f32; 4]>> {
-    let Some(bounds) = model.bounds() else { return model.meshes.iter().map(|m| vec![OPEN; m.positions.len()]).collect() };
+pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<VertexLight>> {
+    let Some(bounds) = model.bounds() else {
+        return model.meshes.iter().map(|m| vec![VertexLight::from(OPEN); m.positions.len()]).collect();
+    };
     let ground = standing_ground(occluders, bounds, GROUND_TEXELS, GROUND_RAYS);
     let spacing = SAMPLE_SPACING * (bounds.1 - bounds.0).length();
     let inner: Vec<Vec<SurfaceSample>> = model.meshes.iter().map(|m| triangle_samples(m, spacing)).collect();
@@ -312,33 +314,12 @@ pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<[f32; 4
         .zip(&inner)
         .map(|(mesh, inner)| {
             let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
-            let light = |start: Vec3, normal: Vec3, seed: u32| {
-                let Some(n) = normal.try_normalize() else { return OPEN };
-                // (rays, open rays) going up; (rays, open rays, Σ ground visibility) going down.
-                let (mut up, mut up_open, mut down, mut down_open, mut lit) = (0u32, 0u32, 0u32, 0u32, 0f32);
-                occluders.cast(start, n, rays, seed, |d, hit| {
-                    if d.y > 0.0 {
-                        up += 1;
-                        up_open += u32::from(!hit);
-                    } else {
-                        down += 1;
-                        if !hit {
-                            down_open += 1;
-                            let t = if d.y < 0.0 { ((bounds.0.y - start.y) / d.y).max(0.0) } else { 0.0 };
-                            let g = start + d * t;
-                            lit += ground.at(Vec2::new(g.x, -g.z));
-                        }
-                    }
-                });
-                let open = (up_open + down_open) as f32 / rays.max(1) as f32;
-                let share = |k: u32, n: u32| if n > 0 { k as f32 / n as f32 } else { open };
-                let lit = if down > 0 { lit / down as f32 } else { open };
-                [share(up_open, up), lit, share(down_open, down), multi_bounce(open, albedo) - open]
-            };
-            let values = per_vertex(mesh, OPEN, &light);
-            let smooth: [Vec<f32>; 4] =
+            let light =
+                |start: Vec3, normal: Vec3, seed: u32| light_at(occluders, &ground, bounds.0.y, (start, normal), rays, seed, albedo);
+            let values = per_vertex(mesh, OPEN, light);
+            let smooth: [Vec<f32>; VALUES] =
                 std::array::from_fn(|k| smooth_over_neighbours(mesh, &values.iter().map(|v| v[k]).collect::<Vec<_>>()));
-            let mut out: Vec<[f32; 4]> = (0..values.len()).map(|i| std::array::from_fn(|k| smooth[k][i])).collect();
+            let mut out: Vec<Values> = (0..values.len()).map(|i| std::array::from_fn(|k| smooth[k][i])).collect();
             if !inner.is_empty() {
                 let first = mesh.positions.len() as u32;
                 let sampled = parallel_map(inner, OPEN, |k, s| light(s.point, s.normal, first + k as u32));
@@ -349,13 +330,80 @@ pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<[f32; 4
                     }
                 }
             }
-            out
+            out.into_iter().map(VertexLight::from).collect()
         })
         .collect()
 }
 
-/// The values of an open point: all of the sky and of the ground, no bounce.
-const OPEN: [f32; 4] = [1.0, 1.0, 1.0, 0.0];
+/// What [`model_sky_ground`] gives one vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexLight {
+    /// `[sky, ground lit by the sky, ground, bounce]` (render::pipelines::Vertex::ao).
+    pub ao: [f32; 4],
+    /// The bent normal (model space, unit; zero when unknown: use the vertex normal): the mean
+    /// direction of the rays that pass the model, where the sky's light is looked up
+    /// (render::pipelines::Vertex::bent).
+    pub bent: [f32; 3],
+}
+
+/// The values [`model_sky_ground`] samples and averages: the four shares, then the bent normal.
+const VALUES: usize = 7;
+type Values = [f32; VALUES];
+
+impl From<Values> for VertexLight {
+    fn from(v: Values) -> VertexLight {
+        let bent = Vec3::new(v[4], v[5], v[6]).normalize_or_zero();
+        VertexLight { ao: [v[0], v[1], v[2], v[3]], bent: bent.to_array() }
+    }
+}
+
+/// The values of an open point: all of the sky and of the ground, no bounce, no bent normal.
+const OPEN: Values = [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
+
+/// The light of one point of the model (model space, y up; `start` on the surface, `normal` its
+/// normal) from `rays` cosine-distributed rays shifted by `seed` against `occluders`, over the
+/// ground plane at height `floor` whose own sky visibility is `ground`, for a mesh of `albedo`:
+/// `[sky, ground lit by the sky, ground, bounce, bent normal x, y, z]` ([`model_sky_ground`]).
+/// The bent normal is the mean direction of the open rays, normalised (the normal when every ray
+/// is blocked): a surface in a crevice sees the sky through the crevice's mouth, and the sky's
+/// light is looked up there (Landis 2002, "Production-ready global illumination": ambient
+/// occlusion with bent normals).
+fn light_at(
+    occluders: &Occluders,
+    ground: &GroundSky,
+    floor: f32,
+    (start, normal): (Vec3, Vec3),
+    rays: u32,
+    seed: u32,
+    albedo: f32,
+) -> Values {
+    let Some(n) = normal.try_normalize() else { return OPEN };
+    // (rays, open rays) going up; (rays, open rays, Σ ground visibility) going down.
+    let (mut up, mut up_open, mut down, mut down_open, mut lit) = (0u32, 0u32, 0u32, 0u32, 0f32);
+    let mut bent = Vec3::ZERO;
+    occluders.cast(start, n, rays, seed, |d, hit| {
+        if !hit {
+            bent += d;
+        }
+        if d.y > 0.0 {
+            up += 1;
+            up_open += u32::from(!hit);
+        } else {
+            down += 1;
+            if !hit {
+                down_open += 1;
+                let t = if d.y < 0.0 { ((floor - start.y) / d.y).max(0.0) } else { 0.0 };
+                let g = start + d * t;
+                lit += ground.at(Vec2::new(g.x, -g.z));
+            }
+        }
+    });
+    let open = (up_open + down_open) as f32 / rays.max(1) as f32;
+    let share = |k: u32, n: u32| if n > 0 { k as f32 / n as f32 } else { open };
+    let lit = if down > 0 { lit / down as f32 } else { open };
+    let b = bent.try_normalize().unwrap_or(n);
+    [share(up_open, up), lit, share(down_open, down), multi_bounce(open, albedo) - open, b.x, b.y, b.z]
+}
 
 /// Largest distance between the points where [`model_sky_ground`] samples the light, as a share
 /// of the model's bounding-box diagonal (the truck's: 0.19 m). Measured on the quarry_truck
@@ -434,12 +482,12 @@ pub fn triangle_samples(mesh: &Mesh, spacing: f32) -> Vec<SurfaceSample> {
 fn lumped_projection(
     mesh: &Mesh,
     spacing: f32,
-    at_vertices: &[[f32; 4]],
+    at_vertices: &[Values],
     samples: &[SurfaceSample],
-    values: &[[f32; 4]],
-) -> Vec<Option<[f32; 4]>> {
-    let mut sum = vec![([0.0f32; 4], 0.0f32, false); at_vertices.len()];
-    let add = |sum: &mut [([f32; 4], f32, bool)], i: u32, w: f32, v: &[f32; 4]| {
+    values: &[Values],
+) -> Vec<Option<Values>> {
+    let mut sum = vec![([0.0f32; VALUES], 0.0f32, false); at_vertices.len()];
+    let add = |sum: &mut [(Values, f32, bool)], i: u32, w: f32, v: &Values| {
         let e = &mut sum[i as usize];
         e.0.iter_mut().zip(v).for_each(|(a, v)| *a += w * v);
         e.1 += w;
@@ -919,9 +967,9 @@ mod tests {
         let ao = model_sky_ground(&model, &Occluders::of_model(&model));
         assert_eq!(ao[0].len(), model.meshes[0].positions.len());
         assert!(
-            ao[0].iter().all(|v| v[0] == 1.0 && v[2] == 1.0 && v[3].abs() < 1e-6),
+            ao[0].iter().all(|v| v.ao[0] == 1.0 && v.ao[2] == 1.0 && v.ao[3].abs() < 1e-6),
             "{:?}",
-            ao[0].iter().find(|v| v[0] < 1.0 || v[2] < 1.0)
+            ao[0].iter().find(|v| v.ao[0] < 1.0 || v.ao[2] < 1.0)
         );
     }
 
@@ -1011,20 +1059,20 @@ mod tests {
             })
             .sum::<f64>() as f32;
         // The lowest vertex: ring 24 (θ = π/2 about the sphere's z), segment 72 (φ = 3π/2: −y).
-        let bottom = values[0][24 * 97 + 72];
+        let bottom = values[0][24 * 97 + 72].ao;
         assert!((bottom[1] - expected).abs() < 0.02, "ground share {} vs {expected}", bottom[1]);
         // Nothing of the sphere is below its lowest vertex: all of the ground, and no bounce from a
         // convex shape (the fit keeps 1 at 1).
         assert!((bottom[2] - 1.0).abs() < 1e-6 && bottom[3].abs() < 1e-6, "{bottom:?}");
         assert!(expected < 0.9, "the sphere's shadow darkens the ground it sees: {expected}");
         // The top vertex sees the whole sky; nothing of the ground.
-        let top = values[0][24 * 97 + 24];
+        let top = values[0][24 * 97 + 24].ao;
         assert!((top[0] - 1.0).abs() < 1e-6, "{top:?}");
         // Far from a small model the ground is whole: a ball of radius 0.01 at the same height.
         let mut tiny = model.clone();
         tiny.meshes[0].positions.iter_mut().for_each(|p| *p = [p[0] * 0.01, (p[1] - h) * 0.01 + h, p[2] * 0.01]);
         let values = model_sky_ground(&tiny, &Occluders::of_model(&tiny));
-        assert!(values[0][24 * 97 + 72][1] > 0.99, "{:?}", values[0][24 * 97 + 72]);
+        assert!(values[0][24 * 97 + 72].ao[1] > 0.99, "{:?}", values[0][24 * 97 + 72]);
     }
 
     #[test]
@@ -1071,9 +1119,35 @@ mod tests {
         let at_corner = 1.0 - r * r / d2 * h / d2.sqrt();
         for k in 0..4 {
             let expected = (sum[k] / weight[k]) as f32;
-            assert!((values[0][k][0] - expected).abs() < 0.01, "vertex {k}: sky {} vs {expected}", values[0][k][0]);
+            assert!((values[0][k].ao[0] - expected).abs() < 0.01, "vertex {k}: sky {} vs {expected}", values[0][k].ao[0]);
             assert!(at_corner - expected > 0.05, "the mean differs from the corner's own light: {at_corner} vs {expected}");
         }
+    }
+
+    #[test]
+    fn the_bent_normal_at_the_foot_of_a_wall_leans_away_from_it() {
+        // Floor y = 0 (model space, y up) and a wall filling x > 0, both 1000 wide; a point on
+        // the floor at the wall's foot sees the half hemisphere x < 0. The mean of the
+        // cosine-distributed directions over that half: E[x] = −∫ sin²θ cosθ |cos φ| / π =
+        // −4/(3π), E[y] = 2/3 (the whole hemisphere's), so the bent normal leans
+        // atan((4/(3π)) / (2/3)) = atan(2/π) = 32.5° from the normal, away from the wall. Half
+        // the rays see the sky; an open point's bent normal is its normal.
+        let mut tris: Vec<[Vec3; 3]> =
+            quad(-1000.0, 1000.0, -1000.0, 1000.0, 0.0).iter().map(|t| t.map(|p| Vec3::new(p.x, 0.0, p.y))).collect();
+        for t in quad(-1000.0, 1000.0, 0.0, 1000.0, 0.0) {
+            tris.push(t.map(|p| Vec3::new(0.0, p.y, p.x))); // the wall: x = 0, 0 < y < 1000
+        }
+        let occ = Occluders::new(tris);
+        let ground = GroundSky { min: Vec2::ZERO, max: Vec2::ONE, z: 0.0, size: 1, visibility: vec![1.0] };
+        let v = light_at(&occ, &ground, 0.0, (Vec3::new(-1e-3, 0.0, 0.0), Vec3::Y), 4096, 1, 0.0);
+        let bent = Vec3::new(v[4], v[5], v[6]);
+        let lean = bent.angle_between(Vec3::Y).to_degrees();
+        let want = (2.0 / std::f32::consts::PI).atan().to_degrees();
+        assert!((lean - want).abs() < 1.0, "{lean}° vs {want}°");
+        assert!(bent.x < -0.5 && bent.z.abs() < 0.02, "{bent}");
+        assert!((v[0] - 0.5).abs() < 0.01, "{v:?}");
+        let open = light_at(&Occluders::new(Vec::new()), &ground, 0.0, (Vec3::new(0.0, 5.0, 0.0), Vec3::Y), 256, 1, 0.0);
+        assert!(Vec3::new(open[4], open[5], open[6]).angle_between(Vec3::Y) < 0.02, "{open:?}");
     }
 
     #[test]

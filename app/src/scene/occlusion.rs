@@ -279,7 +279,9 @@ fn parallel_map<I: Sync, T: Send + Clone>(items: &[I], empty: T, f: impl Fn(usiz
 ///   the ground's light);
 /// - bounce = the light the model's own surfaces reflect onto the point, as a share of an open
 ///   point's whole light: the multi-bounce fit for the mesh's albedo over all the rays' open
-///   share A, [`multi_bounce`](A) − A (the fit assumes the occluders lit as the point is).
+///   share A, [`multi_bounce`](A) − A (the fit assumes the occluders lit as the point is);
+/// - and [`VertexLight::bent`], the mean direction of the open rays (`light_at`), along which
+///   the shader looks the sky up.
 ///
 /// A half without rays (a normal straight up or down) takes the open share of all rays.
 ///

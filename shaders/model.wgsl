@@ -37,7 +37,8 @@ struct Material {
 @group(1) @binding(1) var diffuse_tex: texture_2d<f32>;
 @group(1) @binding(2) var diffuse_smp: sampler;
 
-// The model's vertex (render::pipelines::Vertex; `ao` at render::pipelines::AO_LOCATION).
+// The model's vertex (render::pipelines::Vertex; `ao` at render::pipelines::AO_LOCATION, `bent`
+// at BENT_LOCATION).
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
@@ -46,6 +47,9 @@ struct VertexIn {
     // ground's (z) that the vertex gets past the model, and the model's own reflected light (w)
     // (1, 1, 1, 0 until the model's occlusion is computed; scene::occlusion::model_sky_ground).
     @location(3) ao: vec4<f32>,
+    // The bent normal: the mean direction of the rays that pass the model, where sh9-ggx looks
+    // up the sky (the normal until the occlusion is computed).
+    @location(4) bent: vec3<f32>,
 };
 
 struct VertexOut {
@@ -54,6 +58,7 @@ struct VertexOut {
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
     @location(3) ao: vec4<f32>,
+    @location(4) bent: vec3<f32>,
 };
 
 @vertex
@@ -64,6 +69,7 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     out.normal = (instance.normal * vec4<f32>(vertex.normal, 0.0)).xyz;
     out.uv = vertex.uv;
     out.ao = vertex.ao;
+    out.bent = (instance.normal * vec4<f32>(vertex.bent, 0.0)).xyz;
     out.clip = frame.view_proj * world;
     return out;
 }

@@ -1,6 +1,7 @@
 // The sh9-ggx lighting method (issue 9), appended to model.wgsl's module: light measured from
 // the environment, in colour.
-//   diffuse  = albedo * ((SH9 irradiance of the sky above the horizon without the sun * ao.x
+//   diffuse  = albedo * ((SH9 irradiance of the sky above the horizon without the sun, facing
+//                         the bent normal, * ao.x
 //                         + a uniform ground's irradiance * mix(ao.y, ao.z, sun's share)
 //                         + both * ao.w) / pi * a_c
 //                        + the sun's irradiance / pi * max(n.l, 0) * soft shadow * d_c)
@@ -9,7 +10,8 @@
 // ao: the vertex's shares of the sky's light, of the ground's where the sky lights it (past the
 // model's contact shadow on the ground), of the ground's past the model alone, and the model's
 // own reflected light (scene::occlusion::model_sky_ground); the ground's sunlit part is taken as
-// unshadowed.
+// unshadowed. The sky is looked up along the bent normal (the mean direction of the vertex's rays
+// that pass the model): a surface in a crevice gets the light of the sky it sees.
 // The sky's and sun's levels are frame.daylight and frame.sunlight, so the DL/SL multipliers
 // and the live view's sliders act on them; a_c, d_c, s_c (the scene's material terms, seed
 // Eq. 3) scale the sky, sun and specular terms: s_c = 0 gives a Lambertian surface, the
@@ -44,11 +46,12 @@ fn sh9_eval(d: vec3<f32>) -> vec3<f32> {
 
 // The light of the sky (above the horizon) and of the ground the model stands on, on a surface
 // facing world normal n, as irradiance / pi per unit of frame.daylight; ao: the vertex's shares
-// (VertexIn.ao). A uniform ground of radiance L below the horizon gives E / pi = L (1 - n.z) / 2;
+// (VertexIn.ao); bent: the unit world direction the sky is looked up along (VertexIn.bent). A
+// uniform ground of radiance L below the horizon gives E / pi = L (1 - n.z) / 2;
 // the ground's light is the sky's (shadowed by the model: ao.y) and the sun's (light.ground.w of
 // it, unshadowed here: ao.z); the model's own surfaces reflect ao.w of the open light.
-fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>) -> vec3<f32> {
-    let sky = sh9_eval(env_map_dir(frame, n));
+fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>) -> vec3<f32> {
+    let sky = sh9_eval(env_map_dir(frame, bent));
     let ground = light.ground.rgb * (0.5 * (1.0 - n.z));
     return sky * ao.x + ground * mix(ao.y, ao.z, light.ground.w) + (sky + ground) * ao.w;
 }
@@ -66,7 +69,9 @@ fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
     }
     let albedo = surface_albedo(in.uv);
     let ao = in.ao.x + in.ao.w;
-    let sky = sky_and_ground(n, in.ao) * (frame.daylight * material.terms.x);
+    // The bent normal turns with the normal when the back face is seen.
+    let b = normalize(in.bent) * select(1.0, -1.0, dot(in.normal, n) < 0.0);
+    let sky = sky_and_ground(n, in.ao, b) * (frame.daylight * material.terms.x);
     let l = frame.sun_dir;
     let n_dot_l = max(dot(n, l), 0.0);
     var visibility = 0.0;

@@ -46,12 +46,20 @@ use std::path::Path;
 /// 0.039, 0.018, 0.053, 0.031, 0.044 → 0.0299, 0.0171, 0.0400, 0.0193, 0.0360) and luminance
 /// 0.964, 0.959, 1.059, 1.013, 1.001; bounds = measured + 0.01 rounded up to three decimals:
 /// city_spot 0.109 → 0.108, the others as they were.
+/// Eighth session (2026-12-01): large triangles sampled inside, each vertex the hat-weighted mean
+/// of its triangles' light (scene::occlusion::model_sky_ground): quarry_truck 0.137 → 0.128 and
+/// luminance 1.00 → 1.03, the others unchanged; the truck's bound 0.144 → 0.138 (its luminance
+/// error's 0.04 kept: measured + 0.03 would loosen it). Then the sky looked up along each
+/// vertex's bent normal (the mean direction of its rays that pass the model): 0.128, 0.090,
+/// 0.125, 0.092, 0.126 and 0.97, 0.97, 1.00, 0.99, 1.03; bounds = measured + 0.01 FLIP, the
+/// dragon's and Spot's luminance errors 0.09 → 0.04 and 0.05 → 0.04 (measured 0.002 and 0.006
+/// + 0.03, rounded up).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.139, 0.04),
-    ("blouberg_teapot", 0.101, 0.05),
-    ("courtyard_dragon", 0.139, 0.09),
-    ("city_spot", 0.108, 0.05),
-    ("quarry_truck", 0.144, 0.04),
+    ("quarry_bunny", 0.138, 0.04),
+    ("blouberg_teapot", 0.100, 0.05),
+    ("courtyard_dragon", 0.135, 0.04),
+    ("city_spot", 0.102, 0.04),
+    ("quarry_truck", 0.136, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,

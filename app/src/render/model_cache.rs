@@ -129,11 +129,16 @@ impl PreparedModel {
             bail!("a mesh refers to missing material {}", m.material);
         }
         // Each vertex's share of the sky and of the ground's light past the model itself
-        // (occluders reflect light too: the multi-bounce fit for the mesh material's albedo).
+        // (occluders reflect light too: the multi-bounce fit for the mesh material's albedo),
+        // and the bent normal its sky is looked up along.
         let occluders = Occluders::of_model(model);
         for (vertices, ao) in vertices.iter_mut().zip(occlusion::model_sky_ground(model, &occluders)) {
             for (v, a) in vertices.iter_mut().zip(ao) {
-                v.ao = a;
+                v.ao = a.ao;
+                // A vertex whose rays are unknown (no normal) keeps its normal.
+                if a.bent != [0.0; 3] {
+                    v.bent = a.bent;
+                }
             }
         }
         Ok(PreparedModel {
@@ -263,7 +268,8 @@ impl PreparedModel {
     }
 }
 
-/// A mesh's vertices interleaved for the vertex buffer (ambient occlusion 1), after checking that
+/// A mesh's vertices interleaved for the vertex buffer (ambient occlusion 1, the bent normal the
+/// normal), after checking that
 /// its attribute arrays agree and its indices stay inside them (missing uvs become (0, 0)).
 pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
     let n = mesh.positions.len();
@@ -279,6 +285,7 @@ pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
             normal: mesh.normals[i],
             uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
             ao: [1.0, 1.0, 1.0, 0.0],
+            bent: mesh.normals[i],
         })
         .collect())
 }

@@ -16,7 +16,7 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// the composite's comes from its [`super::Antialiasing`].
 pub const LAYER_SAMPLES: u32 = 4;
 
-/// Interleaved model vertex: position, normal, uv, ambient occlusion.
+/// Interleaved model vertex: position, normal, uv, ambient occlusion, bent normal (60 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vertex {
@@ -28,10 +28,16 @@ pub struct Vertex {
     /// light (scene::occlusion::model_sky_ground; shaders/model.wgsl `VertexIn.ao`, location
     /// [`AO_LOCATION`]); (1, 1, 1, 0) until the model's occlusion is computed.
     pub ao: [f32; 4],
+    /// The mean direction (model space, unit) of the rays that pass the model, along which the
+    /// sky's light is looked up (scene::occlusion::VertexLight::bent; shaders/model.wgsl
+    /// `VertexIn.bent`, location [`BENT_LOCATION`]); the normal until the occlusion is computed.
+    pub bent: [f32; 3],
 }
 
 /// Shader location of [`Vertex::ao`].
 pub const AO_LOCATION: u32 = 3;
+/// Shader location of [`Vertex::bent`].
+pub const BENT_LOCATION: u32 = 4;
 
 pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
     pipeline_into(device, spec, COLOR_FORMAT)

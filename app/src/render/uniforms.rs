@@ -64,16 +64,14 @@ mod tests {
     use crate::render::shaders::{Technique, source};
 
     #[test]
-    fn the_vertex_ao_attribute_is_at_its_named_location() {
+    fn the_vertex_ao_and_bent_attributes_are_at_their_named_locations() {
         let module = crate::gpu::wgsl::validate(&source(Technique::Model)).unwrap();
         let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("VertexIn")).expect("struct VertexIn").1;
         let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("VertexIn is not a struct") };
-        let ao = members.iter().find(|m| m.name.as_deref() == Some("ao")).expect("VertexIn.ao");
-        assert!(
-            matches!(ao.binding, Some(naga::Binding::Location { location, .. }) if location == crate::render::pipelines::AO_LOCATION),
-            "{:?}",
-            ao.binding
-        );
+        for (name, at) in [("ao", crate::render::pipelines::AO_LOCATION), ("bent", crate::render::pipelines::BENT_LOCATION)] {
+            let m = members.iter().find(|m| m.name.as_deref() == Some(name)).expect(name);
+            assert!(matches!(m.binding, Some(naga::Binding::Location { location, .. }) if location == at), "{name}: {:?}", m.binding);
+        }
     }
 
     #[test]

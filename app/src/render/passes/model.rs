@@ -10,7 +10,7 @@ use crate::render::LightingMethod;
 use crate::render::environment::EnvironmentViews;
 use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{AO_LOCATION, COLOR_FORMAT, Pipelines, Vertex, depth_state};
+use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::MaterialUniforms;
 use crate::scene::lod::IndexRange;
@@ -92,8 +92,8 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
-    const ATTRIBUTES: [wgpu::VertexAttribute; 4] =
-        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, AO_LOCATION => Float32x4];
+    const ATTRIBUTES: [wgpu::VertexAttribute; 5] =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, AO_LOCATION => Float32x4, BENT_LOCATION => Float32x3];
     wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,

@@ -41,12 +41,15 @@ use std::path::Path;
 /// 0.96, 0.96, 1.06, 1.01, 1.00; bounds = measured + 0.01 FLIP (quarry_truck's 0.137 + 0.01 would
 /// loosen its 0.144: kept), luminance errors measured + 0.03 where that tightens them (dragon
 /// 0.29 → 0.09, truck 0.07 → 0.04; the bunny's 0.036 and blouberg's 0.041 keep 0.04 and 0.05).
+/// Eighth session (2026-12-01): the ground gets the light the model reflects onto it
+/// (render::passes::ground::bounce_light): 0.102, 0.082, 0.126, 0.098, 0.125, luminance unchanged;
+/// bounds = measured + 0.01 FLIP.
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.139, 0.04),
-    ("blouberg_teapot", 0.101, 0.05),
-    ("courtyard_dragon", 0.139, 0.09),
-    ("city_spot", 0.109, 0.05),
-    ("quarry_truck", 0.144, 0.04),
+    ("quarry_bunny", 0.112, 0.04),
+    ("blouberg_teapot", 0.092, 0.05),
+    ("courtyard_dragon", 0.136, 0.09),
+    ("city_spot", 0.108, 0.05),
+    ("quarry_truck", 0.135, 0.04),
 ];
 
 #[test]

@@ -697,8 +697,14 @@ mod tests {
         let mut visibility = vec![1.0; 16];
         visibility[2 * 4 + 1] = 245.0 / 255.0;
         visibility[3 * 4 + 3] = 253.0 / 255.0;
-        let mut sky =
-            crate::scene::occlusion::GroundSky { min: Vec2::splat(7.0), max: Vec2::splat(11.0), z: 0.0, size: 4, visibility, bounce: Vec::new() };
+        let mut sky = crate::scene::occlusion::GroundSky {
+            min: Vec2::splat(7.0),
+            max: Vec2::splat(11.0),
+            z: 0.0,
+            size: 4,
+            visibility,
+            bounce: Vec::new(),
+        };
         // At 10/255: texel (1, 2), centre (1.5, 2.5)/4, widened by a texel: [0.5, 2.5] x [1.5,
         // 3.5] quarters (the map's own placement does not matter: the ground square places it).
         let r = sky_region(&sky, 10.0 / 255.0, 1.0);

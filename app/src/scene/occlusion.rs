@@ -360,7 +360,8 @@ impl Transfer {
     pub fn reflected(&self, light: &BounceLight) -> [f32; 3] {
         let b = &self.bounce;
         let s = Vec3::from(light.sun_dir);
-        let sun: f32 = if light.sun == [0.0; 3] { 0.0 } else { b.sun.iter().map(|h| h[3] * Vec3::new(h[0], h[1], h[2]).dot(s).max(0.0)).sum() };
+        let sun: f32 =
+            if light.sun == [0.0; 3] { 0.0 } else { b.sun.iter().map(|h| h[3] * Vec3::new(h[0], h[1], h[2]).dot(s).max(0.0)).sum() };
         std::array::from_fn(|c| {
             let dot = |sums: &[f32], l: &[[f32; 3]]| sums.iter().zip(l).map(|(s, l)| s * l[c]).sum::<f32>();
             (dot(&b.sky, &light.sky) + sun * light.sun[c] + dot(&b.ground, &light.ground)).max(0.0)

@@ -171,9 +171,9 @@ pub fn bounce_light(lighting: &crate::render::Lighting, heading: f32, albedo: [f
     // The sun: E_sun/π · max(n·s, 0), E_sun/π · s_z being its share of the ground's light.
     let s = lighting.sun_dir.normalize_or_zero();
     if lighting.shadow_opacity > 0.0 && s.z > 1e-3 {
-        for c in 0..3 {
-            ground[c] += lighting.shadow_opacity * lighting.sun_colour[c];
-            light.sun[c] = lighting.shadow_opacity / s.z * lighting.sun_colour[c];
+        for ((g, sun), colour) in ground.iter_mut().zip(&mut light.sun).zip(lighting.sun_colour) {
+            *g += lighting.shadow_opacity * colour;
+            *sun = lighting.shadow_opacity / s.z * colour;
         }
         // Rounded (about 0.1°) so that a frame whose sun barely moves keeps the map.
         light.sun_dir = s.to_array().map(|v| (v * 1024.0).round() / 1024.0);
@@ -452,7 +452,14 @@ mod tests {
 
     #[test]
     fn the_ground_texels_hold_the_visibility_in_255ths_and_the_bounce() {
-        let mut sky = GroundSky { min: glam::Vec2::ZERO, max: glam::Vec2::ONE, z: 0.0, size: 2, visibility: vec![1.0, 0.5, 0.0, 0.25], bounce: Vec::new() };
+        let mut sky = GroundSky {
+            min: glam::Vec2::ZERO,
+            max: glam::Vec2::ONE,
+            z: 0.0,
+            size: 2,
+            visibility: vec![1.0, 0.5, 0.0, 0.25],
+            bounce: Vec::new(),
+        };
         let t: Vec<f32> = ground_texels(&sky).iter().map(|v| v.to_f32()).collect();
         assert!((t[4] - 128.0 / 255.0).abs() < 1e-3 && t[5..8] == [0.0; 3] && t[0] == 1.0, "{t:?}");
         sky.bounce = vec![[0.0; 3], [0.25, 0.5, 1.5], [0.0; 3], [0.0; 3]];

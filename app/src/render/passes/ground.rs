@@ -170,7 +170,9 @@ pub fn bounce_light(lighting: &crate::render::Lighting, heading: f32, albedo: [f
     }
     // The sun: E_sun/π · max(n·s, 0), E_sun/π · s_z being its share of the ground's light.
     let s = lighting.sun_dir.normalize_or_zero();
-    if lighting.shadow_opacity > 0.0 && s.z > 1e-3 {
+    // Without sunlight (the live view's SL at 0) the ground pass draws no sun shadow and the
+    // model no sunlit side: no sun in the bounce either, whatever its direction.
+    if lighting.shadow_opacity > 0.0 && lighting.sunlight > 0.0 && s.z > 1e-3 {
         for ((g, sun), colour) in ground.iter_mut().zip(&mut light.sun).zip(lighting.sun_colour) {
             *g += lighting.shadow_opacity * colour;
             *sun = lighting.shadow_opacity / s.z * colour;

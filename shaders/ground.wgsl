@@ -1,7 +1,9 @@
 // Ground pass: an invisible shadow-catcher plane under the model. It darkens the background
-// where the model shadows the sun or hides the sky and leaves it untouched elsewhere. The output
-// is what the ground loses per channel; the pipeline multiplies the background by 1 − that
-// (render::passes::ground), so a shadow keeps the colour of the light left in it.
+// where the model shadows the sun or hides the sky, brightens it where the model reflects light
+// onto it (differential rendering: the ground's light with the model over its light without),
+// and leaves it untouched elsewhere. The output is half the factor the ground's light changes by
+// per channel; the pipeline multiplies the background by twice that (render::passes::ground
+// SCALE), so a shadow keeps the colour of the light left in it.
 //
 // SUN_SHADOW is a pipeline-override constant: the ground is drawn in two parts that do not
 // overlap (render::frame::ground_mesh), where the sun's shadow can fall with the shadow lookup
@@ -14,8 +16,9 @@ override SUN_SHADOW: bool = true;
 @group(0) @binding(2) var shadow_map: texture_depth_2d;
 @group(0) @binding(3) var shadow_smp: sampler_comparison;
 @group(0) @binding(4) var<uniform> light: Light;
-// The cosine-weighted sky the ground sees past the model, over light.ground_square (written once
-// per placement from scene::occlusion::ground_sky).
+// r: the cosine-weighted sky the ground sees past the model; gba: the light the model reflects
+// onto it, a gain on the ground's light per channel; over light.ground_square (written once per
+// placement and light from scene::occlusion::GroundTransfer::map).
 @group(0) @binding(5) var ground_sky: texture_2d<f32>;
 @group(0) @binding(6) var ground_sky_smp: sampler;
 // The shadow map's depths without comparison, nearest texel (the soft shadow's blocker search).
@@ -39,9 +42,9 @@ fn vs_main(@location(0) corner: vec2<f32>) -> GroundOut {
 
 @fragment
 fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
-    // Seen from below (the camera under the plane) there is no ground to shadow.
+    // Seen from below (the camera under the plane) there is no ground to shadow: the factor 1.
     if (frame.camera_pos.z <= plane.model[3].z) {
-        return vec4<f32>(0.0);
+        return vec4<f32>(0.5);
     }
     // The sun's shadow removes the sun's share of the ground's light: shadow_opacity is that
     // share (measured from the environment by setup::light), none when there is no sunlight.
@@ -57,11 +60,14 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     let square = light.ground_square;
     let uv = (in.world.xy - square.xy) / max(square.zw - square.xy, vec2<f32>(1e-6));
     var sky_seen = 1.0;
+    var bounce = vec3<f32>(0.0);
     if (all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0))) {
-        sky_seen = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0.0).r;
+        let texel = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0.0);
+        sky_seen = texel.r;
+        bounce = texel.gba;
     }
     let sky_lost = light.ground_sky.x * (1.0 - sky_seen);
-    return vec4<f32>(ground_loss(sun_lost, sky_lost), 0.0);
+    return vec4<f32>(0.5 * (1.0 - ground_loss(sun_lost, sky_lost) + bounce), 0.0);
 }
 
 // What the ground loses per channel when it loses `sun_lost` of its light's luminance to the

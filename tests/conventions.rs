@@ -182,7 +182,11 @@ fn an_overcast_sky_darkens_the_ground_under_the_model_and_nowhere_else() {
     // A uniform grey sky: no sun, all of the ground's light comes from the sky, so where the
     // model hides a share of the (cosine-weighted) sky the ground keeps the rest.
     let s = scene("width = 240\nheight = 240\nmethod = \"sh9-ggx\"\n[camera]\npitch = -30.0\n");
-    let inputs = Inputs { model: sphere(), env: solid_cube([[0.3; 3]; 6]), env_equirect: None, background: None };
+    // A black sphere: it reflects no light onto the ground (render::passes::ground::bounce_light),
+    // so the ground keeps exactly the sky it does not hide.
+    let mut black = sphere();
+    black.materials.iter_mut().for_each(|m| m.diffuse = [0.0; 3]);
+    let inputs = Inputs { model: black, env: solid_cube([[0.3; 3]; 6]), env_equirect: None, background: None };
     let (mut compositor, params) = previz::setup::prepare(common::gpu(), &s, &inputs).unwrap();
     assert_eq!(params.lighting.shadow_opacity, 0.0);
     assert!((params.lighting.sky_occlusion - 1.0).abs() < 1e-6, "{}", params.lighting.sky_occlusion);
@@ -200,13 +204,26 @@ fn an_overcast_sky_darkens_the_ground_under_the_model_and_nowhere_else() {
     // of the sky is sin²(radius)·sin(elevation) = (R/D)³, so the ground keeps 1 − (R/D)³.
     // (Measured 2026-12-01: within 0.011 at these five points; 64 rays a texel, 8-bit output.)
     let (r, contact) = (params.placement.scale, params.placement.position);
+    // The default grey sphere (albedo 0.8) in the same light reflects some of it back: every
+    // surface it shows a ground point gets at most the ground's own light (sky and ground below
+    // of the same radiance), so the ground keeps more than under the black one and at most
+    // 1 − F + 0.8 F.
+    let grey = Inputs { model: sphere(), env: solid_cube([[0.3; 3]; 6]), env_equirect: None, background: None };
+    let (mut grey_compositor, grey_params) = previz::setup::prepare(common::gpu(), &s, &grey).unwrap();
+    let grey_composite = grey_compositor.render(common::gpu(), &grey_params, Layer::Composite).unwrap();
     for (dx, dy) in [(1.6f32, 0.0f32), (-1.6, 0.0), (0.0, -1.5), (2.2, 0.0), (0.0, -2.5)] {
         let p = contact + glam::Vec3::new(dx, dy, 0.0) * r;
         let px = pixel_of(p);
         assert_eq!(at(&model, px), [0.0; 3], "the ground point ({dx}, {dy})·R is hidden by the sphere");
         let kept = luma(at(&composite, px)) / luma(at(&background, px));
-        let expected = 1.0 - f64::from(1.0 / (1.0 + dx * dx + dy * dy)).powf(1.5);
+        let hidden = f64::from(1.0 / (1.0 + dx * dx + dy * dy)).powf(1.5);
+        let expected = 1.0 - hidden;
         assert!((kept - expected).abs() < 0.025, "ground at ({dx}, {dy})·R keeps {kept:.3} of its light, expected {expected:.3}");
+        let kept_grey = luma(at(&grey_composite, px)) / luma(at(&background, px));
+        assert!(
+            kept_grey > kept + 0.01 && kept_grey <= 1.0 - 0.2 * hidden + 0.025,
+            "grey sphere: ({dx}, {dy})·R keeps {kept_grey:.3}, black {kept:.3}"
+        );
     }
     // Far from the model the ground keeps all of it: every pixel outside the model that the
     // composite darkens lies within the ground square of twice the model's height around it

@@ -49,8 +49,12 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     // Not bit-identical since per-vertex ambient occlusion and the ground's sky occlusion: the
     // drawn level's are computed against the full mesh, the level-alone model's against its own
     // coarser triangles (measured difference 1.7e-6 on this bunny with AO alone, 4.1e-5 with the
-    // ground's contact shadow too, 2026-12-01; both FLIPs ~0.002).
-    assert!((drawn_flip - chosen_flip).abs() < 1e-4, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
+    // ground's contact shadow too, 2026-12-01; both FLIPs ~0.002). Since the eighth session the
+    // ground also gets the model's reflected light, whose rays hit those triangles, with their
+    // own normals, light shares and albedo: measured 3.1e-4 (0.00298 drawn vs 0.00329 for level 6
+    // alone, 2026-12-01), so the bound is 5e-4, a tenth of the chosen level's own FLIP budget
+    // (0.01 above).
+    assert!((drawn_flip - chosen_flip).abs() < 5e-4, "drawn {drawn_flip} vs level {chosen} alone {chosen_flip}");
     // Moved twice as far away, it draws a coarser level.
     let mut far = p;
     let toward = far.placement.position - far.camera.position;
@@ -225,17 +229,18 @@ fn a_small_shadow_from_a_small_map_matches_the_full_map() {
     assert!(c.shadow_map_size() > small_size, "{} near vs {small_size} far", c.shadow_map_size());
 }
 
-/// The ground draws only where it can darken anything, and nothing visible changes: its shadow
+/// The ground draws only where it can change anything, and nothing visible changes: its shadow
 /// lookup only inside the shadow's outline (the model's silhouette seen from the sun, widened
 /// by what the soft lookup reaches, swept onto the ground; render::shadow_fit::
-/// silhouette_outline), the sky's occlusion only where it moves an 8-bit value by more than a
-/// level (shadow_fit::sky_region), nothing elsewhere. The frame is within a mean FLIP of 1e-4
+/// silhouette_outline), the sky's occlusion and the model's light reflected onto the ground
+/// (which brightens it) only where either moves an 8-bit value by more than a level
+/// (shadow_fit::sky_region), nothing elsewhere. The frame is within a mean FLIP of 1e-4
 /// of the same frame with the lookup over the whole ground quad, with the same 2048² map (a
 /// footprint wider than 1024 px), for a cube and a sphere (whose silhouette is not its box), a
 /// low sun whose long shadow crosses the sky's square and a high one inside it. Not vacuous:
 /// the shadow and the sky's occlusion themselves differ from no ground pass by far more.
 #[test]
-fn the_ground_is_drawn_only_where_it_can_darken() {
+fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
     let (w, h) = (1280, 720);
     let s = scene(&format!("width = {w}\nheight = {h}\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.8\n"));
     let sphere = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();

@@ -25,7 +25,8 @@ pub struct Args {
     pub output: Option<PathBuf>,
     /// Also write composite.png, model_rgba.png (premultiplied, alpha = coverage), background.png and
     /// layers.exr (linear float: beauty R,G,B,A; model.R/G/B/A premultiplied; shadow.R/G/B matte, 1 = no
-    /// darkening; background.R/G/B; depth.Z camera distance in metres, inf where no model) into DIR
+    /// change, above 1 where the model lights the ground; background.R/G/B; depth.Z camera distance in
+    /// metres, inf where no model) into DIR
     #[arg(long, value_name = "DIR")]
     pub layers: Option<PathBuf>,
     /// Print outputs, size, model pixel count, method and timings as JSON

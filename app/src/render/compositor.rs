@@ -665,6 +665,9 @@ impl Compositor {
         // base), so only a turn or a scale computes it again: dragging the model costs nothing.
         let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
         let shape = crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading);
+        // The light the model reflects onto the ground, for its mean albedo.
+        let bounce = super::passes::ground::bounce_light(&p.lighting, env.heading, model.prepared.albedo);
+        let shape = super::model_cache::GroundLight { shape, bounce };
         // Computed by the device's model cache once per key (shared by every compositor on the
         // device); in the live view on its worker, drawing the previous map meanwhile.
         Ok(if self.ground_in_background {

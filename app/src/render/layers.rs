@@ -4,8 +4,9 @@
 //!
 //! - background: the background pass alone;
 //! - shadow matte: the ground pass over white — what the ground leaves of the background per
-//!   channel, 1 = no darkening, 0 = black (the ground multiplies the background by it: a shadow
-//!   keeps the colour of the light left in it);
+//!   channel, 1 = no change, 0 = black, above 1 (up to 2) where the model reflects more light
+//!   onto the ground than it hides (the ground multiplies the background by it: a shadow keeps
+//!   the colour of the light left in it);
 //! - model: the model pass alone over transparent black — premultiplied RGBA, alpha = coverage;
 //! - depth: the model's distance from the camera centre in metres (single-sampled, the model
 //!   pass's own vertex stage), `+inf` where the model does not cover the pixel;

@@ -15,7 +15,7 @@ use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
 use crate::light::sh9::SkyShape;
 use crate::scene::lod::LodChain;
-use crate::scene::occlusion::{self, GroundSky, GroundTransfer, Occluders};
+use crate::scene::occlusion::{self, BounceLight, GroundSky, GroundTransfer, Occluders};
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::{Mat4, Vec3};
@@ -61,24 +61,40 @@ impl ModelKey {
     }
 }
 
-/// The last placement's ground: the model matrix's bits, its transfer, and the last sky's shape
-/// with its map.
+/// The light a ground map is made for: the sky's shape, which weights the rays the model hides,
+/// and the light the model reflects onto the ground (occlusion::BounceLight, made by
+/// passes::ground::bounce_light; NONE: no bounce).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundLight {
+    pub shape: SkyShape,
+    pub bounce: BounceLight,
+}
+
+impl From<SkyShape> for GroundLight {
+    /// A sky of that shape over a model that reflects nothing.
+    fn from(shape: SkyShape) -> GroundLight {
+        GroundLight { shape, bounce: BounceLight::NONE }
+    }
+}
+
+/// The last placement's ground: the model matrix's bits, its transfer, and the last light with
+/// its map.
 struct Ground {
     bits: PlacementKey,
     transfer: GroundTransfer,
-    map: Option<(SkyShape, Arc<GroundSky>)>,
+    map: Option<(GroundLight, Arc<GroundSky>)>,
 }
 
 impl Ground {
-    /// The map under a sky of shape `light`: the last one when the shape is the same, else
-    /// recombined from the transfer (counted in `computed`).
-    fn map(&mut self, light: SkyShape, computed: &AtomicUsize) -> Arc<GroundSky> {
-        if let Some((shape, sky)) = &self.map
-            && *shape == light
+    /// The map under `light`: the last one when the light is the same, else recombined from the
+    /// transfer (counted in `computed`).
+    fn map(&mut self, light: GroundLight, computed: &AtomicUsize) -> Arc<GroundSky> {
+        if let Some((held, sky)) = &self.map
+            && *held == light
         {
             return sky.clone();
         }
-        let sky = Arc::new(self.transfer.map(&light.world_coeffs()));
+        let sky = Arc::new(self.transfer.map(&light.shape.world_coeffs(), &light.bounce));
         computed.fetch_add(1, Relaxed);
         self.map = Some((light, sky.clone()));
         sky
@@ -101,6 +117,9 @@ pub struct PreparedModel {
     /// triangles).
     pub vertices: Vec<Vec<Vertex>>,
     pub chain: LodChain,
+    /// The model's mean diffuse albedo (linear RGB, occlusion::mean_albedo): what it reflects
+    /// onto the ground.
+    pub albedo: [f32; 3],
     model: Model,
     colour: OnceLock<std::result::Result<ColourStats, String>>,
     occluders: Arc<Occluders>,
@@ -131,8 +150,11 @@ impl PreparedModel {
         // Each vertex's share of the sky and of the ground's light past the model itself
         // (occluders reflect light too: the multi-bounce fit for the mesh material's albedo),
         // and the bent normal its sky is looked up along.
-        let occluders = Occluders::of_model(model);
-        for (vertices, ao) in vertices.iter_mut().zip(occlusion::model_sky_ground(model, &occluders)) {
+        let mut occluders = Occluders::of_model(model);
+        let shares = occlusion::model_sky_ground(model, &occluders);
+        // What lights each triangle, for the light the model reflects onto the ground.
+        occluders.attach_light_shares(model, &shares);
+        for (vertices, ao) in vertices.iter_mut().zip(shares) {
             for (v, a) in vertices.iter_mut().zip(ao) {
                 v.ao = a.ao;
                 // A vertex whose rays are unknown (no normal) keeps its normal.
@@ -146,6 +168,7 @@ impl PreparedModel {
             bounds,
             vertices,
             chain: LodChain::build(model),
+            albedo: occlusion::mean_albedo(model),
             model: model.clone(),
             colour: OnceLock::new(),
             occluders: Arc::new(occluders),
@@ -168,15 +191,17 @@ impl PreparedModel {
     }
 
     /// The ground's sky visibility under the model placed by `placement` (model space → world)
-    /// under a sky of shape `light` (its rays weighted by the sky's radiance) over
+    /// under a sky of shape `light.shape` (its rays weighted by the sky's radiance), with the
+    /// light the model reflects onto it (`light.bounce`, [`GroundLight`]), over
     /// [`occlusion::GROUND_TEXELS`]² texels. The rays ([`occlusion::GROUND_RAYS`] a texel) are
     /// cast once per placement into a transfer ([`ground_worker::cast`] onto the SH9 basis); a
-    /// new sky only recombines it with the shape's coefficients turned into the world
-    /// ([`SkyShape::world_coeffs`]; no ray, ~10 products a texel). The same `Arc` comes back
-    /// while the placement and the shape stay, so `Arc::ptr_eq` with the one uploaded says
+    /// new light only recombines it with the shape's coefficients turned into the world
+    /// ([`SkyShape::world_coeffs`]) and the bounce's (no ray, ~40 products a texel). The same
+    /// `Arc` comes back while the placement and the light stay, so `Arc::ptr_eq` with the one uploaded says
     /// whether to upload. Waits for the rays of a new placement, cast here (after any cast still
     /// running on the worker): what a single composite needs.
-    pub fn ground_sky(&self, placement: Mat4, light: SkyShape) -> Arc<GroundSky> {
+    pub fn ground_sky(&self, placement: Mat4, light: impl Into<GroundLight>) -> Arc<GroundSky> {
+        let light = light.into();
         let mut state = self.lock_ground();
         self.adopt_finished(&mut state);
         // A cast still running first: this placement's is the one wanted, and another's would
@@ -199,7 +224,8 @@ impl PreparedModel {
     /// [`GroundWorker`]'s thread and the previous placement's map (under `light`) comes back
     /// until it is ready; a later call finds it. Only the very first placement, with no map to
     /// keep, waits.
-    pub fn ground_sky_without_waiting(&self, placement: Mat4, light: SkyShape) -> Arc<GroundSky> {
+    pub fn ground_sky_without_waiting(&self, placement: Mat4, light: impl Into<GroundLight>) -> Arc<GroundSky> {
+        let light = light.into();
         let mut state = self.lock_ground();
         self.adopt_finished(&mut state);
         let key = placement_key(placement);

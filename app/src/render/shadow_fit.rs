@@ -318,21 +318,24 @@ fn ray_exit_convex(c: Vec2, d: Vec2, poly: &[Vec2]) -> Vec2 {
 pub const SKY_REGION_DIRECTIONS: usize = 16;
 
 /// Where on the ground the sky's occlusion under the model reaches `min_occlusion` (the share
-/// of the sky hidden): a convex polygon (counter-clockwise) around every texel of `sky` (as the
-/// ground pass holds it: R8, passes::ground::sky_texels) hiding at least that much, widened by
+/// of the sky hidden) or the model's light on it reaches `min_bounce` in some channel (the gain
+/// on the ground's light, `GroundSky::bounce`): a convex polygon (counter-clockwise) around
+/// every texel of `sky` (its visibility as the ground pass holds it: in 255ths,
+/// passes::ground::sky_texels) hiding or gaining at least that much, widened by
 /// a texel on every side (the bilinear lookup's reach), from their support along
 /// [`SKY_REGION_DIRECTIONS`] directions; in the map's square as the ground pass places it (0..1
 /// from its min to its max corner: the map moves with the model). Outside it every lookup
-/// blends texels that hide less, so the sky's occlusion there is below `min_occlusion`. Empty
-/// when no texel reaches it.
-pub fn sky_region(sky: &crate::scene::occlusion::GroundSky, min_occlusion: f32) -> Vec<Vec2> {
+/// blends texels that hide and gain less, so the sky's occlusion there is below
+/// `min_occlusion` and the bounce below `min_bounce`. Empty when no texel reaches either.
+pub fn sky_region(sky: &crate::scene::occlusion::GroundSky, min_occlusion: f32, min_bounce: f32) -> Vec<Vec2> {
     let n = sky.size.max(1) as usize;
     let texel = 1.0 / n as f32;
     let corners = [Vec2::new(-1.0, -1.0), Vec2::new(1.0, -1.0), Vec2::new(1.0, 1.0), Vec2::new(-1.0, 1.0)];
     let texels = crate::render::passes::ground::sky_texels(sky);
+    let gains = |i: usize| sky.bounce.get(i).map_or(0.0, |b| b.iter().copied().fold(0.0, f32::max));
     let points = (texels.iter().enumerate())
-        // In whole 255ths, as the R8 texture holds them.
-        .filter(|(_, v)| f32::from(255 - **v) >= min_occlusion * 255.0 - 1e-3)
+        // In whole 255ths, as the texture holds them.
+        .filter(|(i, v)| f32::from(255 - **v) >= min_occlusion * 255.0 - 1e-3 || gains(*i) >= min_bounce)
         .flat_map(|(i, _)| {
             let centre = (Vec2::new((i % n) as f32, (i / n) as f32) + 0.5) * texel;
             corners.map(|c| centre + c * texel)
@@ -694,17 +697,32 @@ mod tests {
         let mut visibility = vec![1.0; 16];
         visibility[2 * 4 + 1] = 245.0 / 255.0;
         visibility[3 * 4 + 3] = 253.0 / 255.0;
-        let sky = crate::scene::occlusion::GroundSky { min: Vec2::splat(7.0), max: Vec2::splat(11.0), z: 0.0, size: 4, visibility };
+        let mut sky = crate::scene::occlusion::GroundSky {
+            min: Vec2::splat(7.0),
+            max: Vec2::splat(11.0),
+            z: 0.0,
+            size: 4,
+            visibility,
+            bounce: Vec::new(),
+        };
         // At 10/255: texel (1, 2), centre (1.5, 2.5)/4, widened by a texel: [0.5, 2.5] x [1.5,
         // 3.5] quarters (the map's own placement does not matter: the ground square places it).
-        let r = sky_region(&sky, 10.0 / 255.0);
+        let r = sky_region(&sky, 10.0 / 255.0, 1.0);
         let (lo, hi) = bbox(&r);
         assert!(close2(lo * 4.0, Vec2::new(0.5, 1.5)) && close2(hi * 4.0, Vec2::new(2.5, 3.5)), "{r:?}");
         assert!((0.5 * signed_area(&r) - 0.25).abs() < 1e-5, "{r:?}");
         // At 2/255 both: [0.5, 4.5] x [1.5, 4.5]; above 10/255 none.
-        let (lo, hi) = bbox(&sky_region(&sky, 2.0 / 255.0));
+        let (lo, hi) = bbox(&sky_region(&sky, 2.0 / 255.0, 1.0));
         assert!(close2(lo * 4.0, Vec2::new(0.5, 1.5)) && close2(hi * 4.0, Vec2::new(4.5, 4.5)), "{lo} {hi}");
-        assert!(sky_region(&sky, 11.0 / 255.0).is_empty());
+        assert!(sky_region(&sky, 11.0 / 255.0, 1.0).is_empty());
+        // The model's light on texel (0, 0), 0.02 in green, brings it in at a bounce threshold of
+        // 0.01, not at 0.03: [-0.5, 1.5] x [-0.5, 1.5] quarters joined to texel (1, 2)'s box.
+        sky.bounce = vec![[0.0; 3]; 16];
+        sky.bounce[0] = [0.0, 0.02, 0.0];
+        let (lo, hi) = bbox(&sky_region(&sky, 10.0 / 255.0, 0.01));
+        assert!(close2(lo * 4.0, Vec2::new(-0.5, -0.5)) && close2(hi * 4.0, Vec2::new(2.5, 3.5)), "{lo} {hi}");
+        let (lo, _) = bbox(&sky_region(&sky, 10.0 / 255.0, 0.03));
+        assert!(close2(lo * 4.0, Vec2::new(0.5, 1.5)), "{lo}");
     }
 
     #[test]

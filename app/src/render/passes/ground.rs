@@ -3,7 +3,9 @@
 //! that follows the sun's size (frame.wgsl `sun_visibility_soft`), and where the model hides its
 //! sky: the ground's sky visibility under the placed model (render::model_cache
 //! PreparedModel::ground_sky) is a small texture written once per placement and sky shape, never
-//! per frame.
+//! per frame. The same texture carries the light the model reflects onto the ground
+//! ([`bounce_light`], scene::occlusion Transfer::bounce), which brightens it (differential
+//! rendering: the path-traced references' ground sees the lit model where it hides the sky).
 
 use super::super::uniforms::{InstanceUniforms, LightUniforms};
 use crate::gpu::build;
@@ -11,7 +13,7 @@ use crate::render::frame::{GROUND_VERTICES, GroundMesh};
 use crate::render::pipelines::{COLOR_FORMAT, Pipelines, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::shadow_fit;
-use crate::scene::occlusion::{self, GroundSky};
+use crate::scene::occlusion::{self, BounceLight, GroundSky};
 use anyhow::{Result, bail};
 use std::sync::Arc;
 use wgpu::ShaderStages;
@@ -25,7 +27,7 @@ pub struct GroundPipelines {
 }
 
 /// The ground pipelines: triangles of [`GroundMesh`] corners; the background is multiplied by
-/// one minus the shader's output per channel ([`DARKEN`]).
+/// twice the shader's output per channel ([`SCALE`]).
 pub fn pipeline(device: &wgpu::Device, samples: u32) -> GroundPipelines {
     let fs = ShaderStages::FRAGMENT;
     let vs_fs = ShaderStages::VERTEX | fs;
@@ -70,7 +72,7 @@ pub fn pipeline_for(
             module: &module,
             layouts: &[layout],
             vertex_buffers: &[Some(vertices)],
-            colour: Some(wgpu::ColorTargetState { format, blend: Some(DARKEN), write_mask: wgpu::ColorWrites::ALL }),
+            colour: Some(wgpu::ColorTargetState { format, blend: Some(SCALE), write_mask: wgpu::ColorWrites::ALL }),
             depth: depth_state(false, wgpu::DepthBiasState::default()),
             samples,
             constants: &[("SUN_SHADOW", if sun_shadow { 1.0 } else { 0.0 })],
@@ -78,12 +80,15 @@ pub fn pipeline_for(
     )
 }
 
-/// The ground's blend: `dst · (1 − src)` per colour channel (src = what the ground loses there,
-/// shaders/ground.wgsl `ground_loss`), the target's alpha kept.
-pub const DARKEN: wgpu::BlendState = wgpu::BlendState {
+/// The ground's blend: `src · dst + dst · src = dst · 2 src` per colour channel, the target's
+/// alpha kept. The shader writes half the factor the ground's light changes by (shaders/
+/// ground.wgsl: 1 − what it loses + what the model reflects onto it), so the factor spans 0..2
+/// although an 8-bit target clamps what the shader writes to 0..1: the ground can brighten where
+/// the model reflects more light onto it than it hides.
+pub const SCALE: wgpu::BlendState = wgpu::BlendState {
     color: wgpu::BlendComponent {
-        src_factor: wgpu::BlendFactor::Zero,
-        dst_factor: wgpu::BlendFactor::OneMinusSrc,
+        src_factor: wgpu::BlendFactor::Dst,
+        dst_factor: wgpu::BlendFactor::Src,
         operation: wgpu::BlendOperation::Add,
     },
     alpha: wgpu::BlendComponent {
@@ -104,20 +109,86 @@ pub struct GroundPass {
     bind_groups: Vec<wgpu::BindGroup>,
     /// The plane's transform (`InstanceUniforms`).
     instance: wgpu::Buffer,
-    /// The ground's sky visibility under the model (R8, [`GROUND_TEXELS`]², 1 = whole sky), over
-    /// the square in the `Light` uniform's `ground_square`.
+    /// The ground's sky visibility under the model (r, 1 = whole sky, in 255ths: [`sky_texels`])
+    /// and the model's light on it (gba: the gain on the ground's light per channel), Rgba16Float,
+    /// [`GROUND_TEXELS`]², over the square in the `Light` uniform's `ground_square`.
     sky: wgpu::Texture,
 }
 
 /// Texels per side of the ground pass's sky-visibility texture.
 pub const GROUND_TEXELS: u32 = occlusion::GROUND_TEXELS;
 
-/// A sky-visibility map as R8 texels (0..=1 → 0..=255, rounded).
+/// A sky-visibility map in whole 255ths (0..=1 → 0..=255, rounded), as the ground pass holds it.
 pub fn sky_texels(sky: &GroundSky) -> Vec<u8> {
     sky.visibility.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect()
 }
 
-/// The largest loss of light (the fraction the ground pass takes, [`DARKEN`]) that moves no
+/// The ground pass's texels of a map: the visibility in 255ths ([`sky_texels`]) and the model's
+/// light per channel (0 without any), as Rgba16Float.
+pub fn ground_texels(sky: &GroundSky) -> Vec<half::f16> {
+    let f = half::f16::from_f32;
+    (sky_texels(sky).iter().enumerate())
+        .flat_map(|(i, &v)| {
+            let b = sky.bounce.get(i).copied().unwrap_or([0.0; 3]);
+            [f(f32::from(v) / 255.0), f(b[0]), f(b[1]), f(b[2])]
+        })
+        .collect()
+}
+
+/// The light the model reflects onto the ground, as the ground map takes it
+/// (occlusion::GroundTransfer::map, [`BounceLight`]): what the model's surface facing n
+/// reflects, albedo × E(n)/π, in units of the ground's own E/π, per channel. E(n) is the light
+/// of the frame's `lighting` as the model's own shading gives it (shaders/sh9_ggx.wgsl
+/// `sky_and_ground`, each part by the surface's light shares): the sky (`sky_sh`, the map's
+/// frame turned by `heading` into the world), the uniform ground below the horizon
+/// (`ground_radiance`: E/π = L (1 − n_z)/2; lit by the sky and by the sun in the proportion
+/// render::frame::sun_share_on_ground) and the sun (`sun_colour`, max(n·s, 0), unshadowed by
+/// the model itself). Their strengths
+/// are the ground's shares of its light, as the ground pass darkens it: the sky gives the
+/// ground `sky_occlusion`, the sun `shadow_opacity` (of luminance 1 in all), so the bounce is a
+/// gain on the ground's light whatever the method's daylight scale. None without either share.
+pub fn bounce_light(lighting: &crate::render::Lighting, heading: f32, albedo: [f32; 3]) -> BounceLight {
+    use crate::light::sh9::{SkyShape, basis};
+    let lum = crate::colour::luminance_bt709;
+    let mut light = BounceLight::NONE;
+    // The sky in the world, per channel, and the light it gives the ground (n = up).
+    let sky: [[f32; 9]; 3] =
+        std::array::from_fn(|c| SkyShape { coeffs: std::array::from_fn(|k| lighting.sky_sh[k][c]), heading }.world_coeffs());
+    let up = basis(glam::Vec3::Z);
+    let sky_up: [f32; 3] = std::array::from_fn(|c| sky[c].iter().zip(up).map(|(a, y)| a * y).sum::<f32>().max(0.0));
+    let sky_scale = if lum(sky_up) > 0.0 { lighting.sky_occlusion.max(0.0) / lum(sky_up) } else { 0.0 };
+    let sun_share = crate::render::frame::sun_share_on_ground(lighting);
+    let mut ground = [0.0f32; 3];
+    for c in 0..3 {
+        ground[c] += sky_scale * sky_up[c];
+        for (k, l) in light.sky.iter_mut().enumerate() {
+            l[c] = sky_scale * sky[c][k];
+        }
+        let g = sky_scale * lighting.ground_radiance[c];
+        light.ground[0][c] = g * (1.0 - sun_share);
+        light.ground[1][c] = g * sun_share;
+    }
+    // The sun: E_sun/π · max(n·s, 0), E_sun/π · s_z being its share of the ground's light.
+    let s = lighting.sun_dir.normalize_or_zero();
+    // Without sunlight (the live view's SL at 0) the ground pass draws no sun shadow and the
+    // model no sunlit side: no sun in the bounce either, whatever its direction.
+    if lighting.shadow_opacity > 0.0 && lighting.sunlight > 0.0 && s.z > 1e-3 {
+        for ((g, sun), colour) in ground.iter_mut().zip(&mut light.sun).zip(lighting.sun_colour) {
+            *g += lighting.shadow_opacity * colour;
+            *sun = lighting.shadow_opacity / s.z * colour;
+        }
+        // Rounded (about 0.1°) so that a frame whose sun barely moves keeps the map.
+        light.sun_dir = s.to_array().map(|v| (v * 1024.0).round() / 1024.0);
+    }
+    // Per unit of the ground's light, times the albedo; rounded (to 1/256) so that a frame whose
+    // light barely moves keeps the map.
+    let scale: [f32; 3] = std::array::from_fn(|c| if ground[c] > 0.0 { albedo[c] / ground[c] } else { 0.0 });
+    let per_ground = |l: &mut [f32; 3]| (0..3).for_each(|c| l[c] = (l[c] * scale[c] * 256.0).round() / 256.0);
+    light.sky.iter_mut().chain(&mut light.ground).chain(std::iter::once(&mut light.sun)).for_each(per_ground);
+    light
+}
+
+/// The largest loss of light (the fraction the ground pass takes, [`SCALE`]) that moves no
 /// 8-bit sRGB-encoded value (IEC 61966-2-1) by more than one level: a loss L moves encoding e
 /// by at most 255 · y e'(y) · L / (1 − L) with y the darkened value (e is concave), and y e'(y)
 /// is largest at y = 1, 1.055 / 2.4; so 1 / (255 · 1.055 / 2.4 + 1). The ground skips the sky's
@@ -181,13 +252,15 @@ impl RegionCache {
         self.outline.as_ref().map_or(&[], |(_, o)| o)
     }
 
-    /// `shadow_fit::sky_region` of `sky` where its occlusion reaches `min_occlusion`. The map's
-    /// texels hide whole 255ths of the sky, so the region only changes when the threshold
-    /// crosses one.
+    /// `shadow_fit::sky_region` of `sky` where its occlusion reaches `min_occlusion` or the
+    /// model's light on it [`INVISIBLE_LOSS`]. The map's texels hide whole 255ths of the sky, so
+    /// the region only changes when the threshold crosses one.
     pub fn sky(&mut self, sky: &Arc<GroundSky>, min_occlusion: f32) -> &[glam::Vec2] {
         let levels = (min_occlusion.max(0.0) * 255.0 - 1e-3).ceil().clamp(1.0, 256.0) as u32;
         if self.sky.as_ref().is_none_or(|(held, l, _)| !Arc::ptr_eq(held, sky) || *l != levels) {
-            let region = shadow_fit::sky_region(sky, levels as f32 / 255.0);
+            // A gain g brightens an 8-bit sRGB value by at most 255 · 1.055/2.4 · g levels, less
+            // than the loss that darkens it by one: INVISIBLE_LOSS keeps it under a level.
+            let region = shadow_fit::sky_region(sky, levels as f32 / 255.0, INVISIBLE_LOSS);
             self.sky_regions_computed += 1;
             self.sky = Some((sky.clone(), levels, region));
         }
@@ -207,9 +280,10 @@ impl GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
         let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
         let side = GROUND_TEXELS;
-        let sky = build::texture(device, "ground sky visibility", (side, side, 1), wgpu::TextureFormat::R8Unorm, 1, usage);
-        // The whole sky everywhere until a model is placed.
-        build::write_layer(queue, &sky, 0, &vec![255; (side * side) as usize]);
+        let sky = build::texture(device, "ground sky visibility", (side, side, 1), wgpu::TextureFormat::Rgba16Float, 1, usage);
+        // The whole sky and no bounce everywhere until a model is placed.
+        let open = [half::f16::ONE, half::f16::ZERO, half::f16::ZERO, half::f16::ZERO];
+        build::write_layer(queue, &sky, 0, bytemuck::cast_slice(&open.repeat((side * side) as usize)));
         let sky_view = sky.create_view(&Default::default());
         let bind_groups = shadow_maps
             .iter()
@@ -251,7 +325,7 @@ impl GroundPass {
         if sky.size != GROUND_TEXELS || sky.visibility.len() != (sky.size * sky.size) as usize {
             bail!("a ground sky map of {} texels a side; the ground pass holds {GROUND_TEXELS}", sky.size);
         }
-        build::write_layer(queue, &self.sky, 0, &sky_texels(sky));
+        build::write_layer(queue, &self.sky, 0, bytemuck::cast_slice(&ground_texels(sky)));
         Ok(())
     }
 
@@ -311,6 +385,88 @@ mod tests {
         // Tight: white moves by just under a level; twice the loss moves it by two.
         assert!(worst <= 1.0 && worst > 0.98, "{worst}");
         assert!(moved(1.0, 2.0 * INVISIBLE_LOSS) > 1.97);
+    }
+
+    /// A frame's lighting with only the terms [`bounce_light`] reads set.
+    fn lit(sky_sh: [[f32; 3]; 9], ground_radiance: [f32; 3], sun: (glam::Vec3, f32), sky_occlusion: f32) -> crate::render::Lighting {
+        use crate::render::{Lighting, MaterialTerms};
+        Lighting {
+            sun_dir: sun.0,
+            sunlight: 1.0,
+            daylight: 0.3,
+            material: MaterialTerms { ambient: 1.0, diffuse: 1.0, specular: 0.0, gloss: None },
+            reflection: 0.0,
+            ior: 1.5,
+            shadow_opacity: sun.1,
+            sky_occlusion,
+            live_depth: 2.0,
+            sky_sh,
+            ground_radiance,
+            sun_colour: [1.0; 3],
+            sun_angular_radius: 0.005,
+        }
+    }
+
+    /// What an open model surface facing unit `n` reflects under `light`, per channel: the
+    /// sky's, the sun's and the ground's parts (occlusion::Transfer::reflected for one hit).
+    fn reflected(light: &BounceLight, n: glam::Vec3) -> [f32; 3] {
+        let y = crate::light::sh9::basis(n);
+        let down = 0.5 * (1.0 - n.z);
+        let sun = n.dot(glam::Vec3::from(light.sun_dir)).max(0.0);
+        std::array::from_fn(|c| {
+            let sky: f32 = light.sky.iter().zip(y).map(|(l, y)| l[c] * y).sum();
+            sky + sun * light.sun[c] + down * (light.ground[0][c] + light.ground[1][c])
+        })
+    }
+
+    #[test]
+    fn the_model_reflects_its_albedo_times_its_light_over_the_grounds() {
+        let albedo = [0.8, 0.5, 0.2];
+        let close = |a: [f32; 3], b: [f32; 3], tol: f32| a.iter().zip(b).all(|(a, b)| (a - b).abs() < tol);
+        let normals = [glam::Vec3::Z, -glam::Vec3::Z, glam::Vec3::X, glam::Vec3::new(0.6, 0.0, -0.8)];
+        // A uniform sky over the upper hemisphere (E/π = (1 + n_z)/2, exact in SH9: 0.5/Y00 and
+        // 0.5/Y10's constant) over a ground of the same radiance: every surface gets what the
+        // ground gets, so each reflects its albedo (a gain of ρ on the ground's light, whatever
+        // the sky's share).
+        let mut sky = [[0.0; 3]; 9];
+        sky[0] = [0.5 / 0.282_095; 3];
+        sky[2] = [0.5 / 0.488_603; 3];
+        for heading in [0.0, 1.0] {
+            let light = bounce_light(&lit(sky, [1.0; 3], (glam::Vec3::Z, 0.0), 0.7), heading, albedo);
+            for n in normals {
+                assert!(close(reflected(&light, n), albedo, 0.01), "{n}: {:?}", reflected(&light, n));
+            }
+        }
+        // The same sky over a black ground: a surface facing down gets nothing, one facing up all.
+        let light = bounce_light(&lit(sky, [0.0; 3], (glam::Vec3::Z, 0.0), 1.0), 0.0, albedo);
+        assert!(close(reflected(&light, -glam::Vec3::Z), [0.0; 3], 0.01) && close(reflected(&light, glam::Vec3::Z), albedo, 0.01));
+        // The sun alone, 30° up: a surface facing it gets 1/sin 30° = 2 times the ground's light,
+        // one facing away or edge-on none, one facing straight up sin 30° / sin 30° = 1.
+        let s = glam::Vec3::new(0.0, 3f32.sqrt(), 1.0).normalize();
+        let light = bounce_light(&lit([[0.0; 3]; 9], [0.0; 3], (s, 1.0), 0.0), 0.0, albedo);
+        assert!(close(reflected(&light, s), albedo.map(|a| a * 2.0), 0.01), "{:?}", reflected(&light, s));
+        assert!(close(reflected(&light, glam::Vec3::Z), albedo, 0.01), "{:?}", reflected(&light, glam::Vec3::Z));
+        assert_eq!(reflected(&light, -s), [0.0; 3]);
+        assert_eq!(reflected(&light, glam::Vec3::X), [0.0; 3]);
+        // No light on the ground: no bounce.
+        assert_eq!(bounce_light(&lit([[0.0; 3]; 9], [0.0; 3], (s, 0.0), 0.0), 0.0, albedo), BounceLight::NONE);
+    }
+
+    #[test]
+    fn the_ground_texels_hold_the_visibility_in_255ths_and_the_bounce() {
+        let mut sky = GroundSky {
+            min: glam::Vec2::ZERO,
+            max: glam::Vec2::ONE,
+            z: 0.0,
+            size: 2,
+            visibility: vec![1.0, 0.5, 0.0, 0.25],
+            bounce: Vec::new(),
+        };
+        let t: Vec<f32> = ground_texels(&sky).iter().map(|v| v.to_f32()).collect();
+        assert!((t[4] - 128.0 / 255.0).abs() < 1e-3 && t[5..8] == [0.0; 3] && t[0] == 1.0, "{t:?}");
+        sky.bounce = vec![[0.0; 3], [0.25, 0.5, 1.5], [0.0; 3], [0.0; 3]];
+        let t: Vec<f32> = ground_texels(&sky).iter().map(|v| v.to_f32()).collect();
+        assert_eq!(t[5..8], [0.25, 0.5, 1.5]);
     }
 
     #[test]

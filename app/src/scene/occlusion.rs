@@ -52,7 +52,7 @@ pub struct Occluders {
     /// Per triangle (in `triangles`' order), the model's light on it as shares of an open
     /// surface's ([`model_sky_ground`]'s four, the mean of its vertices'), then its albedo's
     /// luminance over the model's mean ([`mean_albedo`]); empty: every triangle open and of the
-    /// mean albedo ([`OPEN`]). Set by [`Occluders::attach_light_shares`].
+    /// mean albedo ([`OPEN_SURFACE`]). Set by [`Occluders::attach_light_shares`].
     shares: Vec<[f32; 5]>,
     /// Ray offset from the surface: a small fraction of the model's size.
     epsilon: f32,
@@ -60,7 +60,7 @@ pub struct Occluders {
 
 /// The light shares of a surface nothing occludes ([`model_sky_ground`]'s order: sky, ground lit
 /// by the sky, ground, the model's own bounce), of the model's mean albedo (1).
-pub const OPEN: [f32; 5] = [1.0, 1.0, 1.0, 0.0, 1.0];
+pub const OPEN_SURFACE: [f32; 5] = [1.0, 1.0, 1.0, 0.0, 1.0];
 
 impl Occluders {
     /// Every triangle of `model`, in model space.
@@ -123,7 +123,7 @@ impl Occluders {
                 by_corners.insert(key([a.0, b.0, c.0]), v);
             }
         }
-        self.shares = self.triangles.iter().map(|t| by_corners.get(&key(*t)).copied().unwrap_or(OPEN)).collect();
+        self.shares = self.triangles.iter().map(|t| by_corners.get(&key(*t)).copied().unwrap_or(OPEN_SURFACE)).collect();
     }
 
     /// Whether the ray `origin + t·dir`, 0 < t < `t_max`, hits any triangle (either side).
@@ -188,7 +188,7 @@ impl Occluders {
         let i = nearest?.1;
         let [a, b, c] = self.triangles[i];
         let n = (b - a).cross(c - a);
-        Some((if n.dot(dir) > 0.0 { -n } else { n }, self.shares.get(i).copied().unwrap_or(OPEN)))
+        Some((if n.dot(dir) > 0.0 { -n } else { n }, self.shares.get(i).copied().unwrap_or(OPEN_SURFACE)))
     }
 
     /// The cosine-weighted visibility of the hemisphere around unit `normal` at `point`, from
@@ -1355,7 +1355,7 @@ mod tests {
             tris.push(t.map(|p| Vec3::new(0.0, p.y, p.x))); // the wall: x = 0, 0 < y < 1000
         }
         let occ = Occluders::new(tris);
-        let ground = GroundSky { min: Vec2::ZERO, max: Vec2::ONE, z: 0.0, size: 1, visibility: vec![1.0] };
+        let ground = GroundSky { min: Vec2::ZERO, max: Vec2::ONE, z: 0.0, size: 1, visibility: vec![1.0], bounce: Vec::new() };
         let v = light_at(&occ, &ground, 0.0, (Vec3::new(-1e-3, 0.0, 0.0), Vec3::Y), 4096, 1, 0.0);
         let bent = Vec3::new(v[4], v[5], v[6]);
         let lean = bent.angle_between(Vec3::Y).to_degrees();

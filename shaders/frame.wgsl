@@ -74,7 +74,10 @@ fn view_ray_world(frame: Frame, uv: vec2<f32>) -> vec3<f32> {
     return normalize(transpose(r) * d_cam);
 }
 
-// Fraction of sunlight reaching world point p (1 = lit), 3x3 PCF over the sun's depth map.
+// Fraction of sunlight reaching world point p (1 = lit): 2x2 bilinear comparison taps half a
+// texel either side of p, a filter 3 texels wide (it was 3x3 taps a texel apart, 4 wide: the
+// five taps less took 0.3-1 ms off the live truck's 11-12 ms model pass on lavapipe, at a mean
+// FLIP of 1e-4 between the two; docs/PERFORMANCE.md, eighth session).
 // Points outside the shadow camera's footprint are lit: every occluder (the model) is inside it.
 fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, p: vec3<f32>) -> f32 {
     let clip = frame.light_view_proj * vec4<f32>(p, 1.0);
@@ -87,13 +90,13 @@ fn sun_visibility(map: texture_depth_2d, smp: sampler_comparison, frame: Frame, 
     let depth = min(ndc.z, 1.0) - 0.002;
     let texel = 1.0 / f32(frame.shadow_map_size);
     var lit = 0.0;
-    for (var y = -1; y <= 1; y++) {
-        for (var x = -1; x <= 1; x++) {
-            let o = vec2<f32>(f32(x), f32(y)) * texel;
+    for (var y = 0; y < 2; y++) {
+        for (var x = 0; x < 2; x++) {
+            let o = (vec2<f32>(f32(x), f32(y)) - 0.5) * texel;
             lit += textureSampleCompareLevel(map, smp, uv + o, depth);
         }
     }
-    return lit / 9.0;
+    return lit / 4.0;
 }
 
 // Light measured from the environment (setup::light), for the sh9-ggx method and the soft

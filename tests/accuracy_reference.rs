@@ -57,14 +57,16 @@ use std::path::Path;
 /// Eighth session (2026-12-01, s8-shadow, measured on its own branch): the ground gets the light the model reflects onto it
 /// (render::passes::ground::bounce_light): 0.102, 0.082, 0.126, 0.098, 0.125, luminance unchanged;
 /// bounds = measured + 0.01 FLIP.
-/// Merged (s8-bg, s8-model, s8-shadow): each bound the tighter of the branches' until the merged
-/// main is measured.
+/// Merged main (2026-12-01 17:25 UTC, s8-bg + s8-model + s8-shadow + s8-raster + s8-shade): ROI
+/// 0.1010, 0.0819, 0.1217, 0.0913, 0.1140 (mean 0.102), luminance 0.969, 0.971, 1.005, 0.994,
+/// 1.027; bounds = measured + 0.01 rounded up to three decimals (luminance errors kept where
+/// measured + 0.03 would loosen them).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.112, 0.04),
+    ("quarry_bunny", 0.111, 0.04),
     ("blouberg_teapot", 0.092, 0.05),
-    ("courtyard_dragon", 0.135, 0.04),
+    ("courtyard_dragon", 0.132, 0.04),
     ("city_spot", 0.102, 0.04),
-    ("quarry_truck", 0.135, 0.04),
+    ("quarry_truck", 0.124, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
@@ -73,9 +75,10 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// the cube map → 0.0299, 0.0171, 0.0400, 0.0193, 0.0360; bounds = measured + 0.01 rounded up to
 /// three decimals, one thousandth more for courtyard_dragon and quarry_truck, whose sums land on a
 /// thousandth within the unprinted fifth decimal). The cube-map background fails city_spot and
-/// courtyard_dragon.
+/// courtyard_dragon. Merged main (the ground's bounce too): 0.0273, 0.0174, 0.0371, 0.0214, 0.0353;
+/// tightened to measured + 0.01 where that is tighter.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.040), ("blouberg_teapot", 0.028), ("courtyard_dragon", 0.051), ("city_spot", 0.030), ("quarry_truck", 0.047)];
+    [("quarry_bunny", 0.038), ("blouberg_teapot", 0.028), ("courtyard_dragon", 0.048), ("city_spot", 0.030), ("quarry_truck", 0.046)];
 
 #[test]
 fn default_method_against_path_traced_references() {

@@ -604,7 +604,8 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
             .y_desc("mean FLIP in model + shadow (log scale)")
             .label_style(("sans-serif", 16))
             .axis_desc_style(("sans-serif", 18))
-            .x_label_formatter(&|x| format!("{x:.0}"))
+            // Decades below 1 ms keep their digits (0.1, 0.01): "{:.0}" printed 0.1 as "0".
+            .x_label_formatter(&|x| if *x >= 1.0 { format!("{x:.0}") } else { format!("{:.*}", (-x.log10()).ceil() as usize, x) })
             .y_label_formatter(&|y| format!("{y:.2}"))
             .draw()
             .map_err(|e| err(&e))?;

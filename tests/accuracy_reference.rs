@@ -52,10 +52,10 @@ use std::path::Path;
 /// error's 0.04 kept: measured + 0.03 would loosen it). Then the sky looked up along each
 /// vertex's bent normal (the mean direction of its rays that pass the model): 0.128, 0.090,
 /// 0.125, 0.092, 0.126 and 0.97, 0.97, 1.00, 0.99, 1.03; bounds = measured + 0.01 FLIP, the
-/// dragon's and Spot's luminance errors 0.09 → 0.04 and 0.05 → 0.04 (measured 0.002 and 0.006
-/// + 0.03, rounded up).
-/// Eighth session (2026-12-01, s8-shadow, measured on its own branch): the ground gets the light the model reflects onto it
-/// (render::passes::ground::bounce_light): 0.102, 0.082, 0.126, 0.098, 0.125, luminance unchanged;
+/// dragon's and Spot's luminance errors 0.09 → 0.04 and 0.05 → 0.04 (measured 0.002 and 0.006,
+/// plus 0.03, rounded up).
+/// Eighth session (2026-12-01, s8-shadow, measured on its own branch): the ground gets the light
+/// the model reflects onto it (render::passes::ground::bounce_light): 0.102, 0.082, 0.126, 0.098, 0.125, luminance unchanged;
 /// bounds = measured + 0.01 FLIP.
 /// Merged main (2026-12-01 17:25 UTC, s8-bg + s8-model + s8-shadow + s8-raster + s8-shade): ROI
 /// 0.1010, 0.0819, 0.1217, 0.0913, 0.1140 (mean 0.102), luminance 0.969, 0.971, 1.005, 0.994,

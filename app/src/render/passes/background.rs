@@ -17,24 +17,7 @@ use wgpu::TextureViewDimension::{Cube, D2};
 /// The environment-view pipeline: a full-screen triangle sampling the cube map into the
 /// single-sampled background texture.
 pub fn env_view_pipeline(device: &wgpu::Device) -> PassPipeline {
-    let fs = ShaderStages::FRAGMENT;
-    let layout = build::layout(
-        device,
-        "env_view",
-        &[build::uniform(0, ShaderStages::VERTEX | fs), build::texture_entry(1, fs, Cube, true), build::sampler_entry(2, fs, Filtering)],
-    );
-    let pipeline = make(
-        device,
-        PipelineSpec {
-            technique: Technique::EnvView,
-            layouts: &[&layout],
-            vertex_buffers: &[],
-            depth: None,
-            samples: 1,
-            blend: Some(None),
-        },
-    );
-    PassPipeline { layout, pipeline }
+    environment_view(device, "env_view", Technique::EnvView, Cube)
 }
 
 /// Lookups per pixel of the equirectangular environment view, per axis
@@ -47,23 +30,21 @@ pub const ENV_VIEW_TAPS: u32 = 2;
 /// The equirectangular environment-view pipeline: a full-screen triangle looking the map up
 /// into the single-sampled background texture.
 pub fn env_view_equirect_pipeline(device: &wgpu::Device) -> PassPipeline {
+    environment_view(device, "env_view_equirect", Technique::EnvViewEquirect, D2)
+}
+
+/// A full-screen triangle drawing `technique`'s view of an environment texture of `dimension`
+/// (frame uniform, texture, sampler) into the single-sampled background texture.
+fn environment_view(device: &wgpu::Device, label: &str, technique: Technique, dimension: wgpu::TextureViewDimension) -> PassPipeline {
     let fs = ShaderStages::FRAGMENT;
-    let layout = build::layout(
-        device,
-        "env_view_equirect",
-        &[build::uniform(0, ShaderStages::VERTEX | fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
-    );
-    let pipeline = make(
-        device,
-        PipelineSpec {
-            technique: Technique::EnvViewEquirect,
-            layouts: &[&layout],
-            vertex_buffers: &[],
-            depth: None,
-            samples: 1,
-            blend: Some(None),
-        },
-    );
+    let entries = [
+        build::uniform(0, ShaderStages::VERTEX | fs),
+        build::texture_entry(1, fs, dimension, true),
+        build::sampler_entry(2, fs, Filtering),
+    ];
+    let layout = build::layout(device, label, &entries);
+    let spec = PipelineSpec { technique, layouts: &[&layout], vertex_buffers: &[], depth: None, samples: 1, blend: Some(None) };
+    let pipeline = make(device, spec);
     PassPipeline { layout, pipeline }
 }
 

@@ -109,6 +109,42 @@ fn a_single_sided_material_hides_its_back_faces() {
     }
 }
 
+/// The float layers (`--layers`, render/layers.rs) cull as the composite does: the single-sided
+/// square seen from behind covers nothing in the model layer and has no depth; a double-sided
+/// material shows both squares, the front one exactly as the single-sided material does.
+#[test]
+fn the_layers_hide_a_single_sided_back_face_as_the_composite_does() {
+    let s = scene("width = 160\nheight = 96\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.9\n");
+    let env = inputs(&s).env;
+    let load = |d| previz::scene::model::load_glb_bytes(&two_squares_glb(Some(d))).unwrap();
+    let layers = |model: Model| {
+        let i = Inputs { model, env: env.clone(), env_equirect: None, background: None };
+        let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+        c.render_layers(gpu(), &p).unwrap()
+    };
+    // Pixels of each half the layer covers (alpha > 0.5) and that have a finite depth.
+    let halves = |l: &previz::render::layers::LayerImages| {
+        let (w, half) = (l.width as usize, l.width as usize / 2);
+        [0, half].map(|x0| {
+            let px = (0..l.height as usize).flat_map(|y| (x0..x0 + half).map(move |x| y * w + x));
+            let px: Vec<usize> = px.collect();
+            (px.iter().filter(|&&i| l.model[i][3] > 0.5).count(), px.iter().filter(|&&i| l.depth[i].is_finite()).count())
+        })
+    };
+    let (single, double) = (layers(load(false)), layers(load(true)));
+    let [(front, front_depth), (back, back_depth)] = halves(&single);
+    // About 35 pixels on a side (a_single_sided_material_hides_its_back_faces).
+    assert!(front > 1000, "front-facing square: {front} layer pixels");
+    assert!(front_depth.abs_diff(front) <= front / 20, "front-facing square: {front_depth} pixels with depth, {front} covered");
+    assert_eq!((back, back_depth), (0, 0), "the single-sided square seen from behind is in the layers");
+    let [(d_front, _), (d_back, d_back_depth)] = halves(&double);
+    assert_eq!(d_front, front, "double-sided: the front-facing square");
+    assert!(
+        d_back.abs_diff(front) <= front / 50 && d_back_depth > front / 2,
+        "double-sided back square: {d_back} covered, {d_back_depth} with depth"
+    );
+}
+
 /// glTF 2.0 §3.9.5: a double-sided material's back face has "its normals reversed before the
 /// lighting equation is evaluated". The sun stands south of the squares, behind the camera, so
 /// the front-facing square's normal (south) faces it. Reversed, the back-facing square's normal

@@ -797,12 +797,12 @@ impl Compositor {
         {
             let mut pass = targets.begin(encoder, LayerPass::Model);
             in_group(&mut pass, "model layer", |pass| {
-                self.model_pass.draw_with(pass, pipelines.model(method), model, (self.level, self.shadow_index))
+                self.model_pass.draw_with(pass, |cull| pipelines.model(method, cull), model, (self.level, self.shadow_index))
             })?;
         }
         let mut pass = targets.begin_depth(encoder);
         in_group(&mut pass, "depth layer", |pass| {
-            self.model_pass.draw_with(pass, pipelines.depth(), model, (self.level, self.shadow_index))
+            self.model_pass.draw_with(pass, |cull| pipelines.depth(cull), model, (self.level, self.shadow_index))
         })
     }
 }

@@ -53,9 +53,10 @@ pub const CHANNELS: [&str; 15] = [
 pub struct LayerPipelines {
     background: wgpu::RenderPipeline,
     ground: wgpu::RenderPipeline,
-    /// Indexed by `LightingMethod::shader_id`.
-    model: Vec<wgpu::RenderPipeline>,
-    depth: wgpu::RenderPipeline,
+    /// Without and with back faces culled, each indexed by `LightingMethod::shader_id`.
+    model: [Vec<wgpu::RenderPipeline>; 2],
+    /// Without and with back faces culled.
+    depth: [wgpu::RenderPipeline; 2],
 }
 
 impl LayerPipelines {
@@ -66,13 +67,11 @@ impl LayerPipelines {
             Ok(LayerPipelines {
                 background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, LAYER_SAMPLES),
                 ground: ground::pipeline_for(device, &pipelines.ground.layout, (LAYER_FORMAT, LAYER_SAMPLES), true),
-                model: model::pipelines_for(
-                    device,
-                    (&pipelines.model.layout, &pipelines.model.material_layout),
-                    (LAYER_FORMAT, LAYER_SAMPLES),
-                    true,
-                ),
-                depth: model::depth_pipeline(device, &pipelines.model),
+                model: [false, true].map(|cull| {
+                    let layouts = (&pipelines.model.layout, &pipelines.model.material_layout);
+                    model::pipelines_for(device, layouts, (LAYER_FORMAT, LAYER_SAMPLES), (true, cull))
+                }),
+                depth: [false, true].map(|cull| model::depth_pipeline(device, &pipelines.model, cull)),
             })
         })
     }
@@ -85,12 +84,14 @@ impl LayerPipelines {
         &self.ground
     }
 
-    pub fn model(&self, method: super::LightingMethod) -> &wgpu::RenderPipeline {
-        &self.model[method.shader_id() as usize]
+    /// The model layer's pipeline for `method`, culling back faces or not.
+    pub fn model(&self, method: super::LightingMethod, cull: bool) -> &wgpu::RenderPipeline {
+        &self.model[usize::from(cull)][method.shader_id() as usize]
     }
 
-    pub fn depth(&self) -> &wgpu::RenderPipeline {
-        &self.depth
+    /// The depth layer's pipeline, culling back faces or not.
+    pub fn depth(&self, cull: bool) -> &wgpu::RenderPipeline {
+        &self.depth[usize::from(cull)]
     }
 }
 

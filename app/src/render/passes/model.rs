@@ -103,15 +103,16 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
 
 /// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
 /// layouts (`layout`, `material_layout`), drawing into `format` targets of `samples` per pixel,
-/// with the colour correction (the shader's `COLOUR_CORRECTION`: `corrected`) or without.
+/// with the colour correction (the shader's `COLOUR_CORRECTION`: `corrected`) or without,
+/// culling back faces (`cull`) or not.
 pub fn pipelines_for(
     device: &wgpu::Device,
     layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     target: (wgpu::TextureFormat, u32),
-    corrected: bool,
+    (corrected, cull): (bool, bool),
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
-    method_pipelines(device, &module, layouts, target, (corrected, false))
+    method_pipelines(device, &module, layouts, target, (corrected, cull))
 }
 
 /// [`pipelines_for`] from the model shader's `module`, culling back faces or not.
@@ -128,19 +129,20 @@ fn method_pipelines(
         .iter()
         .map(|m| {
             let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", if corrected { 1.0 } else { 0.0 })];
-            model_pipeline(device, (m.name(), module, "fs_main"), layouts, (colour.clone(), samples), (&constants, cull))
+            model_pipeline(device, (m.name(), module, Some(("fs_main", colour.clone()))), layouts, samples, (&constants, cull))
         })
         .collect()
 }
 
-/// A model pipeline: the model shader's vertex stage and fragment entry point `entry` with
-/// override `constants`, drawing into `colour` targets of `samples` per pixel with depth
-/// written and tested, culling back faces (counter-clockwise fronts) or not.
+/// A model pipeline: the model shader's vertex stage with override `constants` and, when
+/// `fragment` gives one, the fragment entry point drawing into its colour target (none: depth
+/// only), `samples` per pixel with depth written and tested, culling back faces
+/// (counter-clockwise fronts) or not.
 fn model_pipeline(
     device: &wgpu::Device,
-    (label, module, entry): (&str, &wgpu::ShaderModule, &str),
+    (label, module, fragment): (&str, &wgpu::ShaderModule, Option<(&str, wgpu::ColorTargetState)>),
     (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
-    (colour, samples): (wgpu::ColorTargetState, u32),
+    samples: u32,
     (constants, cull): (&[(&str, f64)], bool),
 ) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -149,6 +151,7 @@ fn model_pipeline(
         immediate_size: 0,
     });
     let options = wgpu::PipelineCompilationOptions { constants, ..Default::default() };
+    let targets: Vec<Option<wgpu::ColorTargetState>> = fragment.iter().map(|(_, colour)| Some(colour.clone())).collect();
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(&layout),
@@ -161,7 +164,12 @@ fn model_pipeline(
         primitive: wgpu::PrimitiveState { cull_mode: cull.then_some(wgpu::Face::Back), ..Default::default() },
         depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
         multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
-        fragment: Some(wgpu::FragmentState { module, entry_point: Some(entry), compilation_options: options, targets: &[Some(colour)] }),
+        fragment: fragment.map(|(entry, _)| wgpu::FragmentState {
+            module,
+            entry_point: Some(entry),
+            compilation_options: options.clone(),
+            targets: &targets,
+        }),
         multiview_mask: None,
         cache: None,
     })
@@ -178,26 +186,16 @@ fn prepass_pipeline(
 ) -> wgpu::RenderPipeline {
     let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
     let colour = wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() };
-    model_pipeline(device, ("model depth pre-pass", module, "fs_depth"), layouts, (colour, samples), (&constants, false))
+    model_pipeline(device, ("model depth pre-pass", module, Some(("fs_depth", colour))), layouts, samples, (&constants, false))
 }
 
 /// The model's depth seen by the camera, single-sampled and without colour: the model pass's
-/// vertex stage (so the same surface), for the depth layer (render/layers.rs).
-pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines) -> wgpu::RenderPipeline {
+/// vertex stage (so the same surface), for the depth layer (render/layers.rs), culling back
+/// faces (`cull`) or not.
+pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines, cull: bool) -> wgpu::RenderPipeline {
     let module = build::shader(device, "model depth", source(Technique::Model));
-    build::render_pipeline(
-        device,
-        build::PipelineSpec {
-            label: "model depth",
-            module: &module,
-            layouts: &[&pipelines.layout, &pipelines.material_layout],
-            vertex_buffers: &[Some(vertex_layout())],
-            colour: None,
-            depth: depth_state(true, wgpu::DepthBiasState::default()),
-            samples: 1,
-            constants: &[("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)],
-        },
-    )
+    let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
+    model_pipeline(device, ("model depth", &module, None), (&pipelines.layout, &pipelines.material_layout), 1, (&constants, cull))
 }
 
 /// A material's uniform for this frame: its own colours and sides with the frame's Eq. 3 terms,
@@ -508,19 +506,22 @@ impl ModelPass {
         }
     }
 
-    /// Draw `model` with `pipeline` (one of this pass's, or a layer pipeline from
-    /// render/layers.rs) at level of detail `level`, sampling shadow map `shadow_index`.
-    pub fn draw_with(
+    /// Draw `model` with `pipeline(cull)` (a layer pipeline from render/layers.rs, culling back
+    /// faces or not: each mesh culls as this frame's model pass does) at level of detail
+    /// `level`, sampling shadow map `shadow_index`.
+    pub fn draw_with<'p>(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
-        pipeline: &wgpu::RenderPipeline,
+        pipeline: impl Fn(bool) -> &'p wgpu::RenderPipeline,
         model: &ModelGpu,
         (level, shadow_index): (usize, usize),
     ) -> Result<()> {
         let bind_group = self.bind_groups.get(shadow_index).ok_or_else(|| anyhow!("no environment set"))?;
-        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bind_group, &[]);
-        model.draw_meshes(pass, Some(1), level);
+        for mesh in &model.meshes {
+            pass.set_pipeline(pipeline(self.culls(mesh, level)));
+            mesh.draw(pass, Some(1), level);
+        }
         Ok(())
     }
 }

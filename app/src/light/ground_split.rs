@@ -34,7 +34,9 @@ pub const GROUND_BAND: (f32, f32) = (0.087_266_46, std::f32::consts::FRAC_PI_3);
 
 /// Largest share of the ground colours' second moment off the plane (least eigenvalue over the
 /// trace) for a ground that the two-illuminant model explains. quarry_01: 1.7·10⁻⁵ (float),
-/// 4.4·10⁻⁵ (8-bit); the other maps' grounds 1.3·10⁻⁴ (city) to 4.9·10⁻³ (Humus Park2).
+/// 4.4·10⁻⁵ (8-bit); the other maps' grounds 1.3·10⁻⁴ (city) to 4.9·10⁻³ (Humus Park2). A
+/// virtual-phone 8-bit capture of quarry_01 (white-balanced, tone-mapped) is 1.2·10⁻⁴ off and
+/// would read a 3× sun: not linear radiance, rightly left to the clear-sky restore.
 pub const MAX_OFF_PLANE: f64 = 1e-4;
 
 /// Largest least-over-middle eigenvalue: the plane must be spanned, not a line (a ground under

@@ -21,8 +21,9 @@ use glam::Vec3;
 use std::path::Path;
 
 /// Measure the light in the scene's environment map. A clipped sun is found at the map's clip
-/// level ([`clip_level`]) and its energy restored from the clear-sky model at the scene's sun
-/// elevation when the scene gives the sun's direction (else the saturated disc's); a float map
+/// level ([`clip_level`]) and its energy restored (from the ground's colours where they show the
+/// sun's share, else from the clear-sky model: light::measure) at the scene's sun elevation when
+/// the scene gives the sun's direction (else the saturated disc's); a float map
 /// with no clip level is trusted as it is. Errors: an HDR capture's capture.json that cannot be
 /// read.
 pub fn measure_environment(scene: &Scene, env: &CubeMap) -> Result<MeasuredLight> {

@@ -6,7 +6,7 @@
 
 use super::clear_sky;
 use super::samples::DirSample;
-use super::sh9::Sh9;
+use super::sh9::{Sh9, SkyRadiance};
 use super::sky_model;
 use super::sun_finder::{self, Sun};
 use crate::colour::luminance_bt709;
@@ -197,6 +197,8 @@ pub struct SkyAndGround {
     pub sky: Sh9,
     /// The ground's radiance, linear RGB: the solid-angle mean of the lower hemisphere.
     pub ground: [f32; 3],
+    /// The upper hemisphere's radiance in bins (the ground's shadow weights its rays by it).
+    pub radiance: SkyRadiance,
 }
 
 impl SkyAndGround {
@@ -211,7 +213,7 @@ impl SkyAndGround {
             }
         }
         let ground = if weight > 0.0 { sum.map(|a| (a / weight) as f32) } else { [0.0; 3] };
-        SkyAndGround { sky: Sh9::project(&upper), ground }
+        SkyAndGround { sky: Sh9::project(&upper), ground, radiance: SkyRadiance::of(&upper) }
     }
 }
 

@@ -1490,10 +1490,9 @@ mod tests {
         assert!((under - 0.75).abs() < 0.01, "{under}");
     }
 
-    #[test]
-    fn the_transfer_recombines_the_map_each_sky_would_cast() {
-        // A sphere resting on the ground beside a wall, turned and scaled (so that the rays'
-        // world directions differ from the model's), with the product's texels and rays.
+    /// A unit sphere resting on the ground beside a wall, its occluders, bounds and a model matrix
+    /// that turns and scales it (so that the rays' world directions differ from the model's).
+    fn sphere_beside_a_wall() -> (Occluders, (Vec3, Vec3), Mat4) {
         let mut mesh = sphere(1.0, 24, 48);
         for p in &mut mesh.positions {
             p[2] += 1.0;
@@ -1502,7 +1501,14 @@ mod tests {
         tris.extend(quad(-2.0, 2.0, 0.0, 2.0, 0.0).map(|t| t.map(|p| Vec3::new(1.5, p.x, p.y))));
         let bounds = (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.5, 2.0, 2.0));
         let model = Mat4::from_rotation_z(0.7) * Mat4::from_scale(Vec3::splat(1.5));
-        let occ = Occluders::new(tris);
+        (Occluders::new(tris), bounds, model)
+    }
+
+    #[test]
+    fn the_transfer_recombines_the_map_each_sky_would_cast() {
+        // A sphere resting on the ground beside a wall, turned and scaled (so that the rays'
+        // world directions differ from the model's), with the product's texels and rays.
+        let (occ, bounds, model) = sphere_beside_a_wall();
         let transfer = ground_transfer(&occ, bounds, model, GROUND_TEXELS, GROUND_RAYS, &polynomials);
         let max_diff = |c: &[f32; TERMS]| {
             let direct = ground_sky_direct(&occ, bounds, model, GROUND_TEXELS, GROUND_RAYS, &|d| radiance(c, d));
@@ -1713,15 +1719,7 @@ mod tests {
         // round g 10° above the East-North-East horizon, over a dim uniform sky): the map from the
         // kept rays against the map cast again with the same radiance (ground_sky_direct). The
         // rays keep their directions to 1/65536 turn and 1/32767 of z.
-        let mut mesh = sphere(1.0, 24, 48);
-        for p in &mut mesh.positions {
-            p[2] += 1.0;
-        }
-        let mut tris: Vec<[Vec3; 3]> = mesh_triangles(&mesh).collect();
-        tris.extend(quad(-2.0, 2.0, 0.0, 2.0, 0.0).map(|t| t.map(|p| Vec3::new(1.5, p.x, p.y))));
-        let bounds = (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.5, 2.0, 2.0));
-        let model = Mat4::from_rotation_z(0.7) * Mat4::from_scale(Vec3::splat(1.5));
-        let occ = Occluders::new(tris);
+        let (occ, bounds, model) = sphere_beside_a_wall();
         let transfer = ground_transfer(&occ, bounds, model, GROUND_TEXELS, 64, &polynomials);
         let g = Vec3::new(
             70f32.to_radians().sin() * 10f32.to_radians().cos(),

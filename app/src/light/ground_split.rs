@@ -25,7 +25,9 @@
 //! (4.4·10⁻⁵ quantised to 8 bits), every other map's 1.3·10⁻⁴ or more.
 
 use super::samples::DirSample;
+use crate::colour::linalg::sym_eigen;
 use crate::colour::luminance_bt709;
+use glam::{DMat3, DVec3};
 
 /// The ground used: texels between these elevations below the horizon (rad; 5° and 60°). Nearer
 /// the horizon a map holds walls, trees and far terrain; further down, the tripod and the
@@ -68,7 +70,7 @@ pub struct GroundSplit {
 /// ground is seen.
 pub fn split(samples: &[DirSample], clip: f32, sun: [f32; 3], sky: [f32; 3]) -> Option<GroundSplit> {
     let (top, bottom) = (-GROUND_BAND.0.sin(), -GROUND_BAND.1.sin());
-    let (mut m, mut mean, mut band, mut used) = ([[0f64; 3]; 3], [0f64; 3], 0f64, 0f64);
+    let (mut m, mut mean, mut band, mut used) = (DMat3::ZERO, DVec3::ZERO, 0f64, 0f64);
     for s in samples.iter().filter(|s| s.dir.z < top && s.dir.z > bottom) {
         let w = f64::from(s.solid_angle);
         band += w;
@@ -76,129 +78,57 @@ pub fn split(samples: &[DirSample], clip: f32, sun: [f32; 3], sky: [f32; 3]) -> 
             continue;
         }
         used += w;
-        let c = s.radiance.map(f64::from);
-        for i in 0..3 {
-            mean[i] += w * c[i];
-            for j in 0..3 {
-                m[i][j] += w * c[i] * c[j];
-            }
-        }
+        let c = DVec3::from_array(s.radiance.map(f64::from));
+        mean += w * c;
+        m += DMat3::from_cols(c * (w * c.x), c * (w * c.y), c * (w * c.z));
     }
     if band <= 0.0 || used < f64::from(MIN_GROUND_SHARE) * band {
         return None;
     }
-    let (values, vectors) = symmetric_eigen(m);
-    let trace: f64 = values.iter().sum();
-    if trace <= 0.0 || values[1] <= 0.0 {
+    let (values, vectors) = sym_eigen(m);
+    let trace = values.element_sum();
+    if trace <= 0.0 || values.y <= 0.0 {
         return None;
     }
-    let (off_plane, least_over_middle) = (values[2] / trace, values[2] / values[1]);
+    let (off_plane, least_over_middle) = (values.z / trace, values.z / values.y);
     if off_plane > MAX_OFF_PLANE || least_over_middle > MAX_LEAST_OVER_MIDDLE {
         return None;
     }
     let unit = |c: [f32; 3]| {
         let y = f64::from(luminance_bt709(c));
-        (y > 0.0).then(|| c.map(|v| f64::from(v) / y))
+        (y > 0.0).then(|| DVec3::from_array(c.map(|v| f64::from(v) / y)))
     };
     let (s, k) = (unit(sun)?, unit(sky)?);
-    let n = vectors[2];
-    let mut albedo = cross(mul(n, s), mul(n, k));
-    let total: f64 = albedo.iter().sum();
+    let n = vectors.z_axis;
+    let albedo = (n * s).cross(n * k);
+    let total = albedo.element_sum();
     if total == 0.0 || !total.is_finite() {
         return None;
     }
-    albedo = albedo.map(|c| c / total);
-    if albedo.iter().any(|&c| c <= 0.0) {
+    let albedo = albedo / total;
+    if albedo.min_element() <= 0.0 {
         return None;
     }
     // The mean colour on u = ĉ⊙s and v = ĉ⊙k (least squares in RGB).
-    let (u, v) = (mul(albedo, s), mul(albedo, k));
-    let (uu, uv, vv, um, vm) = (dot(u, u), dot(u, v), dot(v, v), dot(u, mean), dot(v, mean));
+    let (u, v) = (albedo * s, albedo * k);
+    let (uu, uv, vv, um, vm) = (u.dot(u), u.dot(v), v.dot(v), u.dot(mean), v.dot(mean));
     let det = uu * vv - uv * uv;
     if det.abs() <= 1e-12 * uu * vv {
         return None;
     }
     let (a, b) = ((vv * um - uv * vm) / det, (uu * vm - uv * um) / det);
-    (a > 0.0 && b > 0.0).then_some(GroundSplit { sun_over_sky: a / b, albedo_chromaticity: albedo, off_plane, least_over_middle })
-}
-
-fn mul(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i] * b[i])
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-/// Eigenvalues (largest first) and unit eigenvectors of a symmetric 3×3 matrix (cyclic Jacobi).
-pub fn symmetric_eigen(m: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
-    let mut a = m;
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..32 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
-        if off <= 1e-15 * scale || off == 0.0 {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q] == 0.0 {
-                continue;
-            }
-            // Rotate so that a[p][q] becomes 0 (Golub & Van Loan, Algorithm 8.4.1).
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + theta.mul_add(theta, 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / t.mul_add(t, 1.0).sqrt();
-            let s = t * c;
-            let mut b = a;
-            for k in 0..3 {
-                b[k][p] = c * a[k][p] - s * a[k][q];
-                b[k][q] = s * a[k][p] + c * a[k][q];
-            }
-            a = b;
-            for k in 0..3 {
-                a[p][k] = c * b[p][k] - s * b[q][k];
-                a[q][k] = s * b[p][k] + c * b[q][k];
-            }
-            for row in &mut v {
-                let (x, y) = (row[p], row[q]);
-                row[p] = c * x - s * y;
-                row[q] = s * x + c * y;
-            }
-        }
-    }
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&i, &j| a[j][j].total_cmp(&a[i][i]));
-    (order.map(|i| a[i][i]), order.map(|i| [v[0][i], v[1][i], v[2][i]]))
+    (a > 0.0 && b > 0.0).then_some(GroundSplit {
+        sun_over_sky: a / b,
+        albedo_chromaticity: albedo.to_array(),
+        off_plane,
+        least_over_middle,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::Vec3;
-
-    #[test]
-    fn the_eigen_decomposition_reproduces_its_matrix() {
-        let m = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.25], [0.5, 0.25, 1.0]];
-        let (values, vectors) = symmetric_eigen(m);
-        assert!(values[0] >= values[1] && values[1] >= values[2]);
-        // Trace and M v = λ v for each pair, by hand.
-        assert!((values.iter().sum::<f64>() - 8.0).abs() < 1e-12);
-        for (l, e) in values.iter().zip(vectors) {
-            for i in 0..3 {
-                let mv: f64 = (0..3).map(|j| m[i][j] * e[j]).sum();
-                assert!((mv - l * e[i]).abs() < 1e-12, "{values:?}");
-            }
-            assert!((dot(e, e) - 1.0).abs() < 1e-12);
-        }
-        // A diagonal matrix: its diagonal, largest first.
-        let (values, _) = symmetric_eigen([[1.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]]);
-        assert_eq!(values, [3.0, 2.0, 1.0]);
-    }
 
     /// A ground band of texels under a warm sun and a blue sky: texel i has brightness a_i and
     /// sun share x_i from the lists (cycled), albedo chromaticity `albedo`.

@@ -32,7 +32,7 @@ use std::path::Path;
 /// measured + 0.01 FLIP (three decimals) and the dragon's luminance error measured + 0.03. Before:
 /// `hemisphere` 0.237, 0.146, 0.281, 0.279 (constant light: 0.469, 0.209, 0.264, 0.361).
 /// Sixth session (2026-12-01): the ground's sky occlusion weighted by the sky's radiance (a
-/// directional sky is hidden by the light the model hides, light::sh9::SkyShape): 0.133, 0.093,
+/// directional sky is hidden by the light the model hides, by the sky's nine harmonics then): 0.133, 0.093,
 /// 0.152, 0.106, 0.134 and 0.97, 0.99, 1.26, 1.02, 1.04; bounds = measured + 0.01 FLIP, the
 /// truck's luminance error measured + 0.03.
 /// Seventh session (2026-12-01): the model lit from below by the references' ground (a uniform
@@ -66,10 +66,16 @@ use std::path::Path;
 /// harmonics, 256 rays a texel instead of 64: ROI 0.0878, 0.0572, 0.0934, 0.0803, 0.1090 (mean
 /// 0.086, was 0.102), luminance 0.969, 0.971, 1.005, 0.994, 1.027 (unchanged: the model is not
 /// touched); bounds = measured + 0.01 rounded up to three decimals.
+/// Tenth session (2026-12-01 22:37 UTC, s10-ground): the ground's rays one in each of the sky's
+/// 256 bins (scene::occlusion::sky_rays) instead of 256 cosine-distributed ones: ROI 0.08642,
+/// 0.05584, 0.09226, 0.08001, 0.1089 (mean 0.0847, was 0.0855), frame and luminance unchanged
+/// within 0.0005; bounds = measured + 0.01 rounded up to three decimals where that is tighter
+/// (quarry_bunny 0.098 → 0.097, blouberg_teapot 0.068 → 0.066, courtyard_dragon 0.104 → 0.103;
+/// city_spot's 0.09001 and quarry_truck's 0.1189 keep 0.091 and 0.119).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.098, 0.04),
-    ("blouberg_teapot", 0.068, 0.05),
-    ("courtyard_dragon", 0.104, 0.04),
+    ("quarry_bunny", 0.097, 0.04),
+    ("blouberg_teapot", 0.066, 0.05),
+    ("courtyard_dragon", 0.103, 0.04),
     ("city_spot", 0.091, 0.04),
     ("quarry_truck", 0.119, 0.04),
 ];

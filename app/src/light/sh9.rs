@@ -40,57 +40,21 @@ pub fn irradiance_colour(c: &[[f32; 3]; 9], n: Vec3) -> [f32; 3] {
     if lum > 0.0 { e.map(|v| v / lum) } else { [1.0; 3] }
 }
 
-/// The shape of a sky's radiance (luminance) as SH9 coefficients in the environment map's own
-/// frame, with the map's heading: the heading the ground's map turns [`SkyRadiance`] by, and the
-/// weights of the ground's sky-visibility rays where no [`SkyRadiance`] is given
-/// (render::model_cache GroundLight, which then recombines the rays' SH9 transfer with
-/// [`SkyShape::world_coeffs`]). A frame gives the binned radiance: nine harmonics misweight a sky
-/// concentrated low or on one side (docs/accuracy.md "Ninth session"). Normalised to L00 = 1 and rounded to 1/32, so that a sky of the same shape
-/// (the live view's camera frame folded again) keeps the uploaded map.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SkyShape {
-    pub coeffs: [f32; 9],
-    /// Radians: a world direction d is the map's Rz(heading)·d (shaders/frame.wgsl env_map_dir).
-    pub heading: f32,
-}
-
-impl SkyShape {
-    /// The same radiance from every direction.
-    pub const UNIFORM: SkyShape = SkyShape { coeffs: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], heading: 0.0 };
-
-    /// From irradiance coefficients (cosine-convolved, RGB, as the sh9-ggx light carries them:
-    /// radiance L_i = E_i / Â_i); uniform when the sky gives no light.
-    pub fn from_irradiance(c: &[[f32; 3]; 9], heading: f32) -> SkyShape {
-        let l: [f32; 9] = std::array::from_fn(|i| crate::colour::luminance_bt709(c[i]) / COSINE_LOBE[i]);
-        if !(l[0] > 0.0 && l.iter().all(|v| v.is_finite())) {
-            return SkyShape::UNIFORM;
-        }
-        SkyShape { coeffs: l.map(|v| (v / l[0] * 32.0).round() / 32.0), heading }
-    }
-
-    /// Radiance (relative, ≥ 0) towards unit world direction `d`.
-    pub fn radiance(&self, d: Vec3) -> f32 {
-        let (s, c) = self.heading.sin_cos();
-        let m = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
-        basis(m).iter().zip(self.coeffs).map(|(y, c)| y * c).sum::<f32>().max(0.0)
-    }
-
-    /// The coefficients turned into the world frame: Σ w_i Y_i(d) = Σ c_i Y_i(Rz(heading)·d)
-    /// for every world direction d — the radiance before [`SkyShape::radiance`]'s clamp at 0.
-    /// A turn about z by h moves each harmonic's azimuth by h: within band 1 the pair (Y1−1, Y11)
-    /// ∝ (sin φ, cos φ) and within band 2 (Y2−1, Y21) ∝ z (sin φ, cos φ) turn by h, the pair
-    /// (Y2−2, Y22) ∝ (sin 2φ, cos 2φ) by 2h; Y00, Y10 and Y20 stay.
-    pub fn world_coeffs(&self) -> [f32; 9] {
-        let c = self.coeffs;
-        let (s1, c1) = self.heading.sin_cos();
-        let (s2, c2) = (2.0 * self.heading).sin_cos();
-        // Σ a sin(φ + h) + b cos(φ + h) = sin φ (a cos h − b sin h) + cos φ (a sin h + b cos h).
-        let turn = |a: f32, b: f32, s: f32, co: f32| (a * co - b * s, a * s + b * co);
-        let (w1, w3) = turn(c[1], c[3], s1, c1);
-        let (w5, w7) = turn(c[5], c[7], s1, c1);
-        let (w4, w8) = turn(c[4], c[8], s2, c2);
-        [c[0], w1, c[2], w3, w4, w5, c[6], w7, w8]
-    }
+/// Coefficients of a radiance in the environment map's own frame turned into the world frame
+/// for a map of `heading` (radians: a world direction d is the map's Rz(heading)·d,
+/// shaders/frame.wgsl env_map_dir): Σ w_i Y_i(d) = Σ c_i Y_i(Rz(heading)·d) for every world
+/// direction d. A turn about z by h moves each harmonic's azimuth by h: within band 1 the pair
+/// (Y1−1, Y11) ∝ (sin φ, cos φ) and within band 2 (Y2−1, Y21) ∝ z (sin φ, cos φ) turn by h, the
+/// pair (Y2−2, Y22) ∝ (sin 2φ, cos 2φ) by 2h; Y00, Y10 and Y20 stay.
+pub fn world_coeffs(c: &[f32; 9], heading: f32) -> [f32; 9] {
+    let (s1, c1) = heading.sin_cos();
+    let (s2, c2) = (2.0 * heading).sin_cos();
+    // Σ a sin(φ + h) + b cos(φ + h) = sin φ (a cos h − b sin h) + cos φ (a sin h + b cos h).
+    let turn = |a: f32, b: f32, s: f32, co: f32| (a * co - b * s, a * s + b * co);
+    let (w1, w3) = turn(c[1], c[3], s1, c1);
+    let (w5, w7) = turn(c[5], c[7], s1, c1);
+    let (w4, w8) = turn(c[4], c[8], s2, c2);
+    [c[0], w1, c[2], w3, w4, w5, c[6], w7, w8]
 }
 
 /// Rows (equal steps of z, so equal solid angles) and columns (equal steps of azimuth) of
@@ -105,7 +69,8 @@ pub const SKY_BINS: usize = SKY_ROWS * SKY_COLUMNS;
 /// ground's sky-visibility rays (render::model_cache), so that the model hides a directional sky
 /// by the light the hidden part gives. Nine harmonics smear a sky concentrated within a few tens
 /// of degrees (the glow over a sunrise horizon, the aureole round the sun, a courtyard's bright
-/// side) over the hemisphere and ring below 0 opposite it ([`SkyShape`]); bins of 7–11° keep it.
+/// side) over the hemisphere and ring below 0 opposite it (docs/accuracy.md "Ninth session");
+/// bins of 7–11° keep it.
 /// Rounded to 1/32 so that a sky of the same shape keeps the ground's map.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SkyRadiance {
@@ -289,28 +254,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_sky_shape_is_its_radiance_and_turns_with_the_map() {
-        // Irradiance coefficients of the radiance L = 1 + 0.5 x (x = East): L00 = √(4π),
-        // L11 = 0.5 √(4π/3) (basis 0.488603 x), each times its Â_l.
-        let (l00, l11) = ((4.0 * PI).sqrt(), 0.5 * (4.0 * PI / 3.0).sqrt());
-        let mut c = [[0.0f32; 3]; 9];
-        c[0] = [l00 * COSINE_LOBE[0]; 3];
-        c[3] = [l11 * COSINE_LOBE[3]; 3];
-        let shape = SkyShape::from_irradiance(&c, 0.0);
-        let (east, west, up) = (shape.radiance(Vec3::X), shape.radiance(-Vec3::X), shape.radiance(Vec3::Z));
-        // Normalised to L00 = 1: radiance 1/√(4π) · (1 + 0.5 x).
-        let k = 1.0 / (4.0 * PI).sqrt();
-        assert!((east - 1.5 * k).abs() < 0.01 && (west - 0.5 * k).abs() < 0.01 && (up - k).abs() < 0.01, "{east} {west} {up}");
-        // The map turned by 90° (its North faces the world's East, setup::light::map_to_world):
-        // the world's South sees the map's East (frame.wgsl env_map_dir).
-        let turned = SkyShape::from_irradiance(&c, std::f32::consts::FRAC_PI_2);
-        assert!((turned.radiance(-Vec3::Y) - east).abs() < 1e-5, "{}", turned.radiance(-Vec3::Y));
-        assert!((turned.radiance(Vec3::X) - up).abs() < 1e-5, "{}", turned.radiance(Vec3::X));
-        // No light: uniform.
-        assert_eq!(SkyShape::from_irradiance(&[[0.0; 3]; 9], 0.3), SkyShape::UNIFORM);
-    }
-
-    #[test]
     fn a_sky_radiance_holds_its_bins_and_turns_with_the_map() {
         // A sky of radiance 1 with one bin 4× as bright (the horizon row, azimuths 90°–101.25°:
         // East and a little South) and a ground of 100 that must not count: the bins hold the
@@ -358,13 +301,12 @@ mod tests {
     }
 
     #[test]
-    fn a_sky_shape_turned_into_the_world_is_the_same_radiance() {
+    fn coefficients_turned_into_the_world_are_the_same_radiance() {
         // Every coefficient non-zero, at headings in each quadrant: the world coefficients give
-        // the map's radiance towards Rz(heading)·d (unclamped) at directions all over the sphere.
+        // the map's radiance towards Rz(heading)·d at directions all over the sphere.
         let coeffs = [1.0, 0.3, -0.2, 0.5, 0.25, -0.4, 0.15, 0.35, -0.3];
         for heading in [0.0, 0.4, 2.0, -2.7, 5.5] {
-            let shape = SkyShape { coeffs, heading };
-            let w = shape.world_coeffs();
+            let w = world_coeffs(&coeffs, heading);
             for i in 0..200 {
                 let z = 1.0 - (i as f32 + 0.5) / 100.0;
                 let phi = 2.39996 * i as f32;
@@ -375,13 +317,12 @@ mod tests {
                 let want: f32 = basis(m).iter().zip(coeffs).map(|(y, c)| y * c).sum();
                 let got: f32 = basis(d).iter().zip(w).map(|(y, c)| y * c).sum();
                 assert!((got - want).abs() < 1e-5, "heading {heading}, {d}: {got} vs {want}");
-                assert!((shape.radiance(d) - want.max(0.0)).abs() < 1e-6);
             }
         }
-        // By hand: a map brighter towards its East (Y11) turned by 90° is brighter towards the
-        // world's South (−Y1−1), as a_sky_shape_is_its_radiance_and_turns_with_the_map says.
-        let east = SkyShape { coeffs: [1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0], heading: std::f32::consts::FRAC_PI_2 };
-        let w = east.world_coeffs();
+        // By hand: a map brighter towards its East (Y11) turned by 90° (its North faces the
+        // world's East, setup::light::map_to_world) is brighter towards the world's South
+        // (−Y1−1): the world's South sees the map's East.
+        let w = world_coeffs(&[1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0], std::f32::consts::FRAC_PI_2);
         assert!((w[1] + 1.0).abs() < 1e-6 && w[3].abs() < 1e-6, "{w:?}");
     }
     use crate::colour::luminance_bt709;

@@ -664,12 +664,11 @@ impl Compositor {
         // The map moves with the model (its square is centred under it, in the plane of its
         // base), so only a turn or a scale computes it again: dragging the model costs nothing.
         let key = glam::Mat4 { w_axis: glam::Vec4::W, ..matrix };
-        let shape = crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading);
         // The light the model reflects onto the ground, for its mean albedo.
         let bounce = super::passes::ground::bounce_light(&p.lighting, env.heading, model.prepared.albedo);
         // The rays are weighted by the sky's radiance in bins (light::sh9::SkyRadiance), its
         // nine harmonics being too smooth for a sky concentrated near the horizon or the sun.
-        let shape = super::model_cache::GroundLight { shape, radiance: Some(p.lighting.sky_radiance), bounce };
+        let shape = super::model_cache::GroundLight { radiance: p.lighting.sky_radiance, heading: env.heading, bounce };
         // Computed by the device's model cache once per key (shared by every compositor on the
         // device); in the live view on its worker, drawing the previous map meanwhile.
         Ok(if self.ground_in_background {

@@ -1,8 +1,9 @@
 //! The ground's sky transfer under a new placement of the model, cast on a thread of its own so
 //! that turning or scaling the model in the live view does not hold a frame for its rays
-//! (64² texels × 64 rays, ~20 ms). The model cache ([`super::model_cache::PreparedModel`])
-//! keeps drawing the previous placement's map until the new transfer is ready, as the live view's
-//! fold keeps the previous environment while its prefilter runs (live::LiveSession's fold).
+//! (64² texels × 256 rays, 120–220 ms of CPU in a debug build). The model cache
+//! ([`super::model_cache::PreparedModel`]) keeps drawing the previous placement's map until the
+//! new transfer is ready, as the live view's fold keeps the previous environment while its
+//! prefilter runs (live::LiveSession's fold).
 //!
 //! One job at a time: a placement asked for while another is being cast waits for that one to
 //! finish (its map is then the nearer previous one) and is started on the next request.
@@ -21,9 +22,9 @@ pub fn placement_key(placement: Mat4) -> PlacementKey {
 }
 
 /// The ground's transfer under the model (`occluders`, model-space `bounds`) placed by
-/// `placement`: [`occlusion::GROUND_TEXELS`]² texels of [`occlusion::GROUND_RAYS`] rays onto the
-/// SH9 basis. The one cast both on the caller's thread and on the worker's, so both give the same
-/// map.
+/// `placement`: [`occlusion::GROUND_TEXELS`]² texels of [`occlusion::GROUND_RAYS`] rays, each kept
+/// with its world direction. The one cast both on the caller's thread and on the worker's, so
+/// both give the same map.
 pub fn cast(occluders: &Occluders, bounds: (Vec3, Vec3), placement: Mat4) -> GroundTransfer {
     occlusion::ground_transfer(occluders, bounds, placement, occlusion::GROUND_TEXELS, occlusion::GROUND_RAYS, &crate::light::sh9::basis)
 }

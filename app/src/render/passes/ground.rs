@@ -148,12 +148,11 @@ pub fn ground_texels(sky: &GroundSky) -> Vec<half::f16> {
 /// ground `sky_occlusion`, the sun `shadow_opacity` (of luminance 1 in all), so the bounce is a
 /// gain on the ground's light whatever the method's daylight scale. None without either share.
 pub fn bounce_light(lighting: &crate::render::Lighting, heading: f32, albedo: [f32; 3]) -> BounceLight {
-    use crate::light::sh9::{SkyShape, basis};
+    use crate::light::sh9::{basis, world_coeffs};
     let lum = crate::colour::luminance_bt709;
     let mut light = BounceLight::NONE;
     // The sky in the world, per channel, and the light it gives the ground (n = up).
-    let sky: [[f32; 9]; 3] =
-        std::array::from_fn(|c| SkyShape { coeffs: std::array::from_fn(|k| lighting.sky_sh[k][c]), heading }.world_coeffs());
+    let sky: [[f32; 9]; 3] = std::array::from_fn(|c| world_coeffs(&std::array::from_fn(|k| lighting.sky_sh[k][c]), heading));
     let up = basis(glam::Vec3::Z);
     let sky_up: [f32; 3] = std::array::from_fn(|c| sky[c].iter().zip(up).map(|(a, y)| a * y).sum::<f32>().max(0.0));
     let sky_scale = if lum(sky_up) > 0.0 { lighting.sky_occlusion.max(0.0) / lum(sky_up) } else { 0.0 };

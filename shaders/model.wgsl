@@ -9,6 +9,11 @@ override METHOD: u32;
 // COLOUR_CORRECTION is one too: false for frames without a correction, whose pipelines then
 // hold no correction code (lavapipe runs every case of a runtime switch).
 override COLOUR_CORRECTION: bool = true;
+// VERTEX_SUN too: true where the sun's visibility is interpolated from the vertices
+// (VertexIn.sun), whose pipelines then hold no shadow-map lookup; false where the map is looked
+// up per pixel. A uniform branch on a material value instead saved nothing on lavapipe
+// (docs/PERFORMANCE.md, ninth session).
+override VERTEX_SUN: bool = false;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -38,7 +43,7 @@ struct Material {
 @group(1) @binding(2) var diffuse_smp: sampler;
 
 // The model's vertex (render::pipelines::Vertex; `ao` at render::pipelines::AO_LOCATION, `bent`
-// at BENT_LOCATION).
+// at BENT_LOCATION), and `sun` from a second buffer at SUN_LOCATION.
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
@@ -50,6 +55,9 @@ struct VertexIn {
     // The bent normal: the mean direction of the rays that pass the model, where sh9-ggx looks
     // up the sky (the normal until the occlusion is computed).
     @location(4) bent: vec3<f32>,
+    // The fraction of sunlight reaching the vertex, looked up in the shadow map by the method's
+    // own lookup each time the map is drawn (vertex_sun.wgsl); 1 until then.
+    @location(5) sun: f32,
 };
 
 struct VertexOut {
@@ -59,6 +67,7 @@ struct VertexOut {
     @location(2) uv: vec2<f32>,
     @location(3) ao: vec4<f32>,
     @location(4) bent: vec3<f32>,
+    @location(5) sun: f32,
 };
 
 @vertex
@@ -70,6 +79,7 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     out.uv = vertex.uv;
     out.ao = vertex.ao;
     out.bent = (instance.normal * vec4<f32>(vertex.bent, 0.0)).xyz;
+    out.sun = vertex.sun;
     out.clip = frame.view_proj * world;
     return out;
 }
@@ -165,7 +175,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     // Opaque, one-sided lighting (Eq. 3): factors are clamped at zero, so a surface facing away
     // from the sun gets only ambient light.
     let albedo = surface_albedo(in.uv);
-    let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
+    var visibility = in.sun;
+    if (!VERTEX_SUN) {
+        visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
+    }
     let df = max(dot(n, l), 0.0) * visibility;
     let sf = specular_factor(n, l, e) * visibility * select(0.0, 1.0, dot(n, l) > 0.0);
     let ambient = ambient_light(n, method) * material.terms.x * l_d;

@@ -61,12 +61,17 @@ use std::path::Path;
 /// 0.1010, 0.0819, 0.1217, 0.0913, 0.1140 (mean 0.102), luminance 0.969, 0.971, 1.005, 0.994,
 /// 1.027; bounds = measured + 0.01 rounded up to three decimals (luminance errors kept where
 /// measured + 0.03 would loosen them).
+/// Ninth session (2026-12-01 19:17 UTC, s9-diffuse): the ground's sky visibility under the model
+/// weighted by the sky's radiance in 256 bins (light::sh9::SkyRadiance) instead of its nine
+/// harmonics, 256 rays a texel instead of 64: ROI 0.0878, 0.0572, 0.0934, 0.0803, 0.1090 (mean
+/// 0.086, was 0.102), luminance 0.969, 0.971, 1.005, 0.994, 1.027 (unchanged: the model is not
+/// touched); bounds = measured + 0.01 rounded up to three decimals.
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.111, 0.04),
-    ("blouberg_teapot", 0.092, 0.05),
-    ("courtyard_dragon", 0.132, 0.04),
-    ("city_spot", 0.102, 0.04),
-    ("quarry_truck", 0.124, 0.04),
+    ("quarry_bunny", 0.098, 0.04),
+    ("blouberg_teapot", 0.068, 0.05),
+    ("courtyard_dragon", 0.104, 0.04),
+    ("city_spot", 0.091, 0.04),
+    ("quarry_truck", 0.119, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
@@ -76,9 +81,10 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// three decimals, one thousandth more for courtyard_dragon and quarry_truck, whose sums land on a
 /// thousandth within the unprinted fifth decimal). The cube-map background fails city_spot and
 /// courtyard_dragon. Merged main (the ground's bounce too): 0.0273, 0.0174, 0.0371, 0.0214, 0.0353;
-/// tightened to measured + 0.01 where that is tighter.
+/// tightened to measured + 0.01 where that is tighter. Ninth session (the ground's rays weighted
+/// by the sky's binned radiance): 0.0255, 0.0153, 0.0317, 0.0194, 0.0308; tightened the same way.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.038), ("blouberg_teapot", 0.028), ("courtyard_dragon", 0.048), ("city_spot", 0.030), ("quarry_truck", 0.046)];
+    [("quarry_bunny", 0.036), ("blouberg_teapot", 0.026), ("courtyard_dragon", 0.042), ("city_spot", 0.030), ("quarry_truck", 0.041)];
 
 #[test]
 fn default_method_against_path_traced_references() {

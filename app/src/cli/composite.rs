@@ -195,6 +195,7 @@ fn light_json(
         "map_sun": format!("{:?}", measured.source).to_lowercase(),
         "map_sun_irradiance": measured.sun_irradiance,
         "map_sun_turbidity": measured.turbidity,
+        "map_sun_ground_over_sky": measured.ground_sun_over_sky,
         "sunlight": l.sunlight,
         "daylight": l.daylight,
         "shadow_opacity": l.shadow_opacity,

@@ -41,10 +41,11 @@ pub fn irradiance_colour(c: &[[f32; 3]; 9], n: Vec3) -> [f32; 3] {
 }
 
 /// The shape of a sky's radiance (luminance) as SH9 coefficients in the environment map's own
-/// frame, with the map's heading: what weights the ground's sky-visibility rays
-/// (render::model_cache PreparedModel::ground_sky, which recombines the rays' SH9 transfer with
-/// [`SkyShape::world_coeffs`]), so that the model hides a directional sky by the light the
-/// hidden part gives. Normalised to L00 = 1 and rounded to 1/32, so that a sky of the same shape
+/// frame, with the map's heading: the heading the ground's map turns [`SkyRadiance`] by, and the
+/// weights of the ground's sky-visibility rays where no [`SkyRadiance`] is given
+/// (render::model_cache GroundLight, which then recombines the rays' SH9 transfer with
+/// [`SkyShape::world_coeffs`]). A frame gives the binned radiance: nine harmonics misweight a sky
+/// concentrated low or on one side (docs/accuracy.md "Ninth session"). Normalised to L00 = 1 and rounded to 1/32, so that a sky of the same shape
 /// (the live view's camera frame folded again) keeps the uploaded map.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SkyShape {
@@ -89,6 +90,97 @@ impl SkyShape {
         let (w5, w7) = turn(c[5], c[7], s1, c1);
         let (w4, w8) = turn(c[4], c[8], s2, c2);
         [c[0], w1, c[2], w3, w4, w5, c[6], w7, w8]
+    }
+}
+
+/// Rows (equal steps of z, so equal solid angles) and columns (equal steps of azimuth) of
+/// [`SkyRadiance`]'s bins over the upper hemisphere: 7.2° of elevation at the horizon, 11.25° of
+/// azimuth.
+pub const SKY_ROWS: usize = 8;
+pub const SKY_COLUMNS: usize = 32;
+pub const SKY_BINS: usize = SKY_ROWS * SKY_COLUMNS;
+
+/// The sky's radiance (luminance, relative: the bins' mean is 1) over the upper hemisphere in
+/// [`SKY_BINS`] bins of equal solid angle, in the environment map's own frame: what weights the
+/// ground's sky-visibility rays (render::model_cache), so that the model hides a directional sky
+/// by the light the hidden part gives. Nine harmonics smear a sky concentrated within a few tens
+/// of degrees (the glow over a sunrise horizon, the aureole round the sun, a courtyard's bright
+/// side) over the hemisphere and ring below 0 opposite it ([`SkyShape`]); bins of 7–11° keep it.
+/// Rounded to 1/32 so that a sky of the same shape keeps the ground's map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkyRadiance {
+    /// Row-major from the horizon row; column k covers azimuths (k, k + 1) · 2π / SKY_COLUMNS
+    /// clockwise from North (light::sun_finder::azimuth_elevation).
+    pub bins: [f32; SKY_BINS],
+}
+
+impl Default for SkyRadiance {
+    fn default() -> SkyRadiance {
+        SkyRadiance::UNIFORM
+    }
+}
+
+impl SkyRadiance {
+    /// The same radiance from every direction.
+    pub const UNIFORM: SkyRadiance = SkyRadiance { bins: [1.0; SKY_BINS] };
+
+    /// The solid-angle mean luminance of the `samples` above the horizon in each bin, over their
+    /// mean; a bin no sample falls in takes its row's mean (uniform when nothing above the horizon
+    /// gives light).
+    pub fn of(samples: &[DirSample]) -> SkyRadiance {
+        let mut sum = [(0f64, 0f64); SKY_BINS];
+        for s in samples.iter().filter(|s| s.dir.z > 0.0) {
+            let e = &mut sum[SkyRadiance::bin(s.dir)];
+            e.0 += f64::from(crate::colour::luminance_bt709(s.radiance)) * f64::from(s.solid_angle);
+            e.1 += f64::from(s.solid_angle);
+        }
+        let mut bins = [f32::NAN; SKY_BINS];
+        for (b, (l, w)) in bins.iter_mut().zip(sum) {
+            if w > 0.0 {
+                *b = (l / w) as f32;
+            }
+        }
+        for row in bins.chunks_mut(SKY_COLUMNS) {
+            let known: Vec<f32> = row.iter().copied().filter(|v| v.is_finite()).collect();
+            let mean = if known.is_empty() { f32::NAN } else { known.iter().sum::<f32>() / known.len() as f32 };
+            row.iter_mut().filter(|v| !v.is_finite()).for_each(|v| *v = mean);
+        }
+        let known: Vec<f32> = bins.iter().copied().filter(|v| v.is_finite()).collect();
+        let mean = known.iter().sum::<f32>() / known.len().max(1) as f32;
+        if !(mean > 0.0 && mean.is_finite()) {
+            return SkyRadiance::UNIFORM;
+        }
+        SkyRadiance { bins: bins.map(|v| if v.is_finite() { (v.max(0.0) / mean * 32.0).round() / 32.0 } else { 1.0 }) }
+    }
+
+    /// The bin of a unit direction in the map's frame (z ≤ 0: the horizon row).
+    pub fn bin(m: Vec3) -> usize {
+        SkyRadiance::bin_at(m.x.atan2(m.y), m.z)
+    }
+
+    /// The bin of the map's direction at `azimuth` (rad, clockwise from North, any turn) and
+    /// height `z`.
+    fn bin_at(azimuth: f32, z: f32) -> usize {
+        let row = ((z.clamp(0.0, 1.0) * SKY_ROWS as f32) as usize).min(SKY_ROWS - 1);
+        let turns = (azimuth / std::f32::consts::TAU).rem_euclid(1.0);
+        let column = ((turns * SKY_COLUMNS as f32) as usize).min(SKY_COLUMNS - 1);
+        row * SKY_COLUMNS + column
+    }
+
+    /// Radiance towards the world direction at `azimuth` (rad, clockwise from North) and height
+    /// `z`, for a map turned by `heading` (rad: a world direction d is the map's Rz(heading)·d,
+    /// shaders/frame.wgsl env_map_dir, whose azimuth is d's less the heading); 0 at or below the
+    /// horizon (the ground is not the sky).
+    pub fn at(&self, azimuth: f32, z: f32, heading: f32) -> f32 {
+        if z <= 0.0 {
+            return 0.0;
+        }
+        self.bins[SkyRadiance::bin_at(azimuth - heading, z)]
+    }
+
+    /// [`SkyRadiance::at`] towards unit world direction `d`.
+    pub fn radiance(&self, d: Vec3, heading: f32) -> f32 {
+        self.at(d.x.atan2(d.y), d.z, heading)
     }
 }
 
@@ -216,6 +308,53 @@ mod tests {
         assert!((turned.radiance(Vec3::X) - up).abs() < 1e-5, "{}", turned.radiance(Vec3::X));
         // No light: uniform.
         assert_eq!(SkyShape::from_irradiance(&[[0.0; 3]; 9], 0.3), SkyShape::UNIFORM);
+    }
+
+    #[test]
+    fn a_sky_radiance_holds_its_bins_and_turns_with_the_map() {
+        // A sky of radiance 1 with one bin 4× as bright (the horizon row, azimuths 90°–101.25°:
+        // East and a little South) and a ground of 100 that must not count: the bins hold the
+        // solid-angle means over their mean, (255 · 1 + 4) / 256.
+        let bright = |d: Vec3| {
+            let azimuth = d.x.atan2(d.y).rem_euclid(2.0 * PI).to_degrees();
+            d.z > 0.0 && d.z < 1.0 / SKY_ROWS as f32 && (90.0..101.25).contains(&azimuth)
+        };
+        let cube = crate::scene::CubeMap::from_fn(128, |d| {
+            if d.z <= 0.0 {
+                [100.0; 3]
+            } else if bright(d) {
+                [4.0; 3]
+            } else {
+                [1.0; 3]
+            }
+        });
+        let sky = SkyRadiance::of(&from_cube(&cube));
+        let mean = (255.0 + 4.0) / 256.0;
+        let east = SkyRadiance::bin(Vec3::new(1.0, -0.1, 0.05).normalize());
+        assert_eq!(east, 8);
+        for (i, v) in sky.bins.iter().enumerate() {
+            let want = if i == east { 4.0 / mean } else { 1.0 / mean };
+            // Rounded to 1/32; the cube's texels straddle the bins' edges.
+            assert!((v - want).abs() < 0.04, "bin {i}: {v} vs {want}");
+        }
+        // A map turned by 90° (its North faces the world's East, frame.wgsl env_map_dir): the
+        // map's East is seen looking South; at any heading the bin is the one of Rz(heading)·d.
+        let (d, heading) = (-Vec3::Y + 0.05 * Vec3::Z, std::f32::consts::FRAC_PI_2);
+        assert!((sky.radiance(d.normalize(), heading) - sky.bins[east]).abs() < 1e-6);
+        for (i, heading) in [0.0f32, 0.4, 2.0, -2.7, 5.5].iter().enumerate() {
+            let (s, c) = heading.sin_cos();
+            for k in 0..200 {
+                let z = (k as f32 + 0.5) / 200.0;
+                let phi = 2.39996 * (k + 37 * i) as f32;
+                let r = (1.0 - z * z).sqrt();
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let m = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+                assert_eq!(sky.radiance(d, *heading), sky.bins[SkyRadiance::bin(m)], "heading {heading}, {d}");
+            }
+        }
+        // Below the horizon: no sky; no light at all: uniform.
+        assert_eq!(sky.radiance(-Vec3::Z, 0.0), 0.0);
+        assert_eq!(SkyRadiance::of(&from_cube(&crate::scene::CubeMap::from_fn(8, |_| [0.0; 3]))), SkyRadiance::UNIFORM);
     }
 
     #[test]

@@ -330,6 +330,7 @@ struct PreparedFold {
     cube: CubeMap,
     prepared: crate::render::environment::Prepared,
     sky_sh: [[f32; 3]; 9],
+    sky_radiance: crate::light::sh9::SkyRadiance,
     ground_radiance: [f32; 3],
     cpu_ms: f64,
     /// Milliseconds the fold and its readback took on the frame's thread.
@@ -654,6 +655,7 @@ impl LiveSession {
         self.params.lighting.shadow_opacity = light.shadow_opacity;
         self.params.lighting.sky_occlusion = light.sky_occlusion;
         self.params.lighting.sky_sh = light.sky_sh;
+        self.params.lighting.sky_radiance = light.sky_radiance;
         self.params.lighting.ground_radiance = light.ground_radiance;
         self.params.lighting.sun_colour = light.sun_colour;
         self.params.lighting.sun_angular_radius = light.sun_angular_radius;
@@ -723,6 +725,8 @@ impl LiveSession {
         // The ambient's colour and direction from the fold; its level (DL) stays the map's.
         self.params.lighting.sky_sh = done.sky_sh;
         self.unit_light.sky_sh = done.sky_sh;
+        self.params.lighting.sky_radiance = done.sky_radiance;
+        self.unit_light.sky_radiance = done.sky_radiance;
         self.params.lighting.ground_radiance = done.ground_radiance;
         self.unit_light.ground_radiance = done.ground_radiance;
         state.refreshes += 1;
@@ -783,6 +787,7 @@ impl LiveSession {
                 cube,
                 prepared,
                 sky_sh: unit.sky_sh,
+                sky_radiance: unit.sky_radiance,
                 ground_radiance: unit.ground_radiance,
                 cpu_ms: started.elapsed().as_secs_f64() * 1e3,
                 fold_ms,

@@ -760,7 +760,9 @@ impl Compositor {
         let shape = crate::light::sh9::SkyShape::from_irradiance(&p.lighting.sky_sh, env.heading);
         // The light the model reflects onto the ground, for its mean albedo.
         let bounce = super::passes::ground::bounce_light(&p.lighting, env.heading, model.prepared.albedo);
-        let shape = super::model_cache::GroundLight { shape, bounce };
+        // The rays are weighted by the sky's radiance in bins (light::sh9::SkyRadiance), its
+        // nine harmonics being too smooth for a sky concentrated near the horizon or the sun.
+        let shape = super::model_cache::GroundLight { shape, radiance: Some(p.lighting.sky_radiance), bounce };
         // Computed by the device's model cache once per key (shared by every compositor on the
         // device); in the live view on its worker, drawing the previous map meanwhile.
         Ok(if self.ground_in_background {

@@ -341,6 +341,7 @@ mod tests {
                 sky_occlusion: 0.0,
                 live_depth: 2.0,
                 sky_sh: std::array::from_fn(|i| [i as f32, 0.5, 0.25]),
+                sky_radiance: crate::light::sh9::SkyRadiance::UNIFORM,
                 ground_radiance: [0.2, 0.3, 0.4],
                 sun_colour: [1.2, 0.9, 0.7],
                 sun_angular_radius: 0.01,

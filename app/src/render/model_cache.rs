@@ -67,13 +67,16 @@ impl ModelKey {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GroundLight {
     pub shape: SkyShape,
+    /// The sky's radiance in bins, in the map's frame turned by `shape.heading`: when given, it
+    /// weights the rays instead of the shape's nine harmonics.
+    pub radiance: Option<crate::light::sh9::SkyRadiance>,
     pub bounce: BounceLight,
 }
 
 impl From<SkyShape> for GroundLight {
     /// A sky of that shape over a model that reflects nothing.
     fn from(shape: SkyShape) -> GroundLight {
-        GroundLight { shape, bounce: BounceLight::NONE }
+        GroundLight { shape, radiance: None, bounce: BounceLight::NONE }
     }
 }
 
@@ -94,7 +97,10 @@ impl Ground {
         {
             return sky.clone();
         }
-        let sky = Arc::new(self.transfer.map(&light.shape.world_coeffs(), &light.bounce));
+        let sky = Arc::new(match &light.radiance {
+            Some(r) => self.transfer.map_weighted(&|azimuth, z| r.at(azimuth, z, light.shape.heading), &light.bounce),
+            None => self.transfer.map(&light.shape.world_coeffs(), &light.bounce),
+        });
         computed.fetch_add(1, Relaxed);
         self.map = Some((light, sky.clone()));
         sky
@@ -194,9 +200,11 @@ impl PreparedModel {
     /// under a sky of shape `light.shape` (its rays weighted by the sky's radiance), with the
     /// light the model reflects onto it (`light.bounce`, [`GroundLight`]), over
     /// [`occlusion::GROUND_TEXELS`]² texels. The rays ([`occlusion::GROUND_RAYS`] a texel) are
-    /// cast once per placement into a transfer ([`ground_worker::cast`] onto the SH9 basis); a
-    /// new light only recombines it with the shape's coefficients turned into the world
-    /// ([`SkyShape::world_coeffs`]) and the bounce's (no ray, ~40 products a texel). The same
+    /// cast once per placement into a transfer ([`ground_worker::cast`]: the rays kept, and
+    /// projected onto the SH9 basis); a new light only recombines it: each ray weighted by the
+    /// sky's binned radiance (`light.radiance`, light::sh9::SkyRadiance) or, without it, the
+    /// shape's coefficients turned into the world ([`SkyShape::world_coeffs`]), and the bounce's
+    /// (no ray). The same
     /// `Arc` comes back while the placement and the light stay, so `Arc::ptr_eq` with the one uploaded says
     /// whether to upload. Waits for the rays of a new placement, cast here (after any cast still
     /// running on the worker): what a single composite needs.

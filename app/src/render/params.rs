@@ -86,6 +86,9 @@ pub struct Lighting {
     /// the environment map's own ENU frame (before its heading), per unit of `daylight`:
     /// daylight · Σ c_i Y_i(n) is what a white Lambertian surface facing n reflects.
     pub sky_sh: [[f32; 3]; 9],
+    /// The same sky's radiance in bins (relative, the map's own frame): what weights the rays of
+    /// the ground's sky visibility under the model (render::model_cache).
+    pub sky_radiance: crate::light::sh9::SkyRadiance,
     /// The ground's radiance per unit of `daylight` (sh9-ggx, linear RGB): `sky_sh` is the sky
     /// above the horizon, below it a uniform ground of this radiance lights the model, as far as
     /// each vertex sees it past the model and its shadow (scene::occlusion::model_sky_ground).

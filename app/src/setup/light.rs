@@ -21,8 +21,9 @@ use glam::Vec3;
 use std::path::Path;
 
 /// Measure the light in the scene's environment map. A clipped sun is found at the map's clip
-/// level ([`clip_level`]) and its energy restored from the clear-sky model at the scene's sun
-/// elevation when the scene gives the sun's direction (else the saturated disc's); a float map
+/// level ([`clip_level`]) and its energy restored (from the ground's colours where they show the
+/// sun's share, else from the clear-sky model: light::measure) at the scene's sun elevation when
+/// the scene gives the sun's direction (else the saturated disc's); a float map
 /// with no clip level is trusted as it is. Errors: an HDR capture's capture.json that cannot be
 /// read.
 pub fn measure_environment(scene: &Scene, env: &CubeMap) -> Result<MeasuredLight> {
@@ -113,6 +114,8 @@ pub struct LightTerms {
     /// the map's own ENU frame): l_d · Σ c_i Y_i(n) is the light a white Lambertian surface
     /// facing n reflects (sh9-ggx).
     pub sky_sh: [[f32; 3]; 9],
+    /// The same sky's radiance in bins (relative, the map's own frame; light::sh9::SkyRadiance).
+    pub sky_radiance: crate::light::sh9::SkyRadiance,
     /// The ground's radiance below the horizon per unit of `daylight` (linear RGB, sh9-ggx): the
     /// map's upper hemisphere is the sky of `sky_sh`, its lower one a uniform ground of this
     /// radiance (light::measure::SkyAndGround), which the model shadows where it stands.
@@ -167,6 +170,7 @@ pub fn light_terms(scene: &Scene, light: &MeasuredLight, priors: &HemispherePrio
         ground_sky,
         sun_colour,
         sky_sh,
+        sky_radiance: light.sky_and_ground.radiance,
         ground_radiance,
         sun_angular_radius: light.sun_angular_radius,
     }

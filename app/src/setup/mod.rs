@@ -111,6 +111,7 @@ pub fn set_lighting_environment(
     let priors = compositor.priors().context("lighting environment priors")?;
     let light = environment_light(scene, map, &priors, exposure, heading)?.0;
     params.lighting.sky_sh = light.sky_sh;
+    params.lighting.sky_radiance = light.sky_radiance;
     params.lighting.ground_radiance = light.ground_radiance;
     Ok(())
 }
@@ -171,6 +172,7 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
         sky_occlusion,
         live_depth: scene.effects.live_depth as f32,
         sky_sh: light.sky_sh,
+        sky_radiance: light.sky_radiance,
         ground_radiance: light.ground_radiance,
         sun_colour: light.sun_colour,
         sun_angular_radius: light.sun_angular_radius,

@@ -376,6 +376,7 @@ mod tests {
                 sky_occlusion: 0.0,
                 live_depth: 1.0,
                 sky_sh: [[0.0; 3]; 9],
+                sky_radiance: crate::light::sh9::SkyRadiance::UNIFORM,
                 ground_radiance: [0.0; 3],
                 sun_colour: [1.0; 3],
                 sun_angular_radius: 0.0047,

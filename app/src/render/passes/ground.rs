@@ -401,6 +401,7 @@ mod tests {
             sky_occlusion,
             live_depth: 2.0,
             sky_sh,
+            sky_radiance: crate::light::sh9::SkyRadiance::UNIFORM,
             ground_radiance,
             sun_colour: [1.0; 3],
             sun_angular_radius: 0.005,

@@ -67,7 +67,10 @@ struct VertexOut {
     @location(2) uv: vec2<f32>,
     @location(3) ao: vec4<f32>,
     @location(4) bent: vec3<f32>,
-    @location(5) sun: f32,
+    // The sun's visibility from the vertices (VERTEX_SUN), weighted by how much each vertex faces
+    // the sun: x interpolates visibility * max(n.l, 0), y interpolates n.l (n: the vertex's
+    // world normal as `normal` carries it, l: the sun). vertex_sun() divides them.
+    @location(5) sun: vec2<f32>,
 };
 
 @vertex
@@ -79,9 +82,20 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     out.uv = vertex.uv;
     out.ao = vertex.ao;
     out.bent = (instance.normal * vec4<f32>(vertex.bent, 0.0)).xyz;
-    out.sun = vertex.sun;
+    let n_dot_l = dot(out.normal, frame.sun_dir);
+    out.sun = vec2<f32>(vertex.sun * max(n_dot_l, 0.0), n_dot_l);
     out.clip = frame.view_proj * world;
     return out;
+}
+
+// The sun's visibility at a fragment from its triangle's vertices (VERTEX_SUN): each vertex's
+// looked-up visibility weighted by its n.l, so a vertex facing away from the sun (weight 0; its
+// lookup is the model's own shadow) does not darken the sunlit part of a triangle across the
+// terminator, which takes the visibility of its sunlit vertices; where every vertex faces the
+// sun it is their visibility interpolated with weights n.l. 0 where the fragment faces away
+// (its n.l, the sign of in.sun.y, makes its sun term 0 anyway).
+fn vertex_sun(in: VertexOut) -> f32 {
+    return select(0.0, clamp(in.sun.x / in.sun.y, 0.0, 1.0), in.sun.y > 0.0);
 }
 
 // The surface's diffuse reflectance after colour correction (seed §5.6), which acts on what the
@@ -175,7 +189,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     // Opaque, one-sided lighting (Eq. 3): factors are clamped at zero, so a surface facing away
     // from the sun gets only ambient light.
     let albedo = surface_albedo(in.uv);
-    var visibility = in.sun;
+    var visibility = vertex_sun(in);
     if (!VERTEX_SUN) {
         visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
     }

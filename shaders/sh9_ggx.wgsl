@@ -75,7 +75,7 @@ fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
     let l = frame.sun_dir;
     let n_dot_l = max(dot(n, l), 0.0);
     // Interpolated from the vertices (VERTEX_SUN, model.wgsl), or looked up per pixel.
-    var visibility = in.sun;
+    var visibility = vertex_sun(in);
     if (!VERTEX_SUN) {
         visibility = 0.0;
         if (n_dot_l > 0.0) {

@@ -115,7 +115,8 @@ fill = 0.8
         background: None,
     };
     let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
-    // The sun per vertex wherever a mesh may take it (not the default yet).
+    // The sun per vertex wherever a mesh may take it (the default limit would let the sphere
+    // take it only at some distances), with its split and indirect draws.
     compositor.set_sun_edge_limit(f32::INFINITY);
     assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
     // A colour correction (the first asks for the model's statistics) and the sun up, so the

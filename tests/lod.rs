@@ -90,11 +90,12 @@ fn shadow_and_ground_passes_run_only_when_needed() {
     let s = scene("width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n");
     let i = inputs(&s);
     let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+    // The sun looked up per pixel: no vertex-sun pass, whose runs tests/vertex_sun.rs checks.
+    c.set_sun_edge_limit(0.0);
     let run = |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| {
         c.render(gpu(), p, Layer::Composite).unwrap();
         c.passes_run()
     };
-    // The sun looked up per pixel (the default): no vertex-sun pass (tests/vertex_sun.rs).
     let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, vertex_sun: false, ground };
     let mut up = p;
     up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);

@@ -363,8 +363,8 @@ impl Compositor {
 
     /// Let the model's meshes whose triangles are at most `px` pixels long on screen take the
     /// sun's visibility from their vertices, looked up once per shadow map drawn
-    /// (`passes::model::MAX_SUN_EDGE_PX` is the limit measured); 0, the default: the map looked
-    /// up per pixel everywhere (docs/PERFORMANCE.md, ninth session: not on by default yet).
+    /// (`passes::model::MAX_SUN_EDGE_PX`, the default, is the limit measured); 0: the map looked
+    /// up per pixel everywhere (docs/PERFORMANCE.md, ninth and tenth sessions).
     pub fn set_sun_edge_limit(&mut self, px: f32) {
         self.model_pass.set_sun_edge_limit(px);
     }
@@ -380,19 +380,19 @@ impl Compositor {
     /// frame that looked it up left it (1 where none did): read back for the tests.
     pub fn vertex_sun_values(&self, gpu: &Gpu) -> Result<Vec<Vec<f32>>> {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        model.sun_buffers().map(|b| Ok(bytemuck::cast_slice(&read_whole(gpu, b)?).to_vec())).collect()
+    }
+
+    /// Per mesh of the loaded model, how many triangles of the level the vertex sun last split
+    /// take the sun from their vertices and how many look it up per pixel (the two lists'
+    /// indirect draws): read back for the tests.
+    pub fn vertex_sun_split(&self, gpu: &Gpu) -> Result<Vec<(u32, u32)>> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         model
-            .sun_buffers()
+            .split_draw_buffers()
             .map(|b| {
-                let read = build::buffer(
-                    &gpu.device,
-                    "sun per vertex readback",
-                    b.size(),
-                    wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                );
-                let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                encoder.copy_buffer_to_buffer(b, 0, &read, 0, b.size());
-                gpu.queue.submit([encoder.finish()]);
-                Ok(bytemuck::cast_slice(&crate::gpu::readback::read_buffer(gpu, &read)?).to_vec())
+                let args: Vec<u32> = bytemuck::cast_slice(&read_whole(gpu, b)?).to_vec();
+                Ok((args[0] / 3, args[5] / 3))
             })
             .collect()
     }
@@ -731,11 +731,15 @@ impl Compositor {
         };
         self.vertex_sun_run = wanted.filter(|w| drawn || self.vertex_sun_held != Some(*w)).map(|w| w.lookup);
         if self.vertex_sun_run.is_some() {
+            model.reset_split_draws(queue);
             self.vertex_sun_held = wanted;
         } else if drawn {
             // The map changed under buffers that were not looked up again.
             self.vertex_sun_held = None;
         }
+        // The meshes draw the sun from their vertices only while the buffers and the split hold
+        // this frame's (not for a method without the sun's shadow, nor without a map).
+        self.model_pass.vertex_sun_valid(wanted.is_some() && self.vertex_sun_held == wanted);
         self.level = data.level;
         self.shadow_index = shadow_index;
         self.passes_run = PassesRun {
@@ -915,4 +919,14 @@ fn in_group<T>(pass: &mut wgpu::RenderPass<'_>, name: &str, draw: impl FnOnce(&m
     let drawn = draw(pass);
     pass.pop_debug_group();
     drawn
+}
+
+/// The bytes of buffer `b` (which has COPY_SRC), through a readback buffer: for the tests'
+/// read-backs, not for frames.
+fn read_whole(gpu: &Gpu, b: &wgpu::Buffer) -> Result<Vec<u8>> {
+    let read = build::buffer(&gpu.device, "readback", b.size(), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(b, 0, &read, 0, b.size());
+    gpu.queue.submit([encoder.finish()]);
+    crate::gpu::readback::read_buffer(gpu, &read)
 }

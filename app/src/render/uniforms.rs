@@ -58,6 +58,17 @@ pub struct MaterialUniforms {
     pub terms: [f32; 4],
 }
 
+/// Mirrors `struct SplitLevel` in shaders/vertex_sun.wgsl: where a level's triangles are in a
+/// mesh's index buffer, and where the second list of the split starts.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct SplitLevelUniforms {
+    pub first: u32,
+    pub count: u32,
+    pub second: u32,
+    pub unused: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -109,5 +120,7 @@ mod tests {
         crate::assert_wgsl_layout!(module, InstanceUniforms, "Instance", [model, normal]);
         crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun, ground_square, ground_sky, ground]);
         crate::assert_wgsl_layout!(module, MaterialUniforms, "Material", [albedo, specular, terms]);
+        let module = crate::gpu::wgsl::validate(&source(Technique::VertexSun)).unwrap();
+        crate::assert_wgsl_layout!(module, SplitLevelUniforms, "SplitLevel", [first, count, second, unused]);
     }
 }

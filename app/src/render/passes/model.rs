@@ -13,7 +13,7 @@ use crate::render::params::MaterialTerms;
 use crate::render::passes::vertex_sun;
 use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, SUN_LOCATION, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
-use crate::render::uniforms::MaterialUniforms;
+use crate::render::uniforms::{MaterialUniforms, SplitLevelUniforms};
 use crate::scene::lod::IndexRange;
 use crate::scene::{Model, Sides};
 use anyhow::{Result, anyhow};
@@ -28,9 +28,8 @@ use wgpu::util::DeviceExt;
 /// sun visibility the model pass may interpolate from its vertices ([`super::vertex_sun`]), over
 /// the triangles that cover [`SUN_EDGE_AREA`] of the mesh's area; a mesh with longer edges
 /// looks the shadow map up per pixel, since interpolating across a large triangle would spread
-/// a shadow's edge over it (docs/PERFORMANCE.md, ninth session). Not the default yet
-/// ([`ModelPass::set_sun_edge_limit`]): with it, `bench accuracy`'s city_spot sh9-ggx row got
-/// worse (ROI FLIP 0.09129 → 0.09256).
+/// a shadow's edge over it (docs/PERFORMANCE.md, ninth and tenth sessions). The default of
+/// [`ModelPass::set_sun_edge_limit`].
 pub const MAX_SUN_EDGE_PX: f32 = 20.0;
 /// The share of a mesh's area whose triangles' edges [`MAX_SUN_EDGE_PX`] bounds: a few long
 /// slivers (a simplified level has some) cover little and do not decide.
@@ -97,11 +96,21 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
     let module = build::shader(device, "model", source(Technique::Model));
-    let mut shading = Vec::new();
+    let mut shading: Vec<wgpu::RenderPipeline> = Vec::new();
     for (cull, vertex_sun) in [(false, false), (true, false), (true, true)] {
         for corrected in [false, true] {
             let variant = (corrected, cull, vertex_sun);
-            shading.extend(method_pipelines(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), variant));
+            for m in LightingMethod::ALL {
+                // A method without the sun's shadow (the refractions) never draws with the sun
+                // from the vertices: its slot holds its per-pixel pipeline, not another build
+                // (each costs start-up time, docs/PERFORMANCE.md, tenth session).
+                let pipeline = if vertex_sun && vertex_sun::SunLookup::of(m).is_none() {
+                    shading[shading_index(m, corrected, (true, false))].clone()
+                } else {
+                    method_pipeline(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), variant, m)
+                };
+                shading.push(pipeline);
+            }
         }
     }
     let prepass = prepass_pipeline(device, &module, (&layout, &material_layout), samples);
@@ -147,17 +156,26 @@ fn method_pipelines(
     (format, samples): (wgpu::TextureFormat, u32),
     (corrected, cull, vertex_sun): (bool, bool, bool),
 ) -> Vec<wgpu::RenderPipeline> {
-    let colour =
-        wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
     LightingMethod::ALL
         .iter()
-        .map(|m| {
-            let flag = |on: bool| if on { 1.0 } else { 0.0 };
-            let constants =
-                [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];
-            model_pipeline(device, (m.name(), module, Some(("fs_main", colour.clone()))), layouts, samples, (&constants, cull))
-        })
+        .map(|&m| method_pipeline(device, module, layouts, (format, samples), (corrected, cull, vertex_sun), m))
         .collect()
+}
+
+/// One pipeline of [`method_pipelines`]: method `m`'s.
+fn method_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    (format, samples): (wgpu::TextureFormat, u32),
+    (corrected, cull, vertex_sun): (bool, bool, bool),
+    m: LightingMethod,
+) -> wgpu::RenderPipeline {
+    let colour =
+        wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
+    let flag = |on: bool| if on { 1.0 } else { 0.0 };
+    let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];
+    model_pipeline(device, (m.name(), module, Some(("fs_main", colour))), layouts, samples, (&constants, cull))
 }
 
 /// A model pipeline: the model shader's vertex stage with override `constants` and, when
@@ -258,8 +276,16 @@ struct MeshGpu {
     /// attribute [`SUN_LOCATION`]).
     sun: wgpu::Buffer,
     /// Per level, the vertex-sun pass's bind group 1 (vertices, the level's vertex indices,
-    /// `sun`) and how many vertices the level uses.
-    sun_groups: Vec<(wgpu::BindGroup, u32)>,
+    /// `sun`, and what its split reads and writes) and how many vertices and triangles the level
+    /// has.
+    sun_groups: Vec<(wgpu::BindGroup, u32, u32)>,
+    /// The drawn level's triangles split by the vertex-sun pass (shaders/vertex_sun.wgsl
+    /// `split`): those whose sunlit vertices agree on the sun from 0, the others from
+    /// `second`; room for every triangle of the largest level in each.
+    split: wgpu::Buffer,
+    second: u32,
+    /// The two lists' indexed indirect draws (`DrawIndexedIndirectArgs`, 20 bytes each).
+    split_draws: wgpu::Buffer,
     /// Per level, the longest edge of the triangles that cover [`SUN_EDGE_AREA`] of its area
     /// (model units; [`edge_over_area`]).
     longest_edge: Vec<f32>,
@@ -309,16 +335,31 @@ impl ModelGpu {
 
     /// Per mesh, the vertex-sun pass's bind group 1 at level of detail `level` (clamped) and how
     /// many vertices that level uses.
-    pub fn sun_groups(&self, level: usize) -> impl Iterator<Item = (&wgpu::BindGroup, u32)> {
+    pub fn sun_groups(&self, level: usize) -> impl Iterator<Item = (&wgpu::BindGroup, u32, u32)> {
         self.meshes.iter().map(move |m| {
-            let (group, count) = &m.sun_groups[level.min(m.sun_groups.len() - 1)];
-            (group, *count)
+            let (group, vertices, triangles) = &m.sun_groups[level.min(m.sun_groups.len() - 1)];
+            (group, *vertices, *triangles)
         })
+    }
+
+    /// Zero each mesh's split draws (one instance each, the second list at its start) before a
+    /// vertex-sun pass counts its triangles into them.
+    pub fn reset_split_draws(&self, queue: &wgpu::Queue) {
+        for m in &self.meshes {
+            let args = [0, 1, 0, 0, 0, 0, 1, m.second, 0, 0u32];
+            queue.write_buffer(&m.split_draws, 0, bytemuck::cast_slice(&args));
+        }
     }
 
     /// Per mesh, its buffer of the sun's visibility per vertex.
     pub fn sun_buffers(&self) -> impl Iterator<Item = &wgpu::Buffer> {
         self.meshes.iter().map(|m| &m.sun)
+    }
+
+    /// Per mesh, its split's two indexed indirect draws (triangles whose vertices agree, then
+    /// the others).
+    pub fn split_draw_buffers(&self) -> impl Iterator<Item = &wgpu::Buffer> {
+        self.meshes.iter().map(|m| &m.split_draws)
     }
 
     /// Draw every mesh at level of detail `level` (clamped to the chain); `material_group`:
@@ -342,6 +383,19 @@ impl MeshGpu {
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(r.first..r.first + r.count, 0, 0..1);
+    }
+
+    /// Draw the level the vertex-sun pass last split: its triangles whose sunlit vertices agree
+    /// with `per_vertex` (the sun interpolated), the others with `per_pixel`.
+    fn draw_split(&self, pass: &mut wgpu::RenderPass<'_>, (per_vertex, per_pixel): (&wgpu::RenderPipeline, &wgpu::RenderPipeline)) {
+        pass.set_bind_group(1, &self.material, &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_vertex_buffer(1, self.sun.slice(..));
+        pass.set_index_buffer(self.split.slice(..), wgpu::IndexFormat::Uint32);
+        pass.set_pipeline(per_vertex);
+        pass.draw_indexed_indirect(&self.split_draws, 0);
+        pass.set_pipeline(per_pixel);
+        pass.draw_indexed_indirect(&self.split_draws, 20);
     }
 }
 
@@ -389,7 +443,7 @@ impl ModelPass {
             culling: true,
             prepass: pipelines.model.prepass.clone(),
             corrected: false,
-            sun_edge_limit: 0.0,
+            sun_edge_limit: MAX_SUN_EDGE_PX,
             layout: pipelines.model.layout.clone(),
             sun_mesh_layout: pipelines.vertex_sun.mesh_layout.clone(),
             sun_per_mesh: Vec::new(),
@@ -512,11 +566,46 @@ impl ModelPass {
                 contents: bytemuck::cast_slice(&lists),
                 usage: wgpu::BufferUsages::STORAGE,
             });
+            let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("indices"),
+                contents: bytemuck::cast_slice(&lods.indices),
+                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+            });
+            // The split lists, each with room for the largest level (at least one triangle).
+            let second = lods.levels.iter().map(|r| r.count).max().unwrap_or(0).max(3);
+            let split = build::buffer(
+                device,
+                "sun split triangles",
+                8 * u64::from(second),
+                wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+            );
+            let split_draws = build::buffer(
+                device,
+                "sun split draws",
+                40,
+                wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            );
+            let uniform_align = u64::from(device.limits().min_uniform_buffer_offset_alignment).max(16);
+            let mut level_bytes = vec![0u8; uniform_align as usize * lods.levels.len()];
+            for (l, r) in lods.levels.iter().enumerate() {
+                let u = SplitLevelUniforms { first: r.first, count: r.count, second, unused: 0 };
+                level_bytes[l * uniform_align as usize..][..16].copy_from_slice(bytemuck::bytes_of(&u));
+            }
+            // Per level (at the device's uniform-offset alignment), where its triangles are.
+            let split_levels = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("sun split levels"),
+                contents: &level_bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
             let sun_groups = offsets
                 .iter()
                 .zip(&counts)
-                .map(|(&offset, &count)| {
+                .zip(&lods.levels)
+                .enumerate()
+                .map(|(l, ((&offset, &count), r))| {
                     let size = wgpu::BufferSize::new(4 * u64::from(count.max(1)));
+                    let level =
+                        wgpu::BufferBinding { buffer: &split_levels, offset: l as u64 * uniform_align, size: wgpu::BufferSize::new(16) };
                     let group = build::bind_group(
                         device,
                         "vertex sun mesh",
@@ -525,9 +614,13 @@ impl ModelPass {
                             vertex_buf.as_entire_binding(),
                             wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &lists, offset, size }),
                             sun.as_entire_binding(),
+                            indices.as_entire_binding(),
+                            split.as_entire_binding(),
+                            split_draws.as_entire_binding(),
+                            wgpu::BindingResource::Buffer(level),
                         ],
                     );
-                    (group, count)
+                    (group, count, r.count / 3)
                 })
                 .collect();
             let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
@@ -536,17 +629,16 @@ impl ModelPass {
                 .collect();
             meshes.push(MeshGpu {
                 vertices: vertex_buf,
-                indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("indices"),
-                    contents: bytemuck::cast_slice(&lods.indices),
-                    usage: wgpu::BufferUsages::INDEX,
-                }),
+                indices,
                 levels: lods.levels.clone(),
                 material: bind,
                 closed: lods.closed.clone(),
                 sides: material.sides,
                 sun,
                 sun_groups,
+                split,
+                second,
+                split_draws,
                 longest_edge,
             });
             materials.push((material_buf, uniforms));
@@ -587,6 +679,14 @@ impl ModelPass {
         self.sun_per_mesh.iter().any(|m| m.1)
     }
 
+    /// Whether the vertex-sun buffers and split hold this frame's values (the compositor's
+    /// bookkeeping); if not, every mesh looks the sun up per pixel this frame.
+    pub fn vertex_sun_valid(&mut self, valid: bool) {
+        if !valid {
+            self.sun_per_mesh.iter_mut().for_each(|m| m.1 = false);
+        }
+    }
+
     /// Per mesh, as the last frame written drew it: its longest edge on screen (pixels at the
     /// model's nearest point; None where not measured) and whether it took the sun's visibility
     /// from its vertices.
@@ -596,8 +696,7 @@ impl ModelPass {
 
     /// Let the meshes whose edges on screen are at most `px` pixels long (over
     /// [`SUN_EDGE_AREA`] of their area) take the sun's visibility from their vertices, from the
-    /// next frame written; 0 (the default, until the accuracy cost measured with
-    /// [`MAX_SUN_EDGE_PX`] is understood) looks it up per pixel everywhere.
+    /// next frame written ([`MAX_SUN_EDGE_PX`] by default); 0 looks it up per pixel everywhere.
     pub fn set_sun_edge_limit(&mut self, px: f32) {
         self.sun_edge_limit = px;
     }
@@ -627,9 +726,14 @@ impl ModelPass {
             mesh.draw(pass, Some(1), level);
         }
         for (k, mesh) in model.meshes.iter().enumerate() {
-            let vertex_sun = self.sun_per_mesh.get(k).is_some_and(|m| m.1);
-            pass.set_pipeline(&self.shading[shading_index(method, self.corrected, (self.culls(mesh, level), vertex_sun))]);
-            mesh.draw(pass, Some(1), level);
+            let cull = self.culls(mesh, level);
+            let per_pixel = &self.shading[shading_index(method, self.corrected, (cull, false))];
+            if self.sun_per_mesh.get(k).is_some_and(|m| m.1) {
+                mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, (cull, true))], per_pixel));
+            } else {
+                pass.set_pipeline(per_pixel);
+                mesh.draw(pass, Some(1), level);
+            }
         }
         Ok(())
     }

@@ -5,7 +5,10 @@
 //! does not depend on the view, so it runs only when the shadow map changes (or the lookup
 //! does), not every frame; the model pass then interpolates it instead of sampling the map per
 //! pixel on the meshes whose triangles are small on screen
-//! ([`crate::render::passes::model::MAX_SUN_EDGE_PX`]).
+//! ([`crate::render::passes::model::MAX_SUN_EDGE_PX`]). A second entry point in the same pass
+//! (`split`) sorts the level's triangles into those whose sunlit vertices agree, drawn with the
+//! sun interpolated, and those a shadow's edge crosses, drawn with the per-pixel lookup (two
+//! indexed indirect draws per mesh).
 
 use super::model::ModelGpu;
 use crate::gpu::build;
@@ -49,6 +52,9 @@ pub struct VertexSunPipelines {
     pub mesh_layout: wgpu::BindGroupLayout,
     soft: wgpu::ComputePipeline,
     filtered: wgpu::ComputePipeline,
+    /// The split of a level's triangles into those whose vertices agree and the others
+    /// (shaders/vertex_sun.wgsl `split`).
+    split: wgpu::ComputePipeline,
 }
 
 /// The compute pipelines, built once per device with the other passes' ([`Pipelines`]).
@@ -66,26 +72,43 @@ pub fn pipelines(device: &wgpu::Device) -> VertexSunPipelines {
             build::sampler_entry(5, cs, NonFiltering),
         ],
     );
-    let mesh_layout =
-        build::layout(device, "vertex sun mesh", &[build::storage(0, cs, true), build::storage(1, cs, true), build::storage(2, cs, false)]);
+    let mesh_layout = build::layout(
+        device,
+        "vertex sun mesh",
+        &[
+            build::storage(0, cs, true),
+            build::storage(1, cs, true),
+            build::storage(2, cs, false),
+            build::storage(3, cs, true),
+            build::storage(4, cs, false),
+            build::storage(5, cs, false),
+            build::uniform(6, cs),
+        ],
+    );
     let module = build::shader(device, "vertex sun", source(Technique::VertexSun));
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("vertex sun"),
         bind_group_layouts: &[Some(&layout), Some(&mesh_layout)],
         immediate_size: 0,
     });
-    let make = |soft: bool| {
+    let make = |(label, entry, soft): (&str, &str, bool)| {
         let constants = [("SOFT", if soft { 1.0 } else { 0.0 })];
         device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(if soft { "vertex sun (soft)" } else { "vertex sun (filtered)" }),
+            label: Some(label),
             layout: Some(&pipeline_layout),
             module: &module,
-            entry_point: Some("main"),
+            entry_point: Some(entry),
             compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
             cache: None,
         })
     };
-    VertexSunPipelines { layout, mesh_layout, soft: make(true), filtered: make(false) }
+    VertexSunPipelines {
+        layout,
+        mesh_layout,
+        soft: make(("vertex sun (soft)", "main", true)),
+        filtered: make(("vertex sun (filtered)", "main", false)),
+        split: make(("vertex sun split", "split", true)),
+    }
 }
 
 /// The vertex indices of each level of a mesh, each once, in one buffer: level `l`'s list
@@ -117,6 +140,7 @@ pub fn level_vertex_lists(indices: &[u32], ranges: &[IndexRange], vertex_count: 
 pub struct VertexSunPass {
     soft: wgpu::ComputePipeline,
     filtered: wgpu::ComputePipeline,
+    split: wgpu::ComputePipeline,
     /// Bind group 0 per shadow map (in the order of `ShadowPass::maps`).
     bind_groups: Vec<wgpu::BindGroup>,
 }
@@ -149,11 +173,14 @@ impl VertexSunPass {
                 )
             })
             .collect();
-        VertexSunPass { soft: p.soft.clone(), filtered: p.filtered.clone(), bind_groups }
+        VertexSunPass { soft: p.soft.clone(), filtered: p.filtered.clone(), split: p.split.clone(), bind_groups }
     }
 
     /// Look the sun up at every vertex of `model`'s level `level` in shadow map `shadow_index`
-    /// with `lookup`, into each mesh's visibility buffer.
+    /// with `lookup`, into each mesh's visibility buffer; then split each mesh's triangles of
+    /// that level into those whose sunlit vertices agree and the others, with the counts in its
+    /// indirect draws (which [`ModelGpu::reset_split_draws`] must have zeroed for this
+    /// submission).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -165,10 +192,17 @@ impl VertexSunPass {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("vertex sun"), timestamp_writes: timestamps });
         pass.set_pipeline(if lookup == SunLookup::Soft { &self.soft } else { &self.filtered });
         pass.set_bind_group(0, group, &[]);
-        for (mesh_group, count) in model.sun_groups(level) {
+        for (mesh_group, count, _) in model.sun_groups(level) {
             if count > 0 {
                 pass.set_bind_group(1, mesh_group, &[]);
                 pass.dispatch_workgroups(count.div_ceil(WORKGROUP), 1, 1);
+            }
+        }
+        pass.set_pipeline(&self.split);
+        for (mesh_group, _, triangles) in model.sun_groups(level) {
+            if triangles > 0 {
+                pass.set_bind_group(1, mesh_group, &[]);
+                pass.dispatch_workgroups(triangles.div_ceil(WORKGROUP), 1, 1);
             }
         }
     }

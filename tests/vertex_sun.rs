@@ -432,7 +432,11 @@ fn bench_vertex_sun() {
             let flip = previz::bench::accuracy::flip_map(&rgb(&last[n - 1]), &rgb(&last[k]), w, h).unwrap();
             let mean_flip = flip.iter().map(|&v| f64::from(v)).sum::<f64>() / flip.len() as f64;
             let differ = last[k].chunks_exact(4).zip(last[n - 1].chunks_exact(4)).filter(|(a, b)| a != b).count();
-            println!("  {label}: per mesh (edges on screen px, per vertex) {:?}", cs[k].0.sun_per_mesh());
+            println!(
+                "  {label}: per mesh (edges on screen px, per vertex) {:?}; split (triangles per vertex, per pixel) {:?}",
+                cs[k].0.sun_per_mesh(),
+                cs[k].0.vertex_sun_split(gpu()).unwrap()
+            );
             println!(
                 "    model pass min {m_min:.2} median {m_med:.2} ms; shadow (+ vertex sun) min {s_min:.2} median {s_med:.2} ms; vertex sun ran in {} of {} sun-turning frames; {differ} pixels differ from per pixel, mean FLIP {mean_flip:.5}",
                 ran[k],

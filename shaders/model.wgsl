@@ -9,6 +9,11 @@ override METHOD: u32;
 // COLOUR_CORRECTION is one too: false for frames without a correction, whose pipelines then
 // hold no correction code (lavapipe runs every case of a runtime switch).
 override COLOUR_CORRECTION: bool = true;
+// VERTEX_SUN too: true where the sun's visibility is interpolated from the vertices
+// (VertexIn.sun), whose pipelines then hold no shadow-map lookup; false where the map is looked
+// up per pixel. A uniform branch on a material value instead saved nothing on lavapipe
+// (docs/PERFORMANCE.md, ninth session).
+override VERTEX_SUN: bool = false;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -38,7 +43,7 @@ struct Material {
 @group(1) @binding(2) var diffuse_smp: sampler;
 
 // The model's vertex (render::pipelines::Vertex; `ao` at render::pipelines::AO_LOCATION, `bent`
-// at BENT_LOCATION).
+// at BENT_LOCATION), and `sun` from a second buffer at SUN_LOCATION.
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
@@ -50,6 +55,9 @@ struct VertexIn {
     // The bent normal: the mean direction of the rays that pass the model, where sh9-ggx looks
     // up the sky (the normal until the occlusion is computed).
     @location(4) bent: vec3<f32>,
+    // The fraction of sunlight reaching the vertex, looked up in the shadow map by the method's
+    // own lookup each time the map is drawn (vertex_sun.wgsl); 1 until then.
+    @location(5) sun: f32,
 };
 
 struct VertexOut {
@@ -59,6 +67,10 @@ struct VertexOut {
     @location(2) uv: vec2<f32>,
     @location(3) ao: vec4<f32>,
     @location(4) bent: vec3<f32>,
+    // The sun's visibility from the vertices (VERTEX_SUN), weighted by how much each vertex faces
+    // the sun: x interpolates visibility * max(n.l, 0), y interpolates n.l (n: the vertex's
+    // world normal as `normal` carries it, l: the sun). vertex_sun() divides them.
+    @location(5) sun: vec2<f32>,
 };
 
 @vertex
@@ -70,8 +82,20 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     out.uv = vertex.uv;
     out.ao = vertex.ao;
     out.bent = (instance.normal * vec4<f32>(vertex.bent, 0.0)).xyz;
+    let n_dot_l = dot(out.normal, frame.sun_dir);
+    out.sun = vec2<f32>(vertex.sun * max(n_dot_l, 0.0), n_dot_l);
     out.clip = frame.view_proj * world;
     return out;
+}
+
+// The sun's visibility at a fragment from its triangle's vertices (VERTEX_SUN): each vertex's
+// looked-up visibility weighted by its n.l, so a vertex facing away from the sun (weight 0; its
+// lookup is the model's own shadow) does not darken the sunlit part of a triangle across the
+// terminator, which takes the visibility of its sunlit vertices; where every vertex faces the
+// sun it is their visibility interpolated with weights n.l. 0 where the fragment faces away
+// (its n.l, the sign of in.sun.y, makes its sun term 0 anyway).
+fn vertex_sun(in: VertexOut) -> f32 {
+    return select(0.0, clamp(in.sun.x / in.sun.y, 0.0, 1.0), in.sun.y > 0.0);
 }
 
 // The surface's diffuse reflectance after colour correction (seed §5.6), which acts on what the
@@ -165,7 +189,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     // Opaque, one-sided lighting (Eq. 3): factors are clamped at zero, so a surface facing away
     // from the sun gets only ambient light.
     let albedo = surface_albedo(in.uv);
-    let visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
+    var visibility = vertex_sun(in);
+    if (!VERTEX_SUN) {
+        visibility = sun_visibility(shadow_map, shadow_smp, frame, in.world + n * 0.002);
+    }
     let df = max(dot(n, l), 0.0) * visibility;
     let sf = specular_factor(n, l, e) * visibility * select(0.0, 1.0, dot(n, l) > 0.0);
     let ambient = ambient_light(n, method) * material.terms.x * l_d;

@@ -74,9 +74,13 @@ fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
     let sky = sky_and_ground(n, in.ao, b) * (frame.daylight * material.terms.x);
     let l = frame.sun_dir;
     let n_dot_l = max(dot(n, l), 0.0);
-    var visibility = 0.0;
-    if (n_dot_l > 0.0) {
-        visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world + n * 0.002, light.sun.w);
+    // Interpolated from the vertices (VERTEX_SUN, model.wgsl), or looked up per pixel.
+    var visibility = vertex_sun(in);
+    if (!VERTEX_SUN) {
+        visibility = 0.0;
+        if (n_dot_l > 0.0) {
+            visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world + n * 0.002, light.sun.w);
+        }
     }
     let sun = light.sun.rgb * (frame.sunlight * n_dot_l * visibility * material.terms.y);
     var colour = albedo * (sky + sun);

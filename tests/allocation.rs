@@ -115,6 +115,9 @@ fill = 0.8
         background: None,
     };
     let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
+    // The sun per vertex wherever a mesh may take it (the default limit would let the sphere
+    // take it only at some distances), with its split and indirect draws.
+    compositor.set_sun_edge_limit(f32::INFINITY);
     assert!(compositor.lod_triangles().unwrap().len() >= 3, "{:?}", compositor.lod_triangles());
     // A colour correction (the first asks for the model's statistics) and the sun up, so the
     // ground is drawn in two parts.
@@ -125,7 +128,7 @@ fill = 0.8
     compositor.render(gpu(), &previz::render::FrameParams { colour: corrected, ..params }, Layer::Composite).unwrap();
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
     let before = settled_counters();
-    let (mut levels, mut maps, mut grounds) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut levels, mut maps, mut grounds, mut vertex_suns) = (Vec::new(), Vec::new(), Vec::new(), 0);
     for i in -2..8 {
         let mut p = params;
         let toward = p.placement.position - p.camera.position;
@@ -145,6 +148,7 @@ fill = 0.8
         levels.push(compositor.lod_level());
         maps.push(compositor.shadow_map_size());
         grounds.push(compositor.ground_vertices());
+        vertex_suns += usize::from(compositor.passes_run().vertex_sun);
     }
     compositor.set_pass_timing(false);
     compositor.set_culling(true);
@@ -160,13 +164,15 @@ fill = 0.8
     grounds.sort_unstable();
     grounds.dedup();
     assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
+    // The model's sun per vertex was looked up into the buffers made at upload.
+    assert!(vertex_suns >= 2, "the sun per vertex was looked up in {vertex_suns} frames");
     assert!(maps.len() >= 2, "the shadow map did not follow the footprint: {maps:?}");
     assert!(grounds.len() >= 2 && grounds.iter().any(|g| g.0 == 0), "the ground's split did not follow the sun: {grounds:?}");
     assert_unchanged(
         &before,
         &after,
         &FRAME_RESOURCES,
-        "level, shadow-map, ground-split, colour-correction, pass-timing and culling switches",
+        "level, shadow-map, ground-split, colour-correction, pass-timing, culling and sun-per-vertex switches",
     );
 }
 
@@ -190,7 +196,7 @@ fn a_second_composite_reuses_the_pipelines() {
     assert_unchanged(
         &before,
         &after,
-        &["render pipelines", "shader modules", "pipeline layouts", "bind group layouts"],
+        &["render pipelines", "compute pipelines", "shader modules", "pipeline layouts", "bind group layouts"],
         "a second composite (it must build no new pipelines)",
     );
 }

@@ -90,11 +90,13 @@ fn shadow_and_ground_passes_run_only_when_needed() {
     let s = scene("width = 160\nheight = 120\nmodel = \"meshes/icosphere-320.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n");
     let i = inputs(&s);
     let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+    // The sun looked up per pixel: no vertex-sun pass, whose runs tests/vertex_sun.rs checks.
+    c.set_sun_edge_limit(0.0);
     let run = |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| {
         c.render(gpu(), p, Layer::Composite).unwrap();
         c.passes_run()
     };
-    let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, ground };
+    let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, vertex_sun: false, ground };
     let mut up = p;
     up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
     up.lighting.sunlight = 1.0;
@@ -310,6 +312,9 @@ fn culling_a_closed_mesh_changes_no_pixel() {
         "width = {w}\nheight = {h}\nmodel = \"meshes/bunny-crane-with-normals.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nrotation = [0.0, 0.0, 40.0]\n"
     ));
     let (mut c, p) = prepare(gpu(), &s, &inputs(&s)).unwrap();
+    // The sun looked up per pixel in both: only a culled mesh may take it from its vertices
+    // (tests/vertex_sun.rs), which is not what this test compares.
+    c.set_sun_edge_limit(0.0);
     let culled = rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba);
     let level = c.lod_level();
     let closed: Vec<bool> = c.prepared_model().unwrap().chain.meshes.iter().map(|m| m.closed[level]).collect();

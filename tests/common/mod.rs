@@ -148,6 +148,7 @@ fn count(c: &wgpu::HalCounters, name: &str) -> isize {
         "texture views" => c.texture_views.read(),
         "bind groups" => c.bind_groups.read(),
         "render pipelines" => c.render_pipelines.read(),
+        "compute pipelines" => c.compute_pipelines.read(),
         "shader modules" => c.shader_modules.read(),
         "samplers" => c.samplers.read(),
         "pipeline layouts" => c.pipeline_layouts.read(),
@@ -157,8 +158,8 @@ fn count(c: &wgpu::HalCounters, name: &str) -> isize {
 }
 
 /// Every resource a frame could allocate.
-pub const FRAME_RESOURCES: [&str; 7] =
-    ["buffers", "textures", "texture views", "bind groups", "render pipelines", "shader modules", "samplers"];
+pub const FRAME_RESOURCES: [&str; 8] =
+    ["buffers", "textures", "texture views", "bind groups", "render pipelines", "compute pipelines", "shader modules", "samplers"];
 
 /// Asserts that none of `names` changed between the two counter readings.
 pub fn assert_unchanged(before: &wgpu::HalCounters, after: &wgpu::HalCounters, names: &[&str], across: &str) {

@@ -17,6 +17,7 @@ use super::passes::background::BackgroundPass;
 use super::passes::ground::{GroundPass, INVISIBLE_LOSS, RegionCache, sky_loss_per_occlusion};
 use super::passes::model::{Culling, ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
+use super::passes::vertex_sun::{SunLookup, VertexSunPass};
 use super::pipelines::Pipelines;
 use super::shadow_fit::{self, ShadowDrawn};
 use super::targets::Targets;
@@ -29,8 +30,9 @@ use glam::Vec3;
 use std::sync::Arc;
 use std::time::Instant;
 
-/// Timer slots: the shadow pass, and the passes after it; with pass timing on
-/// ([`Compositor::set_pass_timing`]) the passes after it one by one instead.
+/// Timer slots: the shadow pass (with the model's sun per vertex after it), and the passes after
+/// it; with pass timing on ([`Compositor::set_pass_timing`]) the passes after it one by one
+/// instead.
 const SHADOW_SLOT: u32 = 0;
 const REST_SLOT: u32 = 1;
 const BACKGROUND_SLOT: u32 = 2;
@@ -47,7 +49,8 @@ pub struct Timings {
     /// GPU: the frame's passes (timestamp queries: the shadow pass, plus the first later pass's
     /// start to the last pass's end); None if unsupported.
     pub gpu_ms: Option<f64>,
-    /// GPU: the shadow pass alone (None when it did not run or without timestamp queries).
+    /// GPU: the shadow pass and the model's sun per vertex after it (None when neither ran or
+    /// without timestamp queries).
     pub shadow_gpu_ms: Option<f64>,
     /// CPU wall time from submit until the pixels are in memory.
     pub readback_ms: f64,
@@ -61,6 +64,7 @@ pub struct Timings {
 /// frame drawn in one pass costs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct PassTimes {
+    /// The shadow pass and the model's sun per vertex after it.
     pub shadow: Option<f64>,
     /// The camera image (or the environment seen by the camera) filling the target.
     pub background: Option<f64>,
@@ -102,6 +106,13 @@ pub struct Compositor {
     /// The float layer targets, made by the first `render_layers`.
     layer_targets: Option<LayerTargets>,
     shadow: ShadowPass,
+    /// The model's sun per vertex, looked up after the shadow pass draws.
+    vertex_sun: VertexSunPass,
+    /// What the model's visibility-per-vertex buffers hold (None: nothing known): a frame
+    /// whose map, level and lookup are the same does not run the pass again.
+    vertex_sun_held: Option<VertexSunHeld>,
+    /// The lookup the last prepared frame runs per vertex (None: the pass does not run).
+    vertex_sun_run: Option<SunLookup>,
     background: BackgroundPass,
     ground: GroundPass,
     model_pass: ModelPass,
@@ -141,6 +152,17 @@ pub struct Compositor {
     ground_regions: RegionCache,
 }
 
+/// What the model's visibility-per-vertex buffers were computed from: a shadow map (its index
+/// and what it holds, which includes the level of detail) and the lookup, with the sun's
+/// angular size the soft lookup widens its penumbra by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct VertexSunHeld {
+    shadow_index: usize,
+    map: ShadowDrawn,
+    lookup: SunLookup,
+    tan_sun_radius: f32,
+}
+
 /// What [`Compositor::frame_data`] works out for a frame: its uniforms, the shadow map it keeps,
 /// and the ground's sky map it draws.
 type FrameFacts = (FrameData, Option<ShadowDrawn>, Option<Arc<occlusion::GroundSky>>);
@@ -154,6 +176,10 @@ pub struct PassesRun {
     /// shadow (`shadow_fit::map_still_valid`: same model, transform and level, the sun moved
     /// less than an eighth of a texel) or when there is no sunlight (nothing to shadow).
     pub shadow_drawn: bool,
+    /// The model's sun per vertex was looked up this frame (render::passes::vertex_sun): after
+    /// the shadow pass drew, or when the map, level or lookup the buffers hold is not the
+    /// frame's; never while they hold what the frame needs.
+    pub vertex_sun: bool,
     pub ground: bool,
 }
 
@@ -183,6 +209,7 @@ impl Compositor {
         let background = BackgroundPass::new(device, &pipelines, (width, height));
         let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
+        let vertex_sun = VertexSunPass::new(device, &pipelines, (&frame_buf, &instance_buf, &light_buf), shadow.maps());
         let shadow_held = vec![None; shadow.sizes().len()];
         Ok(Compositor {
             width,
@@ -195,6 +222,9 @@ impl Compositor {
             antialiasing: aa,
             layer_targets: None,
             shadow,
+            vertex_sun,
+            vertex_sun_held: None,
+            vertex_sun_run: None,
             background,
             ground,
             model_pass,
@@ -314,6 +344,7 @@ impl Compositor {
         self.model = Some(uploaded);
         self.ground_sky_uploaded = None;
         self.shadow_held.fill(None);
+        self.vertex_sun_held = None;
         Ok(())
     }
 
@@ -328,6 +359,42 @@ impl Compositor {
     /// closed mesh the same pixels, for the tests and benchmarks that check and measure it.
     pub fn set_culling(&mut self, on: bool) {
         self.model_pass.set_culling(on);
+    }
+
+    /// Let the model's meshes whose triangles are at most `px` pixels long on screen take the
+    /// sun's visibility from their vertices, looked up once per shadow map drawn
+    /// (`passes::model::MAX_SUN_EDGE_PX`, the default, is the limit measured); 0: the map looked
+    /// up per pixel everywhere (docs/PERFORMANCE.md, ninth and tenth sessions).
+    pub fn set_sun_edge_limit(&mut self, px: f32) {
+        self.model_pass.set_sun_edge_limit(px);
+    }
+
+    /// Per mesh of the loaded model, as the last frame drew it: its longest edge on screen
+    /// (pixels at the model's nearest point; None where not measured) and whether it took the
+    /// sun's visibility from its vertices.
+    pub fn sun_per_mesh(&self) -> &[(Option<f32>, bool)] {
+        self.model_pass.sun_per_mesh()
+    }
+
+    /// Per mesh of the loaded model, the sun's visibility at each of its vertices as the last
+    /// frame that looked it up left it (1 where none did): read back for the tests.
+    pub fn vertex_sun_values(&self, gpu: &Gpu) -> Result<Vec<Vec<f32>>> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        model.sun_buffers().map(|b| Ok(bytemuck::cast_slice(&read_whole(gpu, b)?).to_vec())).collect()
+    }
+
+    /// Per mesh of the loaded model, how many triangles of the level the vertex sun last split
+    /// take the sun from their vertices and how many look it up per pixel (the two lists'
+    /// indirect draws): read back for the tests.
+    pub fn vertex_sun_split(&self, gpu: &Gpu) -> Result<Vec<(u32, u32)>> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        model
+            .split_draw_buffers()
+            .map(|b| {
+                let args: Vec<u32> = bytemuck::cast_slice(&read_whole(gpu, b)?).to_vec();
+                Ok((args[0] / 3, args[5] / 3))
+            })
+            .collect()
     }
 
     /// Time each pass of the following frames alone ([`Timings::passes`]): the composite's
@@ -530,6 +597,7 @@ impl Compositor {
     fn forget_shadows_on_error<T>(&mut self, r: Result<T>) -> Result<T> {
         if r.is_err() {
             self.shadow_held.fill(None);
+            self.vertex_sun_held = None;
         }
         r
     }
@@ -567,7 +635,7 @@ impl Compositor {
         let (gpu_ms, shadow_gpu_ms, passes) = match &self.timer {
             Some(timer) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
-                let shadow = self.passes_run.shadow_drawn.then_some(ms[SHADOW_SLOT as usize]);
+                let shadow = (self.passes_run.shadow_drawn || self.passes_run.vertex_sun).then_some(ms[SHADOW_SLOT as usize]);
                 if self.pass_timing {
                     let steps = self.composite_steps(layer);
                     let ran = |on: bool, slot: u32| on.then_some(ms[slot as usize]);
@@ -647,10 +715,39 @@ impl Compositor {
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
         self.ground.write(queue, &data.ground, &data.ground_mesh);
-        self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull);
+        // Pixels per model unit at the model's nearest point, which the meshes' longest edges
+        // are measured in; a full-shadow reference looks the sun up per pixel everywhere.
+        let (_, distance, focal) = lod_level(model.lod_errors(), model.bounds(), p, self.height);
+        let sun_px = (distance > 0.0 && !self.full_shadow).then(|| focal * p.placement.scale.abs() / distance);
+        let per_vertex = self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull, (data.level, sun_px));
+        // The model's sun per vertex: looked up when the map was drawn this frame, or when the
+        // buffers hold another map, level or lookup than this frame's (a kept map of another
+        // size, a method with another lookup); otherwise they hold what this frame needs.
+        let wanted = match (SunLookup::of(p.method), self.shadow_held[shadow_index]) {
+            (Some(lookup), Some(map)) if shadow && per_vertex => {
+                Some(VertexSunHeld { shadow_index, map, lookup, tan_sun_radius: data.light.sun[3] })
+            }
+            _ => None,
+        };
+        self.vertex_sun_run = wanted.filter(|w| drawn || self.vertex_sun_held != Some(*w)).map(|w| w.lookup);
+        if self.vertex_sun_run.is_some() {
+            model.reset_split_draws(queue);
+            self.vertex_sun_held = wanted;
+        } else if drawn {
+            // The map changed under buffers that were not looked up again.
+            self.vertex_sun_held = None;
+        }
+        // The meshes draw the sun from their vertices only while the buffers and the split hold
+        // this frame's (not for a method without the sun's shadow, nor without a map).
+        self.model_pass.vertex_sun_valid(wanted.is_some() && self.vertex_sun_held == wanted);
         self.level = data.level;
         self.shadow_index = shadow_index;
-        self.passes_run = PassesRun { shadow, shadow_drawn: drawn, ground: composite && data.ground_pass && data.shadow_pass };
+        self.passes_run = PassesRun {
+            shadow,
+            shadow_drawn: drawn,
+            vertex_sun: self.vertex_sun_run.is_some(),
+            ground: composite && data.ground_pass && data.shadow_pass,
+        };
         Ok(data)
     }
 
@@ -758,15 +855,22 @@ impl Compositor {
     }
 
     /// Step 2, the shadow pass: the model's depth seen from the sun (not needed for the
-    /// background alone); step 3a: the environment seen by the camera becomes the background
-    /// when there is no image. `timed`: the shadow pass is timed alone, and the environment view
-    /// pass starts the rest of the frame.
+    /// background alone); 2b: the sun's visibility at the model's vertices from that map, when
+    /// the buffers do not hold it yet; step 3a: the environment seen by the camera becomes the
+    /// background when there is no image. `timed`: the shadow pass and 2b are timed together,
+    /// and the environment view pass starts the rest of the frame.
     fn encode_shadow_and_env_view(&self, encoder: &mut wgpu::CommandEncoder, model: &ModelGpu, timed: bool) -> Result<()> {
         let shadows = self.passes_run.shadow_drawn;
-        let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
+        let timer = self.timer.as_ref().filter(|_| timed);
+        let per_vertex = self.vertex_sun_run;
         if shadows {
-            let mut pass = self.shadow.begin(encoder, self.shadow_index, stamp(SHADOW_SLOT, true));
+            let timestamps = timer.and_then(|t| t.render_pass(SHADOW_SLOT, true, per_vertex.is_none()));
+            let mut pass = self.shadow.begin(encoder, self.shadow_index, timestamps);
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
+        }
+        if let Some(lookup) = per_vertex {
+            let timestamps = timer.and_then(|t| t.compute_pass(SHADOW_SLOT, !shadows, true));
+            self.vertex_sun.encode(encoder, model, (self.level, self.shadow_index, lookup), timestamps);
         }
         if self.background.from_env() {
             // With pass timing the environment view is not timed (the background step is).
@@ -814,4 +918,14 @@ fn in_group<T>(pass: &mut wgpu::RenderPass<'_>, name: &str, draw: impl FnOnce(&m
     let drawn = draw(pass);
     pass.pop_debug_group();
     drawn
+}
+
+/// The bytes of buffer `b` (which has COPY_SRC), through a readback buffer: for the tests'
+/// read-backs, not for frames.
+fn read_whole(gpu: &Gpu, b: &wgpu::Buffer) -> Result<Vec<u8>> {
+    let read = build::buffer(&gpu.device, "readback", b.size(), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(b, 0, &read, 0, b.size());
+    gpu.queue.submit([encoder.finish()]);
+    crate::gpu::readback::read_buffer(gpu, &read)
 }

@@ -2,7 +2,7 @@
 //! `passes/`) and the samplers they share: created once per device, then reused by every frame
 //! and every composite in the process.
 
-use super::passes::{background, ground, model, shadow};
+use super::passes::{background, ground, model, shadow, vertex_sun};
 use super::shaders::{Technique, source};
 use crate::gpu::Gpu;
 use crate::gpu::build;
@@ -38,6 +38,9 @@ pub struct Vertex {
 pub const AO_LOCATION: u32 = 3;
 /// Shader location of [`Vertex::bent`].
 pub const BENT_LOCATION: u32 = 4;
+/// Shader location of the sun's visibility per vertex (shaders/model.wgsl `VertexIn.sun`), a
+/// second vertex buffer written by render::passes::vertex_sun.
+pub const SUN_LOCATION: u32 = 5;
 
 pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
     pipeline_into(device, spec, COLOR_FORMAT)
@@ -117,6 +120,8 @@ pub struct Pipelines {
     pub shadow: PassPipeline,
     pub ground: ground::GroundPipelines,
     pub model: model::ModelPipelines,
+    /// The model's sun per vertex (compute).
+    pub vertex_sun: vertex_sun::VertexSunPipelines,
     /// The post-process antialiasing pass (render/antialiasing.rs).
     pub fxaa: PassPipeline,
     pub linear_sampler: wgpu::Sampler,
@@ -158,6 +163,7 @@ impl Pipelines {
             shadow: shadow::pipeline(device),
             ground: ground::pipeline(device, samples),
             model: model::pipelines(device, samples),
+            vertex_sun: vertex_sun::pipelines(device),
             fxaa: super::antialiasing::fxaa_pipeline(device),
             linear_sampler: build::linear_sampler(device, "clamp", wgpu::AddressMode::ClampToEdge),
             repeat_sampler: build::linear_sampler(device, "repeat", wgpu::AddressMode::Repeat),

@@ -10,17 +10,20 @@ pub enum Technique {
     Shadow,
     Ground,
     Model,
+    /// The model's sun per vertex (a compute shader).
+    VertexSun,
     Fxaa,
 }
 
 impl Technique {
-    pub const ALL: [Technique; 7] = [
+    pub const ALL: [Technique; 8] = [
         Technique::Background,
         Technique::EnvView,
         Technique::EnvViewEquirect,
         Technique::Shadow,
         Technique::Ground,
         Technique::Model,
+        Technique::VertexSun,
         Technique::Fxaa,
     ];
 
@@ -32,6 +35,7 @@ impl Technique {
             Technique::Shadow => include_str!("../../../shaders/shadow.wgsl"),
             Technique::Ground => include_str!("../../../shaders/ground.wgsl"),
             Technique::Model => include_str!("../../../shaders/model.wgsl"),
+            Technique::VertexSun => include_str!("../../../shaders/vertex_sun.wgsl"),
             Technique::Fxaa => include_str!("../../../shaders/fxaa.wgsl"),
         }
     }
@@ -53,6 +57,16 @@ pub fn source(t: Technique) -> String {
                 super::LightingMethod::wgsl_consts(),
                 crate::light::ggx::PREFILTER_LEVELS,
                 crate::colour::correction::COLOUR_CORRECT_WGSL,
+                t.file()
+            )
+        }
+        Technique::VertexSun => {
+            use super::pipelines::Vertex;
+            let floats = |bytes: usize| bytes / std::mem::size_of::<f32>();
+            format!(
+                "{FRAME_WGSL}\nconst VERTEX_FLOATS: u32 = {}u;\nconst VERTEX_NORMAL: u32 = {}u;\n{}",
+                floats(std::mem::size_of::<Vertex>()),
+                floats(std::mem::offset_of!(Vertex, normal)),
                 t.file()
             )
         }

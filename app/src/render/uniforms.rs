@@ -58,17 +58,29 @@ pub struct MaterialUniforms {
     pub terms: [f32; 4],
 }
 
+/// Mirrors `struct SplitLevel` in shaders/vertex_sun.wgsl: where a level's triangles are in a
+/// mesh's index buffer, and where the second list of the split starts.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct SplitLevelUniforms {
+    pub first: u32,
+    pub count: u32,
+    pub second: u32,
+    pub unused: u32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::render::shaders::{Technique, source};
 
     #[test]
-    fn the_vertex_ao_and_bent_attributes_are_at_their_named_locations() {
+    fn the_vertex_ao_bent_and_sun_attributes_are_at_their_named_locations() {
         let module = crate::gpu::wgsl::validate(&source(Technique::Model)).unwrap();
         let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("VertexIn")).expect("struct VertexIn").1;
         let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("VertexIn is not a struct") };
-        for (name, at) in [("ao", crate::render::pipelines::AO_LOCATION), ("bent", crate::render::pipelines::BENT_LOCATION)] {
+        use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, SUN_LOCATION};
+        for (name, at) in [("ao", AO_LOCATION), ("bent", BENT_LOCATION), ("sun", SUN_LOCATION)] {
             let m = members.iter().find(|m| m.name.as_deref() == Some(name)).expect(name);
             assert!(matches!(m.binding, Some(naga::Binding::Location { location, .. }) if location == at), "{name}: {:?}", m.binding);
         }
@@ -108,5 +120,7 @@ mod tests {
         crate::assert_wgsl_layout!(module, InstanceUniforms, "Instance", [model, normal]);
         crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun, ground_square, ground_sky, ground]);
         crate::assert_wgsl_layout!(module, MaterialUniforms, "Material", [albedo, specular, terms]);
+        let module = crate::gpu::wgsl::validate(&source(Technique::VertexSun)).unwrap();
+        crate::assert_wgsl_layout!(module, SplitLevelUniforms, "SplitLevel", [first, count, second, unused]);
     }
 }

@@ -6,3 +6,4 @@ pub mod background;
 pub mod ground;
 pub mod model;
 pub mod shadow;
+pub mod vertex_sun;

@@ -10,9 +10,10 @@ use crate::render::LightingMethod;
 use crate::render::environment::EnvironmentViews;
 use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
-use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, Vertex, depth_state};
+use crate::render::passes::vertex_sun;
+use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, SUN_LOCATION, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
-use crate::render::uniforms::MaterialUniforms;
+use crate::render::uniforms::{MaterialUniforms, SplitLevelUniforms};
 use crate::scene::lod::IndexRange;
 use crate::scene::{Model, Sides};
 use anyhow::{Result, anyhow};
@@ -22,6 +23,17 @@ use wgpu::SamplerBindingType::{Comparison, Filtering, NonFiltering};
 use wgpu::ShaderStages;
 use wgpu::TextureViewDimension::{Cube, D2};
 use wgpu::util::DeviceExt;
+
+/// The longest triangle edge (pixels on screen at the model's nearest point) of a mesh whose
+/// sun visibility the model pass may interpolate from its vertices ([`super::vertex_sun`]), over
+/// the triangles that cover [`SUN_EDGE_AREA`] of the mesh's area; a mesh with longer edges
+/// looks the shadow map up per pixel, since interpolating across a large triangle would spread
+/// a shadow's edge over it (docs/PERFORMANCE.md, ninth and tenth sessions). The default of
+/// [`ModelPass::set_sun_edge_limit`].
+pub const MAX_SUN_EDGE_PX: f32 = 20.0;
+/// The share of a mesh's area whose triangles' edges [`MAX_SUN_EDGE_PX`] bounds: a few long
+/// slivers (a simplified level has some) cover little and do not decide.
+pub const SUN_EDGE_AREA: f32 = 0.95;
 
 /// What the model pass's pipelines share.
 pub struct ModelPipelines {
@@ -35,7 +47,9 @@ pub struct ModelPipelines {
     /// `METHOD` is a pipeline-override constant, so each compiles only its own branches), with
     /// and without colour correction (`COLOUR_CORRECTION` false: no correction code at all, for
     /// frames that ask for none), drawing every triangle or culling back faces (a single-sided
-    /// material's, or a closed mesh's seen from outside, whose back faces are hidden).
+    /// material's, or a closed mesh's seen from outside, whose back faces are hidden); and those
+    /// culling back faces again with the sun's visibility from the vertices (`VERTEX_SUN`: no
+    /// shadow-map lookup at all, [`super::vertex_sun`]).
     pub shading: Vec<wgpu::RenderPipeline>,
     /// The depth pre-pass of a mesh drawn without culling: its depth alone, so that the
     /// shading pipelines (depth test less-or-equal) shade each pixel once, not every surface
@@ -47,9 +61,10 @@ pub struct ModelPipelines {
 }
 
 /// The index in [`ModelPipelines::shading`] of `method`'s pipeline with or without colour
-/// correction, culling back faces or not.
-pub fn shading_index(method: LightingMethod, corrected: bool, cull: bool) -> usize {
-    (usize::from(cull) * 2 + usize::from(corrected)) * LightingMethod::ALL.len() + method.shader_id() as usize
+/// correction, culling back faces or not, the sun per pixel or (culling only) per vertex.
+pub fn shading_index(method: LightingMethod, corrected: bool, (cull, vertex_sun): (bool, bool)) -> usize {
+    let set = if vertex_sun { 4 } else { usize::from(cull) * 2 };
+    (set + usize::from(corrected)) * LightingMethod::ALL.len() + method.shader_id() as usize
 }
 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
@@ -81,10 +96,21 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
         &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
     let module = build::shader(device, "model", source(Technique::Model));
-    let mut shading = Vec::new();
-    for cull in [false, true] {
+    let mut shading: Vec<wgpu::RenderPipeline> = Vec::new();
+    for (cull, vertex_sun) in [(false, false), (true, false), (true, true)] {
         for corrected in [false, true] {
-            shading.extend(method_pipelines(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), (corrected, cull)));
+            let variant = (corrected, cull, vertex_sun);
+            for m in LightingMethod::ALL {
+                // A method without the sun's shadow (the refractions) never draws with the sun
+                // from the vertices: its slot holds its per-pixel pipeline, not another build
+                // (each costs start-up time, docs/PERFORMANCE.md, tenth session).
+                let pipeline = if vertex_sun && vertex_sun::SunLookup::of(m).is_none() {
+                    shading[shading_index(m, corrected, (true, false))].clone()
+                } else {
+                    method_pipeline(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), variant, m)
+                };
+                shading.push(pipeline);
+            }
         }
     }
     let prepass = prepass_pipeline(device, &module, (&layout, &material_layout), samples);
@@ -101,6 +127,12 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
     }
 }
 
+/// The second vertex buffer: the sun's visibility per vertex ([`super::vertex_sun`]).
+fn sun_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![SUN_LOCATION => Float32];
+    wgpu::VertexBufferLayout { array_stride: 4, step_mode: wgpu::VertexStepMode::Vertex, attributes: &ATTRIBUTES }
+}
+
 /// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
 /// layouts (`layout`, `material_layout`), drawing into `format` targets of `samples` per pixel,
 /// with the colour correction (the shader's `COLOUR_CORRECTION`: `corrected`) or without,
@@ -112,26 +144,38 @@ pub fn pipelines_for(
     (corrected, cull): (bool, bool),
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
-    method_pipelines(device, &module, layouts, target, (corrected, cull))
+    method_pipelines(device, &module, layouts, target, (corrected, cull, false))
 }
 
-/// [`pipelines_for`] from the model shader's `module`, culling back faces or not.
+/// [`pipelines_for`] from the model shader's `module`, culling back faces or not, the sun's
+/// visibility from the vertices or per pixel (the shader's `VERTEX_SUN`).
 fn method_pipelines(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,
     layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     (format, samples): (wgpu::TextureFormat, u32),
-    (corrected, cull): (bool, bool),
+    (corrected, cull, vertex_sun): (bool, bool, bool),
 ) -> Vec<wgpu::RenderPipeline> {
-    let colour =
-        wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
     LightingMethod::ALL
         .iter()
-        .map(|m| {
-            let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", if corrected { 1.0 } else { 0.0 })];
-            model_pipeline(device, (m.name(), module, Some(("fs_main", colour.clone()))), layouts, samples, (&constants, cull))
-        })
+        .map(|&m| method_pipeline(device, module, layouts, (format, samples), (corrected, cull, vertex_sun), m))
         .collect()
+}
+
+/// One pipeline of [`method_pipelines`]: method `m`'s.
+fn method_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
+    (format, samples): (wgpu::TextureFormat, u32),
+    (corrected, cull, vertex_sun): (bool, bool, bool),
+    m: LightingMethod,
+) -> wgpu::RenderPipeline {
+    let colour =
+        wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
+    let flag = |on: bool| if on { 1.0 } else { 0.0 };
+    let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];
+    model_pipeline(device, (m.name(), module, Some(("fs_main", colour))), layouts, samples, (&constants, cull))
 }
 
 /// A model pipeline: the model shader's vertex stage with override `constants` and, when
@@ -159,7 +203,7 @@ fn model_pipeline(
             module,
             entry_point: Some("vs_main"),
             compilation_options: options.clone(),
-            buffers: &[Some(vertex_layout())],
+            buffers: &[Some(vertex_layout()), Some(sun_layout())],
         },
         primitive: wgpu::PrimitiveState { cull_mode: cull.then_some(wgpu::Face::Back), ..Default::default() },
         depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
@@ -228,6 +272,23 @@ struct MeshGpu {
     closed: Vec<bool>,
     /// Which faces its material shows.
     sides: Sides,
+    /// The sun's visibility per vertex (written by [`super::vertex_sun`], read as vertex
+    /// attribute [`SUN_LOCATION`]).
+    sun: wgpu::Buffer,
+    /// Per level, the vertex-sun pass's bind group 1 (vertices, the level's vertex indices,
+    /// `sun`, and what its split reads and writes) and how many vertices and triangles the level
+    /// has.
+    sun_groups: Vec<(wgpu::BindGroup, u32, u32)>,
+    /// The drawn level's triangles split by the vertex-sun pass (shaders/vertex_sun.wgsl
+    /// `split`): those whose sunlit vertices agree on the sun from 0, the others from
+    /// `second`; room for every triangle of the largest level in each.
+    split: wgpu::Buffer,
+    second: u32,
+    /// The two lists' indexed indirect draws (`DrawIndexedIndirectArgs`, 20 bytes each).
+    split_draws: wgpu::Buffer,
+    /// Per level, the longest edge of the triangles that cover [`SUN_EDGE_AREA`] of its area
+    /// (model units; [`edge_over_area`]).
+    longest_edge: Vec<f32>,
 }
 
 /// Which back faces a frame may cull (`FrameData::cull`).
@@ -272,6 +333,35 @@ impl ModelGpu {
         &self.prepared.chain.triangles
     }
 
+    /// Per mesh, the vertex-sun pass's bind group 1 at level of detail `level` (clamped) and how
+    /// many vertices that level uses.
+    pub fn sun_groups(&self, level: usize) -> impl Iterator<Item = (&wgpu::BindGroup, u32, u32)> {
+        self.meshes.iter().map(move |m| {
+            let (group, vertices, triangles) = &m.sun_groups[level.min(m.sun_groups.len() - 1)];
+            (group, *vertices, *triangles)
+        })
+    }
+
+    /// Zero each mesh's split draws (one instance each, the second list at its start) before a
+    /// vertex-sun pass counts its triangles into them.
+    pub fn reset_split_draws(&self, queue: &wgpu::Queue) {
+        for m in &self.meshes {
+            let args = [0, 1, 0, 0, 0, 0, 1, m.second, 0, 0u32];
+            queue.write_buffer(&m.split_draws, 0, bytemuck::cast_slice(&args));
+        }
+    }
+
+    /// Per mesh, its buffer of the sun's visibility per vertex.
+    pub fn sun_buffers(&self) -> impl Iterator<Item = &wgpu::Buffer> {
+        self.meshes.iter().map(|m| &m.sun)
+    }
+
+    /// Per mesh, its split's two indexed indirect draws (triangles whose vertices agree, then
+    /// the others).
+    pub fn split_draw_buffers(&self) -> impl Iterator<Item = &wgpu::Buffer> {
+        self.meshes.iter().map(|m| &m.split_draws)
+    }
+
     /// Draw every mesh at level of detail `level` (clamped to the chain); `material_group`:
     /// where to bind each mesh's material (None: no materials, the shadow pass).
     pub fn draw_meshes(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>, level: usize) {
@@ -287,11 +377,25 @@ impl MeshGpu {
     fn draw(&self, pass: &mut wgpu::RenderPass<'_>, material_group: Option<u32>, level: usize) {
         if let Some(group) = material_group {
             pass.set_bind_group(group, &self.material, &[]);
+            pass.set_vertex_buffer(1, self.sun.slice(..));
         }
         let r = self.levels[level.min(self.levels.len() - 1)];
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(r.first..r.first + r.count, 0, 0..1);
+    }
+
+    /// Draw the level the vertex-sun pass last split: its triangles whose sunlit vertices agree
+    /// with `per_vertex` (the sun interpolated), the others with `per_pixel`.
+    fn draw_split(&self, pass: &mut wgpu::RenderPass<'_>, (per_vertex, per_pixel): (&wgpu::RenderPipeline, &wgpu::RenderPipeline)) {
+        pass.set_bind_group(1, &self.material, &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_vertex_buffer(1, self.sun.slice(..));
+        pass.set_index_buffer(self.split.slice(..), wgpu::IndexFormat::Uint32);
+        pass.set_pipeline(per_vertex);
+        pass.draw_indexed_indirect(&self.split_draws, 0);
+        pass.set_pipeline(per_pixel);
+        pass.draw_indexed_indirect(&self.split_draws, 20);
     }
 }
 
@@ -305,7 +409,15 @@ pub struct ModelPass {
     culling: bool,
     /// Whether this frame corrects the model's colour (its `ColourCorrection` is not "none").
     corrected: bool,
+    /// The longest edge on screen (pixels) of a mesh that takes its sun's visibility from its
+    /// vertices ([`ModelPass::set_sun_edge_limit`]; 0: none does).
+    sun_edge_limit: f32,
     layout: wgpu::BindGroupLayout,
+    /// The vertex-sun pass's bind group 1 layout (each mesh's groups are made at upload).
+    sun_mesh_layout: wgpu::BindGroupLayout,
+    /// Per mesh, as the last frame written drew it: its longest edge on screen (pixels; None:
+    /// not measured) and whether it took the sun from its vertices.
+    sun_per_mesh: Vec<(Option<f32>, bool)>,
     material_layout: wgpu::BindGroupLayout,
     linear_sampler: wgpu::Sampler,
     repeat_sampler: wgpu::Sampler,
@@ -331,7 +443,10 @@ impl ModelPass {
             culling: true,
             prepass: pipelines.model.prepass.clone(),
             corrected: false,
+            sun_edge_limit: MAX_SUN_EDGE_PX,
             layout: pipelines.model.layout.clone(),
+            sun_mesh_layout: pipelines.vertex_sun.mesh_layout.clone(),
+            sun_per_mesh: Vec::new(),
             material_layout: pipelines.model.material_layout.clone(),
             linear_sampler: pipelines.linear_sampler.clone(),
             repeat_sampler: pipelines.repeat_sampler.clone(),
@@ -433,21 +548,98 @@ impl ModelPass {
                     wgpu::BindingResource::Sampler(&self.repeat_sampler),
                 ],
             );
+            let vertex_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vertices"),
+                contents: bytemuck::cast_slice(vertices),
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            });
+            // Lit until the vertex-sun pass writes it.
+            let sun = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("sun per vertex"),
+                contents: bytemuck::cast_slice(&vec![1.0f32; vertices.len()]),
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            });
+            let align = u64::from(device.limits().min_storage_buffer_offset_alignment);
+            let (lists, offsets, counts) = vertex_sun::level_vertex_lists(&lods.indices, &lods.levels, vertices.len(), align);
+            let lists = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vertices per level"),
+                contents: bytemuck::cast_slice(&lists),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("indices"),
+                contents: bytemuck::cast_slice(&lods.indices),
+                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+            });
+            // The split lists, each with room for the largest level (at least one triangle).
+            let second = lods.levels.iter().map(|r| r.count).max().unwrap_or(0).max(3);
+            let split = build::buffer(
+                device,
+                "sun split triangles",
+                8 * u64::from(second),
+                wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+            );
+            let split_draws = build::buffer(
+                device,
+                "sun split draws",
+                40,
+                wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            );
+            let uniform_align = u64::from(device.limits().min_uniform_buffer_offset_alignment).max(16);
+            let mut level_bytes = vec![0u8; uniform_align as usize * lods.levels.len()];
+            for (l, r) in lods.levels.iter().enumerate() {
+                let u = SplitLevelUniforms { first: r.first, count: r.count, second, unused: 0 };
+                level_bytes[l * uniform_align as usize..][..16].copy_from_slice(bytemuck::bytes_of(&u));
+            }
+            // Per level (at the device's uniform-offset alignment), where its triangles are.
+            let split_levels = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("sun split levels"),
+                contents: &level_bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let sun_groups = offsets
+                .iter()
+                .zip(&counts)
+                .zip(&lods.levels)
+                .enumerate()
+                .map(|(l, ((&offset, &count), r))| {
+                    let size = wgpu::BufferSize::new(4 * u64::from(count.max(1)));
+                    let level =
+                        wgpu::BufferBinding { buffer: &split_levels, offset: l as u64 * uniform_align, size: wgpu::BufferSize::new(16) };
+                    let group = build::bind_group(
+                        device,
+                        "vertex sun mesh",
+                        &self.sun_mesh_layout,
+                        &[
+                            vertex_buf.as_entire_binding(),
+                            wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &lists, offset, size }),
+                            sun.as_entire_binding(),
+                            indices.as_entire_binding(),
+                            split.as_entire_binding(),
+                            split_draws.as_entire_binding(),
+                            wgpu::BindingResource::Buffer(level),
+                        ],
+                    );
+                    (group, count, r.count / 3)
+                })
+                .collect();
+            let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
+            let longest_edge = (lods.levels.iter())
+                .map(|r| edge_over_area(&positions, &lods.indices[r.first as usize..][..r.count as usize], SUN_EDGE_AREA))
+                .collect();
             meshes.push(MeshGpu {
-                vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("vertices"),
-                    contents: bytemuck::cast_slice(vertices),
-                    usage: wgpu::BufferUsages::VERTEX,
-                }),
-                indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("indices"),
-                    contents: bytemuck::cast_slice(&lods.indices),
-                    usage: wgpu::BufferUsages::INDEX,
-                }),
+                vertices: vertex_buf,
+                indices,
                 levels: lods.levels.clone(),
                 material: bind,
                 closed: lods.closed.clone(),
                 sides: material.sides,
+                sun,
+                sun_groups,
+                split,
+                second,
+                split_draws,
+                longest_edge,
             });
             materials.push((material_buf, uniforms));
         }
@@ -456,14 +648,57 @@ impl ModelPass {
 
     /// This frame's colour correction and material terms; a frame without correction draws
     /// with the pipelines that have no correction code. `cull`: which back faces the frame may
-    /// cull.
-    pub fn write(&mut self, queue: &wgpu::Queue, model: &ModelGpu, (colour, terms): (&ColourCorrection, &MaterialTerms), cull: Culling) {
+    /// cull. `sun_px`: pixels on screen per model unit at the model's nearest point, None where
+    /// every mesh looks the sun up per pixel (a full-shadow reference, a camera inside the
+    /// model's box). A mesh drawn at `level` with its back faces culled and its edges on screen
+    /// within [`ModelPass::set_sun_edge_limit`]'s (over [`SUN_EDGE_AREA`] of its area)
+    /// interpolates the sun's visibility from its vertices (the back
+    /// faces' condition: the vertex's value is looked up on the side its normal faces, which a
+    /// visible back face turns away from). Returns whether any mesh does.
+    pub fn write(
+        &mut self,
+        queue: &wgpu::Queue,
+        model: &ModelGpu,
+        (colour, terms): (&ColourCorrection, &MaterialTerms),
+        cull: Culling,
+        (level, sun_px): (usize, Option<f32>),
+    ) -> bool {
         self.cull = if self.culling { cull } else { Culling::Nothing };
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
         self.corrected = colour.method != crate::colour::transfer::TransferMethod::None.shader_id();
         for (buf, base) in &model.materials {
             queue.write_buffer(buf, 0, bytemuck::bytes_of(&material_uniforms(base, terms)));
         }
+        self.sun_per_mesh.clear();
+        for mesh in &model.meshes {
+            let edge_px = sun_px.map(|px| px * mesh.longest_edge[level.min(mesh.longest_edge.len() - 1)]);
+            let limit = self.sun_edge_limit;
+            let per_vertex = limit > 0.0 && self.culls(mesh, level) && edge_px.is_some_and(|e| e <= limit);
+            self.sun_per_mesh.push((edge_px, per_vertex));
+        }
+        self.sun_per_mesh.iter().any(|m| m.1)
+    }
+
+    /// Whether the vertex-sun buffers and split hold this frame's values (the compositor's
+    /// bookkeeping); if not, every mesh looks the sun up per pixel this frame.
+    pub fn vertex_sun_valid(&mut self, valid: bool) {
+        if !valid {
+            self.sun_per_mesh.iter_mut().for_each(|m| m.1 = false);
+        }
+    }
+
+    /// Per mesh, as the last frame written drew it: its longest edge on screen (pixels at the
+    /// model's nearest point; None where not measured) and whether it took the sun's visibility
+    /// from its vertices.
+    pub fn sun_per_mesh(&self) -> &[(Option<f32>, bool)] {
+        &self.sun_per_mesh
+    }
+
+    /// Let the meshes whose edges on screen are at most `px` pixels long (over
+    /// [`SUN_EDGE_AREA`] of their area) take the sun's visibility from their vertices, from the
+    /// next frame written ([`MAX_SUN_EDGE_PX`] by default); 0 looks it up per pixel everywhere.
+    pub fn set_sun_edge_limit(&mut self, px: f32) {
+        self.sun_edge_limit = px;
     }
 
     /// Cull back faces where the frame may (true, the default) or draw every triangle after a
@@ -490,9 +725,15 @@ impl ModelPass {
             pass.set_pipeline(&self.prepass);
             mesh.draw(pass, Some(1), level);
         }
-        for mesh in &model.meshes {
-            pass.set_pipeline(&self.shading[shading_index(method, self.corrected, self.culls(mesh, level))]);
-            mesh.draw(pass, Some(1), level);
+        for (k, mesh) in model.meshes.iter().enumerate() {
+            let cull = self.culls(mesh, level);
+            let per_pixel = &self.shading[shading_index(method, self.corrected, (cull, false))];
+            if self.sun_per_mesh.get(k).is_some_and(|m| m.1) {
+                mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, (cull, true))], per_pixel));
+            } else {
+                pass.set_pipeline(per_pixel);
+                mesh.draw(pass, Some(1), level);
+            }
         }
         Ok(())
     }
@@ -508,7 +749,8 @@ impl ModelPass {
 
     /// Draw `model` with `pipeline(cull)` (a layer pipeline from render/layers.rs, culling back
     /// faces or not: each mesh culls as this frame's model pass does) at level of detail
-    /// `level`, sampling shadow map `shadow_index`.
+    /// `level`, sampling shadow map `shadow_index` (the layers, offline, look the sun up per
+    /// pixel on every mesh).
     pub fn draw_with<'p>(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
@@ -526,9 +768,46 @@ impl ModelPass {
     }
 }
 
+/// The longest edge among the shortest-edged `triangles` (indices into `positions`, three a
+/// triangle) that together cover `share` of their area: the triangles sorted by their longest
+/// edge, the edge of the one where the running area reaches `share` (0 for none).
+fn edge_over_area(positions: &[Vec3], triangles: &[u32], share: f32) -> f32 {
+    let at = |i: u32| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+    let mut edges: Vec<(f32, f32)> = triangles
+        .chunks_exact(3)
+        .map(|t| {
+            let (a, b, c) = (at(t[0]), at(t[1]), at(t[2]));
+            let longest = a.distance_squared(b).max(b.distance_squared(c)).max(c.distance_squared(a)).sqrt();
+            (longest, 0.5 * (b - a).cross(c - a).length())
+        })
+        .collect();
+    edges.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f32 = edges.iter().map(|e| e.1).sum();
+    let mut covered = 0.0;
+    for &(edge, area) in &edges {
+        covered += area;
+        if covered >= share * total {
+            return edge;
+        }
+    }
+    edges.last().map_or(0.0, |e| e.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_edge_over_a_share_of_the_area() {
+        // A right triangle of legs 1 (area 0.5, longest edge √2) and one of legs 1 and 4 (area 2,
+        // longest edge √17): the small one covers a fifth of the area.
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 4.0, 0.0)];
+        let both = [0, 1, 2, 0, 1, 3];
+        assert_eq!(edge_over_area(&p, &[0, 1, 2], 0.95), 2f32.sqrt());
+        assert_eq!(edge_over_area(&p, &both, 0.15), 2f32.sqrt());
+        assert_eq!(edge_over_area(&p, &both, 0.25), 17f32.sqrt());
+        assert_eq!(edge_over_area(&p, &[], 0.95), 0.0);
+    }
 
     #[test]
     fn material_terms_replace_the_loaded_ones() {

@@ -113,3 +113,43 @@ fn default_method_against_path_traced_references() {
         );
     }
 }
+
+/// Clipped-map recovery (issue 9's goal: within mean FLIP 0.10 of the full map's reference):
+/// quarry_bunny with quarry_01 scaled by 0.25 and clipped at 1.0 (as tests/reference/clip_hdr.py
+/// writes it, without its RGBE rounding), at the full map's exposure / 0.25, against the full
+/// map's path-traced reference. The restore (light::measure) sees a map whose values are all
+/// at most 1, so an 8-bit one, and restores its sun: centred on the aureole around the saturated
+/// blob (light::aureole), its share of the ground's light from the sand's colours
+/// (light::ground_split) in the colour of the beam through the atmosphere that has the ground's
+/// direct-to-diffuse ratio (light::measure::beam_turbidity), the real sun's angular size.
+/// Measured 2026-12-01 (tenth session): ROI FLIP 0.0930 (`previz bench accuracy` on the
+/// clip_hdr.py map: 0.093), luminance 0.983; before (merged main, ninth session): 0.1107. The
+/// full map itself scores 0.0878. Bound: the goal, 0.10 (measured + 0.01 would be 0.103).
+#[test]
+fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
+    use previz::scene::environment::Equirect;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference");
+    let name = "quarry_bunny";
+    let reference = load_reference(&root.join("images"), name).unwrap();
+    let args = SceneArgs { scene: Some(root.join("scenes").join(format!("{name}.toml"))), ..Default::default() };
+    let (mut scene, demo) = scene_from_args(&args, None).unwrap();
+    let mut inputs = load_inputs(&scene, demo).unwrap();
+    let scale = 0.25f32;
+    let full = inputs.env_equirect.clone().expect("quarry_bunny's map is an equirect");
+    let clipped: Vec<[f32; 3]> = full.pixels().iter().map(|p| p.map(|c| (c * scale).min(1.0))).collect();
+    let clipped = Equirect::new(full.width(), full.height(), clipped).unwrap();
+    scene.env.exposure = Some(f64::from(previz::setup::exposure(&scene, &inputs.env) / scale));
+    inputs.env = clipped.to_cube(clipped.default_face_size(), 0.0);
+    inputs.env_equirect = Some(std::sync::Arc::new(clipped));
+    let light = previz::setup::measure_environment(&scene, &inputs.env).unwrap();
+    assert_eq!(light.source, previz::light::measure::SunSource::Restored, "the clipped sun is restored");
+    let image = common::render_with(&scene, &inputs, Layer::Composite);
+    let rgb: Vec<u8> = image.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+    let (frame, roi, luminance) = score(&reference, &rgb).unwrap();
+    eprintln!(
+        "{name} clipped: FLIP frame {frame:.4}, ROI {roi:.4}, model luminance / reference {luminance:.3}, beam turbidity {:?}",
+        light.beam_turbidity
+    );
+    assert!(roi <= 0.10, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.10");
+    assert!((luminance - 1.0).abs() <= 0.04, "clipped {name}: model luminance / reference {luminance:.3}");
+}

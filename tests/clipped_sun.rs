@@ -116,11 +116,13 @@ fn a_clipped_clear_skys_sun_is_lost_to_clipping_calibrated_right_and_off_by_the_
         let (t_shape, _) = sky_model::fit_turbidity(&c.samples, c.sun.dir, |i| !c.sun.samples.contains(&i)).unwrap();
         assert!(t_map > t_shape + 0.3, "{name}: the map's ratio is Bird's at T {t_map}, its sky's shape T {t_shape}");
         // 4. The restore used: quarry's ground shows the sun's share (1.13x the true sun,
-        //    2026-12-01), sunrise's does not (Bird's, 1.77x).
+        //    2026-12-01; 1.12x since the beam's colour is the one through the atmosphere that has
+        //    the ground's direct-to-diffuse ratio, tenth session: bounds 1.0x..1.2x → 1.07x..1.17x),
+        //    sunrise's does not (Bird's, 1.77x).
         let r = luminance_bt709(c.restored.sun_irradiance) / c.scale;
         if name.contains("quarry") {
             assert!(c.restored.ground_sun_over_sky.is_some(), "{name}: quarry's sand shows the sun's share");
-            assert!(r > 1.0 * c.truth && r < 1.2 * c.truth, "{name}: restored {r}, true {}", c.truth);
+            assert!(r > 1.07 * c.truth && r < 1.17 * c.truth, "{name}: restored {r}, true {}", c.truth);
         } else {
             assert_eq!(c.restored.ground_sun_over_sky, None, "{name}");
             assert_eq!(r, r_bird, "{name}: Bird's restore");
@@ -138,13 +140,52 @@ fn a_clipped_clear_skys_sun_is_lost_to_clipping_calibrated_right_and_off_by_the_
 }
 
 #[test]
+fn a_clipped_sun_is_centred_on_its_aureole_where_the_sky_shows_one() {
+    // The clipped sun's direction against the unclipped sun's, and the saturated blob's centroid's
+    // (what the sun finder used before the tenth session). quarry_01: the blob reaches down into
+    // the horizon's haze, its centroid 2.44° off (7.7° up where the sun is at 10.1°); the aureole
+    // fitted around it (light::aureole) 0.62° off (10.0° up). Every other map keeps its blob's
+    // centre: no aureole fits (too few sky texels around a small blob, or a broad gradient with an
+    // exponent under light::aureole::MIN_EXPONENT: city, sunset, venice_sunset, whose fits would
+    // have put the sun 1.7°, 4.9° and 0.9° off where their centroids are 0.15°, 4.0° and 0.5°).
+    // 2026-12-01.
+    for name in [
+        "polyhaven_1k/quarry_01_1k.hdr",
+        "blender_studiolights_world/sunrise.exr",
+        "polyhaven_1k/royal_esplanade_1k.hdr",
+        "blender_studiolights_world/city.exr",
+        "blender_studiolights_world/interior.exr",
+        "blender_studiolights_world/night.exr",
+        "blender_studiolights_world/forest.exr",
+        "blender_studiolights_world/sunset.exr",
+        "blender_studiolights_world/courtyard.exr",
+        "polyhaven_1k/venice_sunset_1k.hdr",
+    ] {
+        let c = clipped(name).expect("a sun");
+        let finder = sun_finder::Options { clip_level: Some(1.0), ..Default::default() };
+        let s = sun_finder::find_sun(&c.clipped, &finder).expect("a clipped sun");
+        assert!(s.saturated, "{name}");
+        let centroid = s.samples.iter().map(|&i| c.clipped[i].dir * c.clipped[i].solid_angle).sum::<Vec3>().normalize();
+        let (off, centroid_off) = (s.dir.angle_between(c.sun.dir).to_degrees(), centroid.angle_between(c.sun.dir).to_degrees());
+        eprintln!("{name}: the clipped sun {off:.2}° off, the blob's centroid {centroid_off:.2}°");
+        if name.contains("quarry") {
+            assert!(off < 0.75 && centroid_off > 2.0, "{name}: {off}° off, the blob's centroid {centroid_off}°");
+        } else {
+            assert!(off <= centroid_off + 0.05, "{name}: {off}° off, the blob's centroid {centroid_off}°");
+        }
+    }
+}
+
+#[test]
 fn the_grounds_colours_give_the_suns_share_where_one_albedo_lies_under_the_sun_and_the_sky() {
     // quarry_01's sand: the two-illuminant split of the clipped map's ground (5–60° below the
     // horizon) gives E_sun sin(el) / E_sky = 0.756 with the unclipped sun's measured colour, where
     // the unclipped map holds 0.729 (its sun × sin 10.1° over its sky's brute-force DHI): 1.04;
     // with the clear-sky beam colour a clipped map must assume (RGB/luminance 1.27, 0.97, 0.49
     // against the measured 1.37, 0.95, 0.37), 0.850: 1.17. The restore multiplies that by the
-    // clipped map's DHI (0.968 of the true one): 1.13x the true sun. 2026-12-01.
+    // clipped map's DHI (0.968 of the true one): 1.13x the true sun. 2026-12-01. Tenth session:
+    // the beam through the atmosphere whose direct-to-diffuse ratio is the ground's (T 2.7:
+    // 1.32, 0.96, 0.44): 0.844, 1.16; 1.12x the true sun.
     let c = clipped("polyhaven_1k/quarry_01_1k.hdr").unwrap();
     let own = c.truth * c.elevation.sin() / c.dhi;
     let sky = c.restored.sky.irradiance(Vec3::Z);

@@ -150,13 +150,18 @@ fn an_hdr_capture_lights_the_model_as_its_source_map_does() {
     // the sand's colours (light::ground_split): **1.03x**, 0.64 deg from the source's sun, ROI
     // FLIP **0.036**, against 0.220 with the faces trusted as they are. Bounds: the sun within a
     // factor 1.15 either way (log error 0.14, where the trusted faces' is 2.3), the ground read,
-    // its direction within 1.5 deg, the FLIP the measurement + 0.01.
-    let within = |l: &Lit| (l.sun / source.sun).ln().abs() <= 1.15f32.ln();
+    // its direction within 1.5 deg, the FLIP the measurement + 0.01. Tenth session (2026-12-01):
+    // the restored sun given the real sun's angular size (the clipped texels are not the disc),
+    // centred on the aureole around them (light::aureole), its colour the beam's through the
+    // atmosphere that has the ground's direct-to-diffuse ratio (light::measure::beam_turbidity):
+    // **1.04x**, 0.36 deg off, ROI FLIP **0.030** (the faces trusted: 0.229); bounds tightened to
+    // 1.10x, 0.5 deg and 0.040.
+    let within = |l: &Lit| (l.sun / source.sun).ln().abs() <= 1.10f32.ln();
     assert!(within(&hdr), "restored sun {} vs the source's {}", hdr.sun, source.sun);
     assert!(hdr.ground.is_some(), "the capture's ground shows the sun's share");
-    assert!(angle(&hdr) <= 1.5, "sun {} deg off", angle(&hdr));
-    assert!(hdr_flip <= 0.046, "ROI FLIP {hdr_flip}");
+    assert!(angle(&hdr) <= 0.5, "sun {} deg off", angle(&hdr));
+    assert!(hdr_flip <= 0.040, "ROI FLIP {hdr_flip}");
     // Without the clip level, the same faces fail the sun's bound and the FLIP bound.
-    assert!(!within(&trusted) && trusted_flip > 0.046, "trusted faces: sun {}, FLIP {trusted_flip}", trusted.sun);
+    assert!(!within(&trusted) && trusted_flip > 0.040, "trusted faces: sun {}, FLIP {trusted_flip}", trusted.sun);
     std::fs::remove_dir_all(&dir).unwrap();
 }

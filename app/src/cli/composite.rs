@@ -196,6 +196,7 @@ fn light_json(
         "map_sun_irradiance": measured.sun_irradiance,
         "map_sun_turbidity": measured.turbidity,
         "map_sun_ground_over_sky": measured.ground_sun_over_sky,
+        "map_sun_beam_turbidity": measured.beam_turbidity,
         "sunlight": l.sunlight,
         "daylight": l.daylight,
         "shadow_opacity": l.shadow_opacity,

@@ -19,7 +19,7 @@
 //!
 //! The model holds where the ground is one material under the sky and the sun (a sandy quarry,
 //! a field). Grass beside paths, furniture on a floor, a floor lit by lamps, or no sun at all
-//! put the colours off any plane, or on a line: [`sun_over_sky`] then says None and the caller
+//! put the colours off any plane, or on a line: [`split`] then says None and the caller
 //! keeps the clear-sky restore. Measured on every HDR of ../shared/data/hdri with a sun (docs/
 //! accuracy.md, "Ninth session — clipped maps"): quarry_01's ground is within 1.7·10⁻⁵ of a plane
 //! (4.4·10⁻⁵ quantised to 8 bits), every other map's 1.3·10⁻⁴ or more.
@@ -63,66 +63,95 @@ pub struct GroundSplit {
     pub least_over_middle: f64,
 }
 
+/// The colours of a map's ground: their second moment's eigen-decomposition and their mean,
+/// when they lie near a plane through the origin (the two-illuminant model's precondition,
+/// which does not depend on the illuminants' colours).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundColours {
+    /// The plane's normal: the eigenvector of Σ C Cᵀ with the least eigenvalue.
+    normal: DVec3,
+    /// The solid-angle weighted sum of the colours.
+    mean: DVec3,
+    off_plane: f64,
+    least_over_middle: f64,
+}
+
+impl GroundColours {
+    /// The ground of `samples` (a whole sphere, ENU): texels of [`GROUND_BAND`], those with a
+    /// channel at 0.99 `clip` or above left out. None where too little ground is seen or its
+    /// colours are not near a plane (see the module's doc).
+    pub fn of(samples: &[DirSample], clip: f32) -> Option<GroundColours> {
+        let (top, bottom) = (-GROUND_BAND.0.sin(), -GROUND_BAND.1.sin());
+        let (mut m, mut mean, mut band, mut used) = (DMat3::ZERO, DVec3::ZERO, 0f64, 0f64);
+        for s in samples.iter().filter(|s| s.dir.z < top && s.dir.z > bottom) {
+            let w = f64::from(s.solid_angle);
+            band += w;
+            if s.radiance.iter().any(|&c| !(c.is_finite() && c < 0.99 * clip)) || luminance_bt709(s.radiance) <= 0.0 {
+                continue;
+            }
+            used += w;
+            let c = DVec3::from_array(s.radiance.map(f64::from));
+            mean += w * c;
+            m += DMat3::from_cols(c * (w * c.x), c * (w * c.y), c * (w * c.z));
+        }
+        if band <= 0.0 || used < f64::from(MIN_GROUND_SHARE) * band {
+            return None;
+        }
+        let (values, vectors) = sym_eigen(m);
+        let trace = values.element_sum();
+        if trace <= 0.0 || values.y <= 0.0 {
+            return None;
+        }
+        let (off_plane, least_over_middle) = (values.z / trace, values.z / values.y);
+        if off_plane > MAX_OFF_PLANE || least_over_middle > MAX_LEAST_OVER_MIDDLE {
+            return None;
+        }
+        Some(GroundColours { normal: vectors.z_axis, mean, off_plane, least_over_middle })
+    }
+
+    /// The split of these colours with the sun's colour `sun` and the sky's irradiance colour
+    /// `sky` (linear RGB, any scale). None where the two colours are the same, or they give a
+    /// negative albedo or a negative share.
+    pub fn split(&self, sun: [f32; 3], sky: [f32; 3]) -> Option<GroundSplit> {
+        let unit = |c: [f32; 3]| {
+            let y = f64::from(luminance_bt709(c));
+            (y > 0.0).then(|| DVec3::from_array(c.map(|v| f64::from(v) / y)))
+        };
+        let (s, k) = (unit(sun)?, unit(sky)?);
+        let n = self.normal;
+        let albedo = (n * s).cross(n * k);
+        let total = albedo.element_sum();
+        if total == 0.0 || !total.is_finite() {
+            return None;
+        }
+        let albedo = albedo / total;
+        if albedo.min_element() <= 0.0 {
+            return None;
+        }
+        // The mean colour on u = ĉ⊙s and v = ĉ⊙k (least squares in RGB).
+        let (u, v, mean) = (albedo * s, albedo * k, self.mean);
+        let (uu, uv, vv, um, vm) = (u.dot(u), u.dot(v), v.dot(v), u.dot(mean), v.dot(mean));
+        let det = uu * vv - uv * uv;
+        if det.abs() <= 1e-12 * uu * vv {
+            return None;
+        }
+        let (a, b) = ((vv * um - uv * vm) / det, (uu * vm - uv * um) / det);
+        (a > 0.0 && b > 0.0).then_some(GroundSplit {
+            sun_over_sky: a / b,
+            albedo_chromaticity: albedo.to_array(),
+            off_plane: self.off_plane,
+            least_over_middle: self.least_over_middle,
+        })
+    }
+}
+
 /// Split the ground of `samples` (a whole sphere, ENU) into the sun's and the sky's light, with
 /// the sun's colour `sun` and the sky's irradiance colour `sky` (linear RGB, any scale); texels
 /// with a channel at 0.99 `clip` or above are left out. None where the model does not explain
 /// the ground (see the module's doc), where the two colours are the same, or where too little
-/// ground is seen.
+/// ground is seen: [`GroundColours::of`] then [`GroundColours::split`].
 pub fn split(samples: &[DirSample], clip: f32, sun: [f32; 3], sky: [f32; 3]) -> Option<GroundSplit> {
-    let (top, bottom) = (-GROUND_BAND.0.sin(), -GROUND_BAND.1.sin());
-    let (mut m, mut mean, mut band, mut used) = (DMat3::ZERO, DVec3::ZERO, 0f64, 0f64);
-    for s in samples.iter().filter(|s| s.dir.z < top && s.dir.z > bottom) {
-        let w = f64::from(s.solid_angle);
-        band += w;
-        if s.radiance.iter().any(|&c| !(c.is_finite() && c < 0.99 * clip)) || luminance_bt709(s.radiance) <= 0.0 {
-            continue;
-        }
-        used += w;
-        let c = DVec3::from_array(s.radiance.map(f64::from));
-        mean += w * c;
-        m += DMat3::from_cols(c * (w * c.x), c * (w * c.y), c * (w * c.z));
-    }
-    if band <= 0.0 || used < f64::from(MIN_GROUND_SHARE) * band {
-        return None;
-    }
-    let (values, vectors) = sym_eigen(m);
-    let trace = values.element_sum();
-    if trace <= 0.0 || values.y <= 0.0 {
-        return None;
-    }
-    let (off_plane, least_over_middle) = (values.z / trace, values.z / values.y);
-    if off_plane > MAX_OFF_PLANE || least_over_middle > MAX_LEAST_OVER_MIDDLE {
-        return None;
-    }
-    let unit = |c: [f32; 3]| {
-        let y = f64::from(luminance_bt709(c));
-        (y > 0.0).then(|| DVec3::from_array(c.map(|v| f64::from(v) / y)))
-    };
-    let (s, k) = (unit(sun)?, unit(sky)?);
-    let n = vectors.z_axis;
-    let albedo = (n * s).cross(n * k);
-    let total = albedo.element_sum();
-    if total == 0.0 || !total.is_finite() {
-        return None;
-    }
-    let albedo = albedo / total;
-    if albedo.min_element() <= 0.0 {
-        return None;
-    }
-    // The mean colour on u = ĉ⊙s and v = ĉ⊙k (least squares in RGB).
-    let (u, v) = (albedo * s, albedo * k);
-    let (uu, uv, vv, um, vm) = (u.dot(u), u.dot(v), v.dot(v), u.dot(mean), v.dot(mean));
-    let det = uu * vv - uv * uv;
-    if det.abs() <= 1e-12 * uu * vv {
-        return None;
-    }
-    let (a, b) = ((vv * um - uv * vm) / det, (uu * vm - uv * um) / det);
-    (a > 0.0 && b > 0.0).then_some(GroundSplit {
-        sun_over_sky: a / b,
-        albedo_chromaticity: albedo.to_array(),
-        off_plane,
-        least_over_middle,
-    })
+    GroundColours::of(samples, clip)?.split(sun, sky)
 }
 
 #[cfg(test)]

@@ -16,7 +16,9 @@ fn rgb(rgba: &[u8]) -> Vec<u8> {
 #[test]
 fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let s = scene(
-        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.25\n",
+        // A method that draws the chosen level (sh9-ggx draws the model as loaded:
+        // LightingMethod::draws_as_loaded).
+        "width = 320\nheight = 240\nmodel = \"meshes/stanford-bunny.obj\"\nenvironment = \"cubemaps/humus_Park2_512\"\nmethod = \"hemisphere\"\n[placement]\nfill = 0.25\n",
     );
     let full = inputs(&s);
     let chain = LodChain::build(&full.model);
@@ -61,6 +63,23 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     far.placement.position += toward;
     c.render(gpu(), &far, Layer::Composite).unwrap();
     assert!(c.lod_level() > chosen, "level {} at twice the distance vs {chosen}", c.lod_level());
+}
+
+/// The default method draws the model as loaded where a seed method draws the level the rule
+/// picks (`LightingMethod::draws_as_loaded`): the milk truck's smooth normals turn over its
+/// collapsed side panels, which its grazing sun shows (quarry_truck's ROI FLIP against the
+/// path-traced reference 0.109 at the level, 0.083 as loaded: tests/accuracy_reference.rs).
+#[test]
+fn the_default_method_draws_the_model_as_loaded() {
+    let truck = "width = 320\nheight = 240\nmodel = \"textured_models/cesium_milk_truck_gltf/CesiumMilkTruck.glb\"\nenvironment = \"hdri/polyhaven_1k/quarry_01_1k.hdr\"\n[camera]\nheading = 300.0\npitch = -10.0\nvfov = 40.0\nheight = 1.6\n[placement]\nposition = [-10.392, 6.0, 0.0]\nrotation = [0.0, 0.0, 60.0]\nsize = 4.5\n";
+    let level = |method: &str| {
+        let s = scene(&format!("method = \"{method}\"\n{truck}"));
+        let (mut c, p) = prepare(gpu(), &s, &inputs(&s)).unwrap();
+        c.render(gpu(), &p, Layer::Composite).unwrap();
+        c.lod_level()
+    };
+    assert!(level("hemisphere") >= 1, "the rule should pick a simplified level for the seed method here");
+    assert_eq!(level("sh9-ggx"), 0);
 }
 
 /// Computed (crease-split) normals are no seam: the 100k dragon, whose normals the loader

@@ -72,6 +72,12 @@ use std::path::Path;
 /// 0.0933, 0.0632, 0.0831 (mean 0.074, was 0.086), luminance 0.983, 1.007, 1.016, 1.008, 0.988;
 /// bounds = measured + 0.01 rounded up to three decimals (the dragon's 0.104 as it was),
 /// blouberg_teapot's luminance error 0.05 → 0.04 (measured 0.007 + 0.03, rounded up).
+/// The same session (22:54 UTC, s10-model) replaced drawing as loaded by the level rule that draws
+/// the finest level within half a pixel whose triangles cover 2 px² or more
+/// (scene::lod::finest_worth_drawing): the truck and the teapot at level 0, Spot at level 1, the
+/// bunny and the dragon at main's level 5: ROI 0.0878, 0.0510, 0.0934, 0.0693, 0.0831 (mean
+/// 0.077), luminance 0.969, 1.007, 1.005, 1.008, 0.988; every bound above still holds and is
+/// kept (the bunny's 0.089 is 0.0012 above its measurement).
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.089, 0.04),
     ("blouberg_teapot", 0.062, 0.04),
@@ -90,7 +96,8 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// tightened to measured + 0.01 where that is tighter. Ninth session (the ground's rays weighted
 /// by the sky's binned radiance): 0.0255, 0.0153, 0.0317, 0.0194, 0.0308; tightened the same way.
 /// Tenth session (sh9-ggx draws the model as loaded): 0.0246, 0.0149, 0.0316, 0.0181, 0.0263;
-/// tightened the same way (the dragon's 0.042 as it was).
+/// tightened the same way (the dragon's 0.042 as it was). The level rule (same session): 0.0255,
+/// 0.0149, 0.0317, 0.0186, 0.0263; the bounds above hold and are kept.
 const FRAME_BOUNDS: [(&str, f32); 5] =
     [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.042), ("city_spot", 0.029), ("quarry_truck", 0.037)];
 

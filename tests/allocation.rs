@@ -100,12 +100,9 @@ fn antialiased_frames_allocate_nothing() {
 /// Called from the one test: a model moving away switches level of detail and shadow-map size
 /// frame by frame (every level and every map was allocated up front) without allocating.
 fn lod_switches_allocate_nothing() {
-    // A method that draws the level the distance asks for (sh9-ggx draws the model as loaded:
-    // LightingMethod::draws_as_loaded).
     let s = scene(
         "width = 320
 height = 240
-method = \"hemisphere\"
 [placement]
 fill = 0.8
 ",

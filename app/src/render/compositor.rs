@@ -445,8 +445,8 @@ impl Compositor {
         let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
-        let (lod, distance, _) = lod_level(model.lod_errors(), model.bounds(), p, self.height);
-        let level = if self.full_detail || p.method.draws_as_loaded() { 0 } else { lod };
+        let (lod, distance, _) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
+        let level = if self.full_detail || p.method.bends_rays() { 0 } else { lod };
         // Back faces of a closed mesh are hidden from a camera outside its bounds, those of a
         // single-sided material culled wherever the camera is, unless a mirroring transform
         // turns the faces inside out.

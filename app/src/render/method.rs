@@ -56,20 +56,6 @@ impl LightingMethod {
         )
     }
 
-    /// Whether the method draws the model as loaded, never a simplified level of detail: the
-    /// ray-bending methods ([`LightingMethod::bends_rays`]) and `sh9-ggx`, whose diffuse light
-    /// follows the interpolated shading normal too (the sun's max(n·l, 0), the sky along the
-    /// bent normal) while the level rule bounds only how far the surface moves. A flat panel of
-    /// a low-poly body with smooth normals (the Cesium milk truck's side) collapses at zero
-    /// position error and its normals, interpolated over the larger triangles, turn by several
-    /// degrees: under quarry_01's sun grazing the side at ~7° that moves n·l by a large part of
-    /// itself. Measured against the path-traced references (docs/accuracy.md "Tenth session"):
-    /// ROI FLIP 0.109 → 0.083 (quarry_truck), 0.080 → 0.063 (city_spot), 0.088 → 0.078
-    /// (quarry_bunny), 0.057 → 0.051 (blouberg_teapot), courtyard_dragon unchanged.
-    pub fn draws_as_loaded(self) -> bool {
-        self.bends_rays() || self == LightingMethod::Sh9Ggx
-    }
-
     /// The value of the `METHOD` override constant in shaders/model.wgsl.
     pub fn shader_id(self) -> u32 {
         self as u32

@@ -3,10 +3,10 @@
 //! `composite --json`. One place decides; the CLI, scene files and the live view all ask here.
 //!
 //! The rules, cheapest first: the ray-bending methods (reflection and refraction) draw the model
-//! as loaded (no level of detail, `LightingMethod::draws_as_loaded`, as sh9-ggx does) and
-//! sample the environment per pixel, so they are chosen only when a material needs them:
-//! refraction for a transparent material (opacity below 1), reflection for a mirror-like one
-//! (specular luminance and exponent both high) in an environment with something to reflect (a sun, or a sky whose irradiance
+//! as loaded (no level of detail, `LightingMethod::bends_rays`) and sample the environment per
+//! pixel, so they are chosen only when a material needs them: refraction for a transparent
+//! material (opacity below 1), reflection for a mirror-like one (specular luminance and exponent
+//! both high) in an environment with something to reflect (a sun, or a sky whose irradiance
 //! varies with direction). Every other scene gets sh9-ggx (the renderer's ordinary method: the most
 //! accurate on the accuracy chart short of the path tracer). Under an overcast sky (no measured sun share) the sun
 //! shadow costs nothing: the light terms carry sunlight 0 and the renderer skips the ground pass.

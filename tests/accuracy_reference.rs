@@ -72,12 +72,27 @@ use std::path::Path;
 /// within 0.0005; bounds = measured + 0.01 rounded up to three decimals where that is tighter
 /// (quarry_bunny 0.098 → 0.097, blouberg_teapot 0.068 → 0.066, courtyard_dragon 0.104 → 0.103;
 /// city_spot's 0.09001 and quarry_truck's 0.1189 keep 0.091 and 0.119).
+/// Tenth session (2026-12-01 22:05 UTC, s10-model): `sh9-ggx` draws the model as loaded, not the
+/// level of detail the half-pixel rule picks (its diffuse light follows the interpolated normals,
+/// which the rule does not bound; render::LightingMethod::draws_as_loaded): ROI 0.0781, 0.0510,
+/// 0.0933, 0.0632, 0.0831 (mean 0.074, was 0.086), luminance 0.983, 1.007, 1.016, 1.008, 0.988;
+/// bounds = measured + 0.01 rounded up to three decimals (the dragon's 0.104 as it was),
+/// blouberg_teapot's luminance error 0.05 → 0.04 (measured 0.007 + 0.03, rounded up).
+/// The same session (22:54 UTC, s10-model) replaced drawing as loaded by the level rule that draws
+/// the finest level within half a pixel whose triangles cover 2 px² or more
+/// (scene::lod::finest_worth_drawing): the truck and the teapot at level 0, Spot at level 1, the
+/// bunny and the dragon at main's level 5: ROI 0.0878, 0.0510, 0.0934, 0.0693, 0.0831 (mean
+/// 0.077), luminance 0.969, 1.007, 1.005, 1.008, 0.988; every bound above still holds and is
+/// kept.
+/// Merged main of the tenth session (23:11 UTC: s10-ground + s10-sun-cost + s10-clip + s10-model):
+/// ROI 0.0864, 0.0497, 0.0923, 0.0689, 0.0828 (mean 0.076), luminance 0.969, 1.007, 1.005, 1.008,
+/// 0.988; bounds = measured + 0.01 rounded up to three decimals.
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.097, 0.04),
-    ("blouberg_teapot", 0.066, 0.05),
+    ("blouberg_teapot", 0.060, 0.04),
     ("courtyard_dragon", 0.103, 0.04),
-    ("city_spot", 0.091, 0.04),
-    ("quarry_truck", 0.119, 0.04),
+    ("city_spot", 0.079, 0.04),
+    ("quarry_truck", 0.093, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
@@ -89,8 +104,11 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// courtyard_dragon. Merged main (the ground's bounce too): 0.0273, 0.0174, 0.0371, 0.0214, 0.0353;
 /// tightened to measured + 0.01 where that is tighter. Ninth session (the ground's rays weighted
 /// by the sky's binned radiance): 0.0255, 0.0153, 0.0317, 0.0194, 0.0308; tightened the same way.
+/// Tenth session (sh9-ggx draws the model as loaded): 0.0246, 0.0149, 0.0316, 0.0181, 0.0263;
+/// tightened the same way (the dragon's 0.042 as it was). The level rule (same session): 0.0255,
+/// 0.0149, 0.0317, 0.0186, 0.0263; the bounds above hold and are kept.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.036), ("blouberg_teapot", 0.026), ("courtyard_dragon", 0.042), ("city_spot", 0.030), ("quarry_truck", 0.041)];
+    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.042), ("city_spot", 0.029), ("quarry_truck", 0.037)];
 
 #[test]
 fn default_method_against_path_traced_references() {

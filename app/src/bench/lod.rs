@@ -23,13 +23,16 @@ pub struct LodRow {
     pub error: f32,
     /// The error projected at the model's distance, pixels.
     pub error_px: f32,
+    /// The model's projected bounding sphere over the level's triangles, px² per triangle
+    /// (what `scene::lod::finest_worth_drawing` compares with `MIN_TRIANGLE_AREA_PX`).
+    pub area_per_triangle_px: f32,
     /// Mean FLIP of the composite against level 0's (None on mobile builds).
     pub flip_mean: Option<f32>,
     /// Median GPU time of the frame, ms (NaN without timestamp queries).
     pub gpu_ms: f64,
     /// gpu_ms over the background-only floor's, measured in the same run.
     pub floor_ratio: f64,
-    /// The level the half-pixel rule draws at this distance.
+    /// The level the renderer draws at this distance (`render::frame::lod_level`).
     pub selected: bool,
 }
 
@@ -47,11 +50,11 @@ pub fn model_at_level(model: &Model, chain: &LodChain, k: usize) -> Model {
     Model { meshes, materials: model.materials.clone() }
 }
 
-/// The level of `chain` the half-pixel rule picks for a model with `bounds` (model space) drawn
+/// The level of `chain` the renderer picks (`render::frame::lod_level`) for a model with `bounds` (model space) drawn
 /// with `params` into an image `height_px` rows high; also the model's distance and the focal
 /// length in pixels.
 pub fn screen_level(chain: &LodChain, bounds: (Vec3, Vec3), params: &FrameParams, height_px: u32) -> (usize, f32, f32) {
-    crate::render::frame::lod_level(&chain.errors, bounds, params, height_px)
+    crate::render::frame::lod_level(&chain.errors, &chain.triangles, bounds, params, height_px)
 }
 
 /// Build the chain of `inputs.model`, render every level `frames` times, interleaved frame by
@@ -71,6 +74,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &
     }
     let params = compositors[0].1;
     let (chosen, distance, focal) = screen_level(&chain, bounds, &params, scene.height);
+    let area = crate::render::frame::model_area_px(bounds, &params, scene.height);
     progress.set_length(((chain.len() + 1) * frames) as u64);
     let mut gpu_ms = vec![Vec::new(); chain.len() + 1];
     let mut images = vec![Vec::new(); chain.len()];
@@ -96,6 +100,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &
             triangles: chain.triangles[k],
             error: chain.errors[k],
             error_px: chain.errors[k] * params.placement.scale * focal / distance.max(f32::MIN_POSITIVE),
+            area_per_triangle_px: area / chain.triangles[k].max(1) as f32,
             flip_mean: mean_flip(&reference, &rgb(&images[k]), scene.width, scene.height),
             gpu_ms: level_ms,
             floor_ratio: level_ms / floor,
@@ -108,14 +113,15 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &
 /// The rows as a markdown table.
 pub fn markdown(rows: &[LodRow]) -> String {
     let mut s = String::from(
-        "| level | triangles | error (model units) | error px | mean FLIP vs level 0 | GPU ms | × floor (GPU) | drawn |\n|---:|---:|---:|---:|---:|---:|---:|:---:|\n",
+        "| level | triangles | px² per triangle | error (model units) | error px | mean FLIP vs level 0 | GPU ms | × floor (GPU) | drawn |\n|---:|---:|---:|---:|---:|---:|---:|---:|:---:|\n",
     );
     for r in rows {
         let flip = r.flip_mean.map_or("-".into(), |f| format!("{f:.5}"));
         s += &format!(
-            "| {} | {} | {:.3e} | {:.3} | {} | {:.3} | {:.2} | {} |\n",
+            "| {} | {} | {:.2} | {:.3e} | {:.3} | {} | {:.3} | {:.2} | {} |\n",
             r.level,
             r.triangles,
+            r.area_per_triangle_px,
             r.error,
             r.error_px,
             flip,

@@ -38,10 +38,11 @@ pub enum What {
     /// around the model + shadow). `--export-reference DIR
     /// SCENE` instead writes SCENE as previz draws it for tests/reference/render_reference.py.
     Accuracy(AccuracyArgs),
-    /// The model's level-of-detail chain in the scene: per level the triangles, the
-    /// simplification error (model units and pixels at the model's distance), mean FLIP against
-    /// the full-detail composite, GPU time and its ratio to the background-only floor (interleaved
-    /// in one run), and the level the half-pixel rule draws.
+    /// The model's level-of-detail chain in the scene: per level the triangles, the model's
+    /// projected area per triangle (px²), the simplification error (model units and pixels at
+    /// the model's distance), mean FLIP against the full-detail composite, GPU time and its ratio
+    /// to the background-only floor (interleaved in one run), and the level the renderer draws
+    /// (`render::frame::lod_level`).
     Lod(LodArgs),
 }
 

@@ -512,7 +512,7 @@ impl Compositor {
         let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
-        let (lod, distance, _) = lod_level(model.lod_errors(), model.bounds(), p, self.height);
+        let (lod, distance, _) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
         let level = if self.full_detail || p.method.bends_rays() { 0 } else { lod };
         // Back faces of a closed mesh are hidden from a camera outside its bounds, those of a
         // single-sided material culled wherever the camera is, unless a mirroring transform
@@ -717,7 +717,7 @@ impl Compositor {
         self.ground.write(queue, &data.ground, &data.ground_mesh);
         // Pixels per model unit at the model's nearest point, which the meshes' longest edges
         // are measured in; a full-shadow reference looks the sun up per pixel everywhere.
-        let (_, distance, focal) = lod_level(model.lod_errors(), model.bounds(), p, self.height);
+        let (_, distance, focal) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
         let sun_px = (distance > 0.0 && !self.full_shadow).then(|| focal * p.placement.scale.abs() / distance);
         let per_vertex = self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull, (data.level, sun_px));
         // The model's sun per vertex: looked up when the map was drawn this frame, or when the

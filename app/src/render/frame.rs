@@ -284,17 +284,33 @@ pub fn fit_shadow(p: &FrameParams, c: &FrameContext) -> shadow_fit::ShadowFit {
     )
 }
 
-/// The level of detail the half-pixel rule draws (`scene::lod::select_level`) for a model with
-/// model-space `bounds` and a chain with `errors` (model units), placed and seen as in `p`,
-/// rendered `height_px` rows high; also the distance to the model's bounding box (world units:
-/// no vertex is nearer) and the focal length in pixels.
-pub fn lod_level(errors: &[f32], bounds: (Vec3, Vec3), p: &FrameParams, height_px: u32) -> (usize, f32, f32) {
+/// The level of detail a frame draws for a model with model-space `bounds` and a chain with
+/// `errors` (model units) and `triangles` per level, placed and seen as in `p`, rendered
+/// `height_px` rows high: among the levels whose error projects under half a pixel
+/// (`scene::lod::select_level`), the finest whose triangles cover at least
+/// `lod::MIN_TRIANGLE_AREA_PX` each of the model's projected bounding sphere
+/// (`scene::lod::finest_worth_drawing`). Also the distance to the model's bounding box (world
+/// units: no vertex is nearer) and the focal length in pixels.
+pub fn lod_level(errors: &[f32], triangles: &[usize], bounds: (Vec3, Vec3), p: &FrameParams, height_px: u32) -> (usize, f32, f32) {
     // The camera in model space: the model matrix turns, scales uniformly and moves.
     let camera = view::model_matrix(bounds, &p.placement).inverse().transform_point3(p.camera.position);
-    let distance = lod::box_distance(camera, bounds) * p.placement.scale.abs();
+    let scale = p.placement.scale.abs();
+    let distance = lod::box_distance(camera, bounds) * scale;
     let focal = lod::focal_px(p.camera.vfov, height_px);
-    let world: Vec<f32> = errors.iter().map(|e| e * p.placement.scale).collect();
-    (lod::select_level(&world, distance, focal, lod::MAX_SCREEN_ERROR_PX), distance, focal)
+    let world: Vec<f32> = errors.iter().map(|e| e * scale).collect();
+    let coarsest = lod::select_level(&world, distance, focal, lod::MAX_SCREEN_ERROR_PX);
+    let area = model_area_px(bounds, p, height_px);
+    (lod::finest_worth_drawing(triangles, coarsest, area, lod::MIN_TRIANGLE_AREA_PX), distance, focal)
+}
+
+/// The projected area in pixels of the bounding sphere of a model with model-space `bounds`
+/// (centre the box's, radius half its diagonal), placed and seen as in `p`, rendered `height_px`
+/// rows high (`scene::lod::sphere_area_px`).
+pub fn model_area_px((lo, hi): (Vec3, Vec3), p: &FrameParams, height_px: u32) -> f32 {
+    let camera = view::model_matrix((lo, hi), &p.placement).inverse().transform_point3(p.camera.position);
+    let scale = p.placement.scale.abs();
+    let focal = lod::focal_px(p.camera.vfov, height_px);
+    lod::sphere_area_px(0.5 * (hi - lo).length() * scale, camera.distance(0.5 * (lo + hi)) * scale, focal)
 }
 
 /// The colour correction of a frame: from the environment's statistics (`source`) towards the
@@ -576,6 +592,9 @@ mod tests {
         // at scale 1 (its bounding sphere's would be 9 − √3 = 7.27 m).
         let (p, c) = scene(1.0);
         let errors = [0.0, 0.01, 0.036, 0.1];
+        // Triangles far under a pixel each at every level: the error alone decides.
+        let dense = [1 << 30, 1 << 29, 1 << 28, 1 << 27];
+        let lod_level = |e: &[f32], b, p: &FrameParams, h| lod_level(e, &dense, b, p, h);
         let (level, distance, focal) = lod_level(&errors, c.bounds, &p, 200);
         assert!((focal - 100.0).abs() < 1e-3 && (distance - 8.0).abs() < 1e-4, "{focal} {distance}");
         // 0.036 * 100 / 8 = 0.45 px < 0.5 (at the sphere's 7.27 m: 0.50, too coarse); 0.1 →
@@ -590,6 +609,24 @@ mod tests {
         let mut inside = p;
         inside.camera.position = inside.placement.position + Vec3::new(0.0, 0.0, 1.0);
         assert_eq!(lod_level(&errors, c.bounds, &inside, 200).0, 0);
+    }
+
+    #[test]
+    fn the_level_keeps_triangles_that_cover_pixels() {
+        // The cube of `scene(1.0)`: bounding sphere radius √3 about (0, 0, −9), 9 m from the
+        // camera, focal 100 px: its disc's radius is 100·√3 / √(81 − 3) px, area
+        // π·30000/78 = 1208.3 px². Level 2 is the coarsest within half a pixel
+        // (the_level_follows_the_distance_and_the_scale).
+        let (p, c) = scene(1.0);
+        let errors = [0.0, 0.01, 0.036, 0.1];
+        let area = PI * 30000.0 / 78.0;
+        let fits = (area / lod::MIN_TRIANGLE_AREA_PX).floor() as usize;
+        // Level 1's triangles cover the minimum each, level 0's a quarter of it: level 1.
+        assert_eq!(lod_level(&errors, &[4 * fits, fits, fits / 2, fits / 4], c.bounds, &p, 200).0, 1);
+        // Every level's triangles large enough: level 0, whatever the error allows.
+        assert_eq!(lod_level(&errors, &[fits, fits / 2, fits / 4, fits / 8], c.bounds, &p, 200).0, 0);
+        // None large enough: the coarsest within the error, level 2 (not 3).
+        assert_eq!(lod_level(&errors, &[8 * fits, 4 * fits, 2 * fits, fits], c.bounds, &p, 200).0, 2);
     }
 
     #[test]

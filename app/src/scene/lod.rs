@@ -27,7 +27,10 @@
 //! face normal, so hard edges that survive keep their split normals.
 //!
 //! Level choice: [`select_level`] takes the coarsest level whose error, projected at the
-//! model's distance, stays under half a pixel.
+//! model's distance, stays under half a pixel; [`finest_worth_drawing`] then draws the finest of
+//! those levels whose triangles are not too small on screen to cost their setup, since larger
+//! triangles than that save no time (a rasteriser pays per fragment block plus per triangle)
+//! while the finer level keeps the model's shading normals as loaded.
 
 pub mod order;
 
@@ -72,6 +75,11 @@ pub const LEVEL_RATIO: f64 = 0.5;
 pub const MIN_LEVEL_TRIANGLES: usize = 64;
 /// Projected error allowed on screen, pixels (the "under half a pixel").
 pub const MAX_SCREEN_ERROR_PX: f32 = 0.5;
+/// The smallest projected area per triangle, px² (the model's bounding sphere's disc over the
+/// level's triangle count), at which a level is drawn rather than a coarser one within
+/// [`MAX_SCREEN_ERROR_PX`]: below it a frame's cost grows with the triangle count, above it
+/// fewer triangles save nothing measurable (docs/PERFORMANCE.md, tenth session).
+pub const MIN_TRIANGLE_AREA_PX: f32 = 2.0;
 
 impl LodChain {
     /// Simplify every mesh of `model` into levels of halving triangle count, down to
@@ -125,6 +133,26 @@ pub fn select_level(errors: &[f32], distance: f32, focal_px: f32, max_px: f32) -
         return 0;
     }
     errors.iter().rposition(|&e| e * focal_px / distance < max_px).unwrap_or(0)
+}
+
+/// The area in pixels of the disc that a sphere of `radius` whose centre is `distance` away
+/// projects to through a pinhole of focal length `focal_px` (tangent cone of half-angle θ,
+/// sin θ = r / d, disc radius f·tan θ). Infinite when the camera is inside the sphere.
+pub fn sphere_area_px(radius: f32, distance: f32, focal_px: f32) -> f32 {
+    let slant = distance * distance - radius * radius;
+    if distance.is_nan() || slant <= 0.0 {
+        return f32::INFINITY;
+    }
+    let r = focal_px * radius / slant.sqrt();
+    std::f32::consts::PI * r * r
+}
+
+/// Among levels `0..=coarsest` (those within the error allowed, [`select_level`]), the finest
+/// whose triangles cover at least `min_area_px` each of the model's projected `area_px`, or
+/// `coarsest` when none does. `triangles` per level, non-increasing (level 0 first).
+pub fn finest_worth_drawing(triangles: &[usize], coarsest: usize, area_px: f32, min_area_px: f32) -> usize {
+    let within = triangles.iter().take(coarsest.saturating_add(1));
+    within.clone().position(|&t| area_px >= t as f32 * min_area_px).unwrap_or(within.count().saturating_sub(1))
 }
 
 /// Per vertex, an id shared by the vertices at the same position (bit for bit).
@@ -948,5 +976,30 @@ mod tests {
         // Inside the bounds, or nonsense: full detail.
         assert_eq!(select_level(&errors, 0.0, f, 0.5), 0);
         assert_eq!(select_level(&errors, f32::NAN, f, 0.5), 0);
+    }
+
+    #[test]
+    fn the_finest_level_whose_triangles_cover_the_minimum() {
+        // A 1 m sphere 2 m away seen with a 100 px focal length: sin θ = 1/2, tan θ = 1/√3, a
+        // disc of radius 100/√3 px, area π·10000/3 = 10 472 px².
+        let area = sphere_area_px(1.0, 2.0, 100.0);
+        assert!((area - std::f32::consts::PI * 10000.0 / 3.0).abs() < 0.1, "{area}");
+        assert_eq!(sphere_area_px(1.0, 0.5, 100.0), f32::INFINITY);
+        assert_eq!(sphere_area_px(1.0, f32::NAN, 100.0), f32::INFINITY);
+        let triangles = [8000, 4000, 2000, 1000];
+        // 2 px² each: 10 472 / 2 = 5 236 triangles at most, level 1 (4 000), if the error allows it.
+        assert_eq!(finest_worth_drawing(&triangles, 3, area, 2.0), 1);
+        assert_eq!(finest_worth_drawing(&triangles, 1, area, 2.0), 1);
+        // 1 px²: level 0's 8 000 fit.
+        assert_eq!(finest_worth_drawing(&triangles, 3, area, 1.0), 0);
+        // 6 px² (1 745 at most): level 3; with the error allowing only level 2, level 2.
+        assert_eq!(finest_worth_drawing(&triangles, 3, area, 6.0), 3);
+        assert_eq!(finest_worth_drawing(&triangles, 2, area, 6.0), 2);
+        // Inside the sphere: level 0. A coarsest past the chain: the chain's last level; an
+        // empty chain: 0.
+        assert_eq!(finest_worth_drawing(&triangles, 3, f32::INFINITY, 2.0), 0);
+        assert_eq!(finest_worth_drawing(&triangles, 9, 0.0, 2.0), 3);
+        assert_eq!(finest_worth_drawing(&triangles, usize::MAX, 0.0, 2.0), 3);
+        assert_eq!(finest_worth_drawing(&[], 2, area, 2.0), 0);
     }
 }

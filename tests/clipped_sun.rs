@@ -20,6 +20,21 @@ use previz::light::sh9::brute_force_irradiance;
 use previz::light::{clear_sky, ground_split, sky_model, sun_finder};
 use previz::scene::environment::{Equirect, load_equirect};
 
+/// The HDRs in ../shared/data with a sun, quarry_01 first (the one whose ground and aureole the
+/// restore can read).
+const MAPS_WITH_A_SUN: [&str; 10] = [
+    "polyhaven_1k/quarry_01_1k.hdr",
+    "blender_studiolights_world/sunrise.exr",
+    "polyhaven_1k/royal_esplanade_1k.hdr",
+    "blender_studiolights_world/city.exr",
+    "blender_studiolights_world/interior.exr",
+    "blender_studiolights_world/night.exr",
+    "blender_studiolights_world/forest.exr",
+    "blender_studiolights_world/sunset.exr",
+    "blender_studiolights_world/courtyard.exr",
+    "polyhaven_1k/venice_sunset_1k.hdr",
+];
+
 /// The turbidity at which Bird's DNI/DHI at `elevation_deg` equals `ratio` (bisection: the ratio
 /// falls with turbidity).
 fn turbidity_for_ratio(elevation_deg: f64, ratio: f64) -> f64 {
@@ -149,18 +164,7 @@ fn a_clipped_sun_is_centred_on_its_aureole_where_the_sky_shows_one() {
     // exponent under light::aureole::MIN_EXPONENT: city, sunset, venice_sunset, whose fits would
     // have put the sun 1.7°, 4.9° and 0.9° off where their centroids are 0.15°, 4.0° and 0.5°).
     // 2026-12-01.
-    for name in [
-        "polyhaven_1k/quarry_01_1k.hdr",
-        "blender_studiolights_world/sunrise.exr",
-        "polyhaven_1k/royal_esplanade_1k.hdr",
-        "blender_studiolights_world/city.exr",
-        "blender_studiolights_world/interior.exr",
-        "blender_studiolights_world/night.exr",
-        "blender_studiolights_world/forest.exr",
-        "blender_studiolights_world/sunset.exr",
-        "blender_studiolights_world/courtyard.exr",
-        "polyhaven_1k/venice_sunset_1k.hdr",
-    ] {
+    for name in MAPS_WITH_A_SUN {
         let c = clipped(name).expect("a sun");
         let finder = sun_finder::Options { clip_level: Some(1.0), ..Default::default() };
         let s = sun_finder::find_sun(&c.clipped, &finder).expect("a clipped sun");
@@ -204,17 +208,7 @@ fn the_grounds_colours_give_the_suns_share_where_one_albedo_lies_under_the_sun_a
     // Every other map with a sun: its ground is not one albedo under two lights (trees, roads,
     // furniture, floors lit by lamps; off the plane by 1.3·10⁻⁴ to 2.2·10⁻³): the clear-sky
     // restore stays.
-    for name in [
-        "blender_studiolights_world/sunrise.exr",
-        "polyhaven_1k/royal_esplanade_1k.hdr",
-        "blender_studiolights_world/city.exr",
-        "blender_studiolights_world/interior.exr",
-        "blender_studiolights_world/night.exr",
-        "blender_studiolights_world/forest.exr",
-        "blender_studiolights_world/sunset.exr",
-        "blender_studiolights_world/courtyard.exr",
-        "polyhaven_1k/venice_sunset_1k.hdr",
-    ] {
+    for name in &MAPS_WITH_A_SUN[1..] {
         let c = clipped(name).expect("a sun");
         assert_eq!(c.restored.ground_sun_over_sky, None, "{name}");
     }

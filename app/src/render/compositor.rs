@@ -512,7 +512,7 @@ impl Compositor {
         let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
-        let (lod, distance, _) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
+        let (lod, distance, focal) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
         let level = if self.full_detail || p.method.bends_rays() { 0 } else { lod };
         // Back faces of a closed mesh are hidden from a camera outside its bounds, those of a
         // single-sided material culled wherever the camera is, unless a mirroring transform
@@ -536,6 +536,7 @@ impl Compositor {
             colour,
             light,
             level,
+            px_per_unit: (distance > 0.0).then(|| focal * p.placement.scale.abs() / distance),
             cull,
             shadow_pass,
             ground_pass,
@@ -715,10 +716,8 @@ impl Compositor {
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
         self.ground.write(queue, &data.ground, &data.ground_mesh);
-        // Pixels per model unit at the model's nearest point, which the meshes' longest edges
-        // are measured in; a full-shadow reference looks the sun up per pixel everywhere.
-        let (_, distance, focal) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
-        let sun_px = (distance > 0.0 && !self.full_shadow).then(|| focal * p.placement.scale.abs() / distance);
+        // A full-shadow reference looks the sun up per pixel everywhere.
+        let sun_px = data.px_per_unit.filter(|_| !self.full_shadow);
         let per_vertex = self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull, (data.level, sun_px));
         // The model's sun per vertex: looked up when the map was drawn this frame, or when the
         // buffers hold another map, level or lookup than this frame's (a kept map of another

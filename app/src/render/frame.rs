@@ -43,6 +43,9 @@ pub struct FrameData {
     pub light: LightUniforms,
     /// The level of detail drawn (0: the model as loaded).
     pub level: usize,
+    /// Pixels per model unit at the model's nearest point (None from inside its bounds), which
+    /// the meshes' longest edges are measured in for the per-vertex sun.
+    pub px_per_unit: Option<f32>,
     /// Which back faces the model pass may cull: none when the model's transform mirrors it;
     /// those of closed meshes only when the camera is outside the model's bounds.
     pub cull: super::passes::model::Culling,

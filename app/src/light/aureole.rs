@@ -86,15 +86,7 @@ struct Sky {
 /// exponent of [`MIN_EXPONENT`] or more.
 pub fn fit(samples: &[DirSample], blob: &[usize], start: Vec3, usable: impl Fn(usize) -> bool) -> Option<Aureole> {
     let cos_r = FIT_RADIUS.cos();
-    let in_blob = {
-        let mut v = vec![false; samples.len()];
-        for &i in blob {
-            if let Some(b) = v.get_mut(i) {
-                *b = true;
-            }
-        }
-        v
-    };
+    let in_blob = super::samples::mask(samples.len(), blob);
     let mut sky: Vec<Sky> = samples
         .iter()
         .enumerate()

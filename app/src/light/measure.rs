@@ -147,12 +147,7 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     // How hazy the day is, from the shape of the sky the map kept: not the sun's region, nothing
     // saturated.
     let clip = options.finder.clip_level.unwrap_or(f32::INFINITY);
-    let mut in_sun = vec![false; samples.len()];
-    for &i in &sun.samples {
-        if let Some(v) = in_sun.get_mut(i) {
-            *v = true;
-        }
-    }
+    let in_sun = super::samples::mask(samples.len(), &sun.samples);
     // A sky the Perez model does not explain (trees, buildings, clouds) says nothing about the
     // haze: the default clear atmosphere then.
     let fit = sky_model::fit_turbidity(samples, sun.dir, |i| !in_sun[i] && samples[i].radiance.iter().all(|&c| c < 0.99 * clip))

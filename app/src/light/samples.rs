@@ -83,6 +83,17 @@ pub fn from_camera_image(width: u32, height: u32, pixels: &[[f32; 3]], vfov: f32
     Ok(out)
 }
 
+/// Which of `len` samples `indices` names (indices past `len` are ignored): a region's mask.
+pub fn mask(len: usize, indices: &[usize]) -> Vec<bool> {
+    let mut m = vec![false; len];
+    for &i in indices {
+        if let Some(b) = m.get_mut(i) {
+            *b = true;
+        }
+    }
+    m
+}
+
 /// Write new radiances (sample index, radiance) into the cube map the samples came from.
 pub fn apply_to_cube(cube: &mut CubeMap, changes: &[(usize, [f32; 3])]) {
     let per_face = (cube.size * cube.size) as usize;
@@ -107,6 +118,12 @@ pub fn apply_to_equirect(pixels: &mut [[f32; 3]], changes: &[(usize, [f32; 3])])
 mod tests {
     use super::*;
     use std::f32::consts::PI;
+
+    #[test]
+    fn a_mask_marks_the_named_samples_and_ignores_the_rest() {
+        assert_eq!(mask(5, &[3, 0, 3, 9]), vec![true, false, false, true, false]);
+        assert_eq!(mask(0, &[1]), Vec::<bool>::new());
+    }
 
     #[test]
     fn solid_angles_cover_the_sphere() {

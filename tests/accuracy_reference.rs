@@ -7,7 +7,7 @@
 //! The model's mean luminance is held near the reference's too.
 //! Light comes from the environment (setup::light: the map's sun, SH9 sky, measured shadow).
 
-mod common;
+use crate::common;
 
 use previz::bench::accuracy::{load_reference, score};
 use previz::cli::composite::{SceneArgs, scene_from_args};

@@ -2,7 +2,7 @@
 //! written as composite, layers, camera image and scene TOML, and `previz composite scene.toml`
 //! renders the same frame again (mean FLIP ≤ 0.02, the golden-image bound).
 
-mod common;
+use crate::common;
 
 use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::{gpu, inputs, scene};

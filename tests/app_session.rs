@@ -4,7 +4,7 @@
 //! synthetic egui input) exports a frame that `previz composite` reproduces. Goldens of each
 //! capture screen and of the composite panel; the refusal screen.
 
-mod common;
+use crate::common;
 
 use common::cli::{previz, tempdir};
 use common::{gpu, inputs, scene};

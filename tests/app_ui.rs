@@ -1,7 +1,7 @@
 //! The composite mode's control panel driven by synthetic egui input, as a finger or mouse would
 //! drive it: dragging SL to 0 takes the sun out of the frame (no sunlit highlight, no shadow).
 
-mod common;
+use crate::common;
 
 use common::{gpu, inputs, scene};
 use previz::render::Layer;

@@ -1,6 +1,6 @@
 //! The virtual phone and the file frame source against real environments and photos.
 
-mod common;
+use crate::common;
 
 use common::data;
 use glam::{Mat3, Quat, Vec3};
@@ -70,7 +70,7 @@ fn photo_folder_as_a_sequence() {
 
 /// Frames per second of the virtual phone at 960x640, with the alternatives side by side.
 /// Not a check (no timed assertions); run with
-/// `cargo test --release --test camera -- --ignored --nocapture bench_virtual_phone`.
+/// `cargo test --release --test integration camera:: -- --ignored --nocapture bench_virtual_phone`.
 #[test]
 #[ignore]
 fn bench_virtual_phone() {

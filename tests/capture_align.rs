@@ -5,7 +5,7 @@
 //! stitch's own quality, without the compass's error in the reference heading) and lowers their
 //! mean FLIP, against `--no-align` (compass-corrected poses, no image alignment).
 
-mod common;
+use crate::common;
 
 use common::data;
 use glam::DQuat;
@@ -198,7 +198,7 @@ fn yaw_error_deg(est: DQuat, truth: DQuat) -> f64 {
 /// the share of gyro-only frames, the stitch scores, and with `DETAIL=1` the drift of the
 /// guidance's heading relative to the tap (yaw of est·truth⁻¹, every 2 s) and the assistant's
 /// reasons. `CASE=random|wide|six|wrap|pole|dist|distnf NOISE=none|phone|bad
-/// MODE=stretch|stitch SEEDS=0-11 [SIZE=160] cargo test --test capture_align diagnose --
+/// MODE=stretch|stitch SEEDS=0-11 [SIZE=160] cargo test --test integration capture_align::diagnose --
 /// --ignored --nocapture`.
 #[test]
 #[ignore]
@@ -372,7 +372,7 @@ fn detail(env: &Arc<CubeMap>, cfg: &StudyConfig, job: Job) -> String {
 /// the accelerometer held at the shots (`capture::gravity`, what `align_shots` does).
 /// `CASE=random50|random100|six SEEDS=0-3 [SIZE=320] [FACE=128] [HDR=1] [NOISE=phone|bad]
 /// [MAPS=dir: per run, ideal | refined | ×4 difference | levelled | ×4 difference, a face per row]
-/// [DETAIL=1] cargo test --test capture_align quality_errors -- --ignored --nocapture`.
+/// [DETAIL=1] cargo test --test integration capture_align::quality_errors -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn quality_errors() {

@@ -1,7 +1,7 @@
 //! `previz capture` end to end: a simulated capture with --json, and bad input — each a clear
 //! error, a non-zero exit, no panic, nothing written.
 
-mod common;
+use crate::common;
 
 use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::data;

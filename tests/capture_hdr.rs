@@ -4,7 +4,7 @@
 //! the sun's surroundings: the assembled luminance against the source's. Virtual phone in the
 //! quarry HDR.
 
-mod common;
+use crate::common;
 
 use common::data;
 use previz::capture::guided_path::simulate_capture_path;
@@ -101,7 +101,7 @@ fn unlocked_exposure_leaves_seams_that_the_lock_or_the_gains_remove() {
     assert!(r[1].capture.as_ref().unwrap().meta.shots.iter().all(|s| s.gain.is_none()));
 }
 
-/// The table in docs/capture.md: `cargo test --test capture_hdr exposure_study -- --ignored --nocapture`.
+/// The table in docs/capture.md: `cargo test --test integration capture_hdr::exposure_study -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn exposure_study() {
@@ -218,7 +218,7 @@ fn facing_irradiance(cube: &CubeMap, s: glam::Vec3, clip: Option<[f32; 3]>) -> f
         .sum()
 }
 
-/// The HDR rows of docs/capture.md: `cargo test --test capture_hdr hdr_study -- --ignored --nocapture`.
+/// The HDR rows of docs/capture.md: `cargo test --test integration capture_hdr::hdr_study -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn hdr_study() {

@@ -1,7 +1,7 @@
 //! The capture assistant's guidance drawn headless (egui + egui-wgpu on lavapipe) over a
 //! virtual-phone frame, kept as golden images and compared with NVIDIA FLIP.
 
-mod common;
+use crate::common;
 
 use previz::camera::exposure::ExposureMode;
 use previz::camera::sim::{SimSettings, VirtualPhone};

@@ -3,7 +3,7 @@
 //! it, does the sensible thing (a JPEG for `-o out.jpg`, a created `--layers` folder, a quiet
 //! exit when the reader of stdout goes away).
 
-mod common;
+use crate::common;
 
 use common::cli::{assert_clean_failure, files, previz, tempdir};
 use std::process::Command;

@@ -1,7 +1,7 @@
 //! `previz colour-transfer` and `previz priors` end to end: results, JSON, reports, and bad input
 //! — a clear error, a non-zero exit, no panic and no output file left behind.
 
-mod common;
+use crate::common;
 
 use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::data;

@@ -4,7 +4,7 @@
 //! rendered pixels, and kept in golden images: a textured model before/after against two
 //! environments.
 
-mod common;
+use crate::common;
 
 use common::{assert_golden, data, gpu, mean_rgb, render, scene};
 use previz::colour::correction::{ColourCorrection, correct};

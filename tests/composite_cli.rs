@@ -1,7 +1,7 @@
 //! `previz composite` end to end: the demo with no arguments, layers and JSON, and bad input —
 //! each a clear error naming the file or flag, a non-zero exit, no panic, no output file.
 
-mod common;
+use crate::common;
 
 use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::data;

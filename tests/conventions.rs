@@ -1,7 +1,7 @@
 //! Tests that would catch a wrong convention: cube-map face mapping seen through the camera and
 //! through reflection, the sun's side, the hemisphere's sky, camera tilt.
 
-mod common;
+use crate::common;
 
 use common::{mean_rgb, render_with, scene};
 use previz::render::{Layer, Rendered};

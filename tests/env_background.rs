@@ -3,7 +3,7 @@
 //! not through the cube map that lights the model, which would resample it a second time
 //! (docs/accuracy.md, "Eighth session: the background looked up in the equirect").
 
-mod common;
+use crate::common;
 
 use common::{data, gpu, scene, triangle};
 use previz::colour::linear_to_srgb;

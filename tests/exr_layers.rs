@@ -4,7 +4,7 @@
 //! quantisation of the 8-bit path; the matte's darkest value is the frame's shadow opacity; the
 //! depth is the distance to the model's surface found by casting rays on the CPU.
 
-mod common;
+use crate::common;
 
 use common::cli::{previz, tempdir};
 use common::{data, gpu, inputs, scene};

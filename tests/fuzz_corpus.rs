@@ -39,7 +39,7 @@ fn every_corpus_file_loads_or_fails_cleanly() {
 }
 
 /// A mutation smoke run on stable Rust (no coverage guidance; cargo-fuzz is the real fuzzer):
-/// `PREVIZ_MUTATIONS=N cargo test --test fuzz_corpus -- --ignored` feeds N mutants of
+/// `PREVIZ_MUTATIONS=N cargo test --test integration fuzz_corpus:: -- --ignored` feeds N mutants of
 /// the corpus files (bit flips, interesting bytes, deleted, duplicated and spliced chunks) to
 /// each target; none may panic. Prints executions and the slowest input per target.
 #[test]

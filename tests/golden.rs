@@ -1,7 +1,7 @@
 //! Golden images of every shading path (seed 000 Figs. 24-28), compared with NVIDIA FLIP.
-//! Re-bless on purpose only: `PREVIZ_BLESS=1 cargo test --test golden`, then look at each image.
+//! Re-bless on purpose only: `PREVIZ_BLESS=1 cargo test --test integration golden::`, then look at each image.
 
-mod common;
+use crate::common;
 
 use common::{assert_golden, data, render, render_with, scene};
 use previz::render::Layer;

@@ -5,7 +5,7 @@
 //! Judged against the source map the virtual phone captured: the sun's irradiance and direction
 //! the light measures, and the FLIP of the bunny's composite over the same background.
 
-mod common;
+use crate::common;
 
 use common::data;
 use previz::bench::accuracy::{flip_map, masked_mean};

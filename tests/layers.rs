@@ -144,3 +144,35 @@ fn the_scanner_sees_paths_groups_and_skips_comments_and_macros() {
     assert_eq!(bad.len(), 1, "{bad:?}");
     assert!(bad[0].ends_with("render (tier 1) → live (tier 3)"), "{bad:?}");
 }
+
+/// Cargo builds only the test targets Cargo.toml lists (`autotests = false`, tests/integration.rs
+/// says why): every file directly in tests/ is either one of them or a module of the shared
+/// binary, and every module declared there exists, so a new test file cannot silently not run.
+#[test]
+fn every_test_file_is_built() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let targets: Vec<&str> =
+        manifest.lines().filter_map(|l| l.trim().strip_prefix("path = \"tests/").and_then(|p| p.strip_suffix(".rs\""))).collect();
+    assert!(targets.contains(&"integration"), "Cargo.toml lists no tests/integration.rs target");
+    let shared = fs::read_to_string(root.join("tests/integration.rs")).unwrap();
+    let modules: Vec<&str> =
+        shared.lines().filter_map(|l| l.strip_prefix("mod ").and_then(|m| m.strip_suffix(';'))).filter(|m| *m != "common").collect();
+    let mut files: Vec<String> = fs::read_dir(root.join("tests"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert!(files.len() > 10, "tests/ read as {files:?}");
+    let unbuilt: Vec<&String> = files.iter().filter(|f| !targets.contains(&f.as_str()) && !modules.contains(&f.as_str())).collect();
+    assert!(
+        unbuilt.is_empty(),
+        "tests/NAME.rs for NAME in {unbuilt:?}: neither a [[test]] in Cargo.toml nor a `mod` of tests/integration.rs"
+    );
+    let twice: Vec<&&str> = modules.iter().filter(|m| targets.contains(m)).collect();
+    assert!(twice.is_empty(), "{twice:?}: both a [[test]] of their own and a module of tests/integration.rs");
+    let missing: Vec<&&str> = modules.iter().chain(&targets).filter(|m| !files.iter().any(|f| f == *m)).collect();
+    assert!(missing.is_empty(), "declared but no tests/NAME.rs: {missing:?}");
+}

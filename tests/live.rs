@@ -2,7 +2,7 @@
 //! background, the model is drawn at the estimated pose, the sun is the published SPA position
 //! for the place and instant, and the night has no sunlight.
 
-mod common;
+use crate::common;
 
 use common::cli::{assert_clean_failure, files, previz, tempdir};
 use common::{data, gpu, scene};

@@ -2,7 +2,7 @@
 //! of 2 px² or more) renders within a mean FLIP of 0.01 of the full-detail render (the issue's
 //! bar), and it has fewer triangles.
 
-mod common;
+use crate::common;
 
 use common::{gpu, inputs, scene};
 use previz::bench::lod::{model_at_level, screen_level};

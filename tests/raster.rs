@@ -1,7 +1,7 @@
 //! The model pass's raster side: which faces a material shows (glTF `doubleSided`) and the
 //! triangle order each level of detail is drawn in.
 
-mod common;
+use crate::common;
 
 use common::{gpu, inputs, scene};
 use previz::render::Layer;
@@ -193,7 +193,7 @@ fn a_double_sided_back_face_is_lit_with_its_normal_reversed() {
 /// 4×4 blocks those fragments fall in, per triangle), and the model pass's GPU time (each
 /// pass timed alone, medians) culling as the frame may against every triangle after a depth
 /// pre-pass (what main drew for an open mesh). Run:
-/// `cargo test --release --test raster -- --ignored --nocapture bench_model_raster`.
+/// `cargo test --release --test integration raster:: -- --ignored --nocapture bench_model_raster`.
 #[test]
 #[ignore = "a benchmark; run it in release with --ignored --nocapture"]
 fn bench_model_raster() {

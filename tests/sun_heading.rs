@@ -2,7 +2,7 @@
 //! sensors at `phone` noise (hard-iron offset, disturbances), the fusion filter with and without
 //! the sun heading measurements. Docs: docs/pose.md "True north from the sun".
 
-mod common;
+use crate::common;
 
 use glam::DQuat;
 use previz::capture::guided_path::simulate_capture_path;
@@ -54,7 +54,7 @@ fn without_the_sun_the_magnetic_heading_is_kept_and_said() {
     }
 }
 
-/// The table in docs/pose.md: `cargo test --test sun_heading -- --ignored --nocapture` (the dev profile is optimised).
+/// The table in docs/pose.md: `cargo test --test integration sun_heading:: -- --ignored --nocapture` (the dev profile is optimised).
 #[test]
 #[ignore]
 fn sun_heading_study() {
@@ -169,7 +169,7 @@ fn a_capture_under_clouds_keeps_the_magnetic_heading_and_says_so() {
     assert!(h.note.contains("no sun in the capture") && h.note.contains("magnetic heading kept"), "{}", h.note);
 }
 
-/// Captures with the sun (docs/pose.md): `cargo test --test sun_heading capture_study -- --ignored --nocapture`.
+/// Captures with the sun (docs/pose.md): `cargo test --test integration sun_heading::capture_study -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn capture_study() {
@@ -193,7 +193,7 @@ fn capture_study() {
     );
 }
 
-/// How often a sun frame is needed at `bad` noise: `cargo test --test sun_heading bad_noise_frame_rate -- --ignored --nocapture`.
+/// How often a sun frame is needed at `bad` noise: `cargo test --test integration sun_heading::bad_noise_frame_rate -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn bad_noise_frame_rate() {
@@ -314,7 +314,7 @@ fn the_live_app_takes_a_short_frame_of_the_sun_and_corrects_the_compass() {
     }
 }
 
-/// The live rows of docs/pose.md: `cargo test --test sun_heading live_sun_study -- --ignored --nocapture`.
+/// The live rows of docs/pose.md: `cargo test --test integration sun_heading::live_sun_study -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn live_sun_study() {
@@ -378,7 +378,7 @@ fn afternoon() -> chrono::DateTime<chrono::Utc> {
 /// The short frame's exposure (docs/capture.md, the live sun): the sun sighted in quarry_01 at
 /// 28 views around it (heading ±18°, pitch −6..+3° about the sun; exact poses; the virtual
 /// phone auto-exposed for each view), the short frame at −4 .. 0 EV of that exposure:
-/// `cargo test --test sun_heading short_frame_exposure_study -- --ignored --nocapture`.
+/// `cargo test --test integration sun_heading::short_frame_exposure_study -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn short_frame_exposure_study() {

@@ -2,7 +2,7 @@
 //! is what the per-pixel lookup gives there, the lookup runs once per shadow map drawn (not per
 //! frame), and a mesh of large triangles keeps the per-pixel lookup.
 
-mod common;
+use crate::common;
 
 use common::gpu;
 use glam::{Mat4, Quat, Vec3, Vec4};
@@ -360,7 +360,7 @@ fn large_triangles_keep_the_per_pixel_lookup() {
 /// from the per-pixel one and their mean FLIP; per mesh its edges on screen. With
 /// `PREVIZ_CROPS=dir`, writes the frames and 2× crops (per pixel | per vertex without a limit)
 /// around where those two differ most. Run:
-/// `cargo test --release --test vertex_sun -- --ignored --nocapture bench_vertex_sun`.
+/// `cargo test --release --test integration vertex_sun:: -- --ignored --nocapture bench_vertex_sun`.
 #[test]
 #[ignore = "a benchmark; run it in release with --ignored --nocapture"]
 fn bench_vertex_sun() {
@@ -485,7 +485,7 @@ fn bench_vertex_sun() {
 /// pipelines costs; they differ only by override constants), and the
 /// vertex sun's three compute pipelines; `PREVIZ_ROUNDS` rounds (default 5) interleaved, the
 /// first round (a cold shader cache) and the minimum of each. Run:
-/// `cargo test --release --test vertex_sun -- --ignored --nocapture bench_pipeline_start_up`.
+/// `cargo test --release --test integration vertex_sun:: -- --ignored --nocapture bench_pipeline_start_up`.
 #[test]
 #[ignore = "a benchmark; run it in release with --ignored --nocapture"]
 fn bench_pipeline_start_up() {

@@ -2,7 +2,7 @@
 //! reference, for every layout the phone cameras deliver (NV12, NV21, I420), both colour
 //! standards and both ranges, at odd sizes with padded rows; and back to the image it came from.
 
-mod common;
+use crate::common;
 
 use common::{data, gpu};
 use previz::camera::yuv::{Layout, YuvConverter, YuvMatrix, YuvRange, from_rgba, to_rgba_cpu};

@@ -141,6 +141,24 @@ fn env_map_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
 // look against that version: docs/PERFORMANCE.md. The sun camera is orthographic, so metres
 // per texel and per unit depth come from the rows of its matrix. `gather` samples the nearest
 // texel without comparison.
+//
+// The model's own surface is not a blocker of itself (docs/accuracy.md, eleventh session): the
+// sun's disc, seen from p, is a cone of half-angle r (tan r = `tan_radius`) around the sun's
+// direction, so a texel s metres across the sun from p can hide part of it only if it is at
+// least s / tan r nearer the sun. A surface lit by the whole disc is tilted from the sun's
+// direction by more than r, so its own texels around p rise towards the sun by less than that:
+// where the 2x2 texels around p hold the model within SELF_TEXELS texels' worth of that slope of
+// p's depth (p is on the model's surface as the sun sees it; 3 rather than the 2x2's 0.7 texel
+// for the facets and biases between a vertex and its texels: at 1.5 the vertices of a faceted
+// sphere near its terminator failed the test where the pixels between them passed, so the
+// per-vertex lookup there was darker than the per-pixel one), a search corner counts only what
+// is inside the cone. Without it a surface the sun grazes (the truck's sides, 10 degrees of sun)
+// found itself at the search corners, whose mean depth gave a penumbra of several texels, and the
+// filter over that width shadowed it by its own depth slope: 0.87 of the sun where the reference
+// has all of it. Elsewhere (the ground, which the map does not hold, or p behind a blocker) every
+// blocker counts as before: the sparse corners stand for the nearest parts of blockers the
+// filter can reach, and a cone test there cut the outer half of the ground's penumbrae.
+const SELF_TEXELS: f32 = 3.0;
 const SOFT_TAPS: i32 = 3;
 fn sun_visibility_soft(map: texture_depth_2d, smp: sampler_comparison, gather: sampler, frame: Frame, p: vec3<f32>, tan_radius: f32) -> f32 {
     let m = frame.light_view_proj;
@@ -159,13 +177,23 @@ fn sun_visibility_soft(map: texture_depth_2d, smp: sampler_comparison, gather: s
     // penumbra; search that far, between 2 and 24 texels.
     let widest = receiver / depth_per_m * tan_radius * uv_per_m;
     let search = clamp(widest, 2.0 * texel, 24.0 * texel);
-    var blockers = 0.0;
-    var blocker_depth = 0.0;
-    // The 2x2 texels around p, and four 2x2 at the corners of the search square.
-    var offsets = array<vec2<f32>, 5>(vec2<f32>(0.0), vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(1.0, 1.0));
-    for (var i = 0; i < 5; i++) {
-        let d = textureGather(map, gather, uv + offsets[i] * search);
-        let b = select(vec4<f32>(0.0), vec4<f32>(1.0), d < vec4<f32>(receiver));
+    // The 2x2 texels around p (the map is cleared to depth 1 where the model is not)...
+    let centre = textureGather(map, gather, uv);
+    let cone = depth_per_m / (uv_per_m * max(tan_radius, 1e-4));
+    let own = (abs(centre - vec4<f32>(receiver)) < vec4<f32>(SELF_TEXELS * texel * cone)) & (centre < vec4<f32>(1.0));
+    // ... then four 2x2 at the corners of the search square, which on the model's own surface
+    // count only blockers inside the sun's cone: depth units nearer per uv across.
+    let nearer_per_uv = select(0.0, cone, any(own));
+    let centre_blocks = select(vec4<f32>(0.0), vec4<f32>(1.0), centre < vec4<f32>(receiver));
+    var blockers = dot(centre_blocks, vec4<f32>(1.0));
+    var blocker_depth = dot(centre_blocks, centre);
+    var corners = array<vec2<f32>, 4>(vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(-1.0, 1.0), vec2<f32>(1.0, 1.0));
+    for (var i = 0; i < 4; i++) {
+        let o = corners[i] * search;
+        let d = textureGather(map, gather, uv + o);
+        // Less one texel: the 2x2 texels gathered lie up to one texel nearer p than o.
+        let limit = receiver - max(length(o) - texel, 0.0) * nearer_per_uv;
+        let b = select(vec4<f32>(0.0), vec4<f32>(1.0), d < vec4<f32>(limit));
         blockers += dot(b, vec4<f32>(1.0));
         blocker_depth += dot(b, d);
     }

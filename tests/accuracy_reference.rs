@@ -87,12 +87,18 @@ use std::path::Path;
 /// Merged main of the tenth session (23:11 UTC: s10-ground + s10-sun-cost + s10-clip + s10-model):
 /// ROI 0.0864, 0.0497, 0.0923, 0.0689, 0.0828 (mean 0.076), luminance 0.969, 1.007, 1.005, 1.008,
 /// 0.988; bounds = measured + 0.01 rounded up to three decimals.
+/// Eleventh session (s11-selfshadow, 2026-12-02, debug: the soft sun lookup's blocker search
+/// counts only blockers inside the sun's cone on the model's own surface, so a surface the sun
+/// grazes no longer shadows itself): ROI 0.0863, 0.0497, 0.0923, 0.0688, 0.0701 (mean 0.0734, was
+/// 0.0760), luminance 0.969, 1.007, 1.005, 1.008, 1.015; quarry_truck's bound 0.093 → 0.081
+/// (measured + 0.01 rounded up; its luminance error's 0.04 kept: measured + 0.03 would loosen it),
+/// the others as they were.
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.097, 0.04),
     ("blouberg_teapot", 0.060, 0.04),
     ("courtyard_dragon", 0.103, 0.04),
     ("city_spot", 0.079, 0.04),
-    ("quarry_truck", 0.093, 0.04),
+    ("quarry_truck", 0.081, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
@@ -106,9 +112,11 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// by the sky's binned radiance): 0.0255, 0.0153, 0.0317, 0.0194, 0.0308; tightened the same way.
 /// Tenth session (sh9-ggx draws the model as loaded): 0.0246, 0.0149, 0.0316, 0.0181, 0.0263;
 /// tightened the same way (the dragon's 0.042 as it was). The level rule (same session): 0.0255,
-/// 0.0149, 0.0317, 0.0186, 0.0263; the bounds above hold and are kept.
+/// 0.0149, 0.0317, 0.0186, 0.0263; the bounds above hold and are kept. Eleventh session (the
+/// model's own surface not a blocker of itself): 0.0253, 0.0148, 0.0313, 0.0182, 0.0241; the
+/// truck's tightened to 0.035, the others kept.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.042), ("city_spot", 0.029), ("quarry_truck", 0.037)];
+    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.042), ("city_spot", 0.029), ("quarry_truck", 0.035)];
 
 #[test]
 fn default_method_against_path_traced_references() {

@@ -33,6 +33,7 @@ mod live;
 mod loaders;
 mod lod;
 mod raster;
+mod self_shadow;
 mod sun_cli;
 mod sun_heading;
 mod sun_reference;

@@ -64,6 +64,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let at = v * VERTEX_FLOATS;
     let position = vec3<f32>(vertices[at], vertices[at + 1u], vertices[at + 2u]);
     let normal = world_normal(v);
+    // A vertex facing away from the sun weighs 0 wherever its value is read (model.wgsl
+    // vs_main weighs it by max(n.l, 0); `agrees` below leaves it out): no lookup.
+    if (dot(normal, frame.sun_dir) <= 0.0) {
+        sun[v] = 0.0;
+        return;
+    }
     // What the fragment shader's normalize(in.normal) gives at the vertex (0 for a zero normal).
     let n = normal * inverseSqrt(max(dot(normal, normal), 1e-30));
     let p = (instance.model * vec4<f32>(position, 1.0)).xyz + n * 0.002;

@@ -186,7 +186,7 @@ fn the_sun_at_a_vertex_is_the_per_pixel_lookup_there() {
 /// back, the facing from the normals and the sun of the frame's uniforms) are drawn with the
 /// per-pixel lookup, the rest with the sun interpolated, every triangle once; on the grid and
 /// box most triangles take the interpolated sun, and the frame differs from the per-pixel one
-/// in few pixels. Measured (2026-12-01): see the printed counts.
+/// in few pixels. The box, whose triangles are large on screen, is drawn per pixel and not split. Measured (2026-12-01): see the printed counts.
 #[test]
 fn triangles_a_shadow_edge_crosses_are_drawn_per_pixel() {
     for method in [LightingMethod::Hemisphere, LightingMethod::Sh9Ggx] {
@@ -203,7 +203,14 @@ fn triangles_a_shadow_edge_crosses_are_drawn_per_pixel() {
         let sun = Vec3::from(data.frame.sun_dir);
         let model = grid_and_box(48);
         let name = method.name();
+        let chosen = c.sun_per_mesh();
+        assert!(chosen[0].1, "{name}: the grid is not drawn per vertex: {chosen:?}");
         for (k, mesh) in model.meshes.iter().enumerate() {
+            if !chosen[k].1 {
+                // The box's large triangles are drawn per pixel: not split at all.
+                assert_eq!(split[k], (0, 0), "{name}, mesh {k}: drawn per pixel, yet split");
+                continue;
+            }
             let facing = |v: u32| (normal_matrix * Vec4::from((Vec3::from(mesh.normals[v as usize]), 0.0))).truncate().dot(sun) > 0.0;
             let disagree = mesh
                 .indices
@@ -351,13 +358,106 @@ fn large_triangles_keep_the_per_pixel_lookup() {
     assert!(with.rgba == without.rgba, "the large triangles' frame is not the per-pixel one");
 }
 
+/// The grid of [`grid_and_box`] in 4×4 quads (edges of ~70 pixels on screen: drawn per pixel)
+/// under a finely tessellated sphere of radius 0.25 at the box's place (edges of a few pixels:
+/// drawn per vertex), whose shadow falls on the grid.
+fn coarse_grid_and_fine_sphere() -> Model {
+    let mut model = grid_and_box(4);
+    let mut ball = sphere(32);
+    for p in &mut ball.meshes[0].positions {
+        *p = (Vec3::from(*p) * (0.25 / 0.8) + Vec3::Y * 0.6).to_array();
+    }
+    ball.meshes[0].material = 1;
+    model.meshes[1] = ball.meshes.remove(0);
+    model
+}
+
+/// The vertex sun runs for the meshes the model pass draws per vertex and no other: of a
+/// coarse grid (per pixel) under a fine sphere (per vertex), only the sphere's triangles are
+/// split (the grid's indirect draws stay at zero, its visibility buffer at the 1 it was made
+/// with, though the sphere's shadow covers some of its vertices); every sphere triangle is in
+/// one of its two lists. With every mesh allowed per vertex on the same kept map, the grid is
+/// looked up and split too (the buffers held another set of meshes). A model whose meshes are
+/// all per pixel runs no vertex sun at all: [`large_triangles_keep_the_per_pixel_lookup`].
+#[test]
+fn only_the_meshes_drawn_per_vertex_are_looked_up() {
+    let model = coarse_grid_and_fine_sphere();
+    let triangles: Vec<u32> = model.meshes.iter().map(|m| (m.indices.len() / 3) as u32).collect();
+    let (mut c, p) = set_up(model, LightingMethod::Sh9Ggx);
+    c.set_sun_edge_limit(previz::render::passes::model::MAX_SUN_EDGE_PX);
+    c.render(gpu(), &p, Layer::Composite).unwrap();
+    let chosen: Vec<bool> = c.sun_per_mesh().iter().map(|m| m.1).collect();
+    assert_eq!(chosen, [false, true], "per mesh (edges on screen px, per vertex): {:?}", c.sun_per_mesh());
+    assert!(c.passes_run().shadow_drawn && c.passes_run().vertex_sun, "{:?}", c.passes_run());
+    let split = c.vertex_sun_split(gpu()).unwrap();
+    let values = c.vertex_sun_values(gpu()).unwrap();
+    println!("split per mesh (per vertex, per pixel): {split:?} of {triangles:?} triangles");
+    assert_eq!(split[0], (0, 0), "the grid, drawn per pixel, was split");
+    assert!(values[0].iter().all(|&v| v == 1.0), "the grid's visibility was looked up: {:?}", values[0]);
+    assert_eq!(split[1].0 + split[1].1, triangles[1], "the sphere's split");
+    assert!(values[1].iter().any(|&v| v < 0.5), "the sphere's own shadow was not looked up");
+    // Every mesh allowed per vertex: the map is kept, and the grid is looked up and split on it.
+    c.set_sun_edge_limit(f32::INFINITY);
+    c.render(gpu(), &p, Layer::Composite).unwrap();
+    assert!(!c.passes_run().shadow_drawn && c.passes_run().vertex_sun, "{:?}", c.passes_run());
+    let split = c.vertex_sun_split(gpu()).unwrap();
+    let values = c.vertex_sun_values(gpu()).unwrap();
+    assert_eq!(split[0].0 + split[0].1, triangles[0], "the grid's split, every mesh per vertex");
+    assert!(values[0].iter().any(|&v| v < 0.5), "no grid vertex in the sphere's shadow: {:?}", values[0]);
+}
+
+/// A shadow map drawn on consecutive frames (the sun turning) is moving: those frames look the
+/// sun up per pixel and run no vertex sun (their image is the per-pixel one byte for byte), and
+/// the first frame that keeps the map runs it and draws per vertex again. A single redraw after
+/// a kept frame (the sun moved once) still runs it at once.
+#[test]
+fn a_moving_shadow_map_is_looked_up_per_pixel() {
+    let (mut c, p) = set_up(grid_and_box(48), LightingMethod::Hemisphere);
+    c.set_sun_edge_limit(previz::render::passes::model::MAX_SUN_EDGE_PX);
+    let turned = |p: &FrameParams, degrees: f32| {
+        let mut q = *p;
+        q.lighting.sun_dir = Quat::from_rotation_z(degrees.to_radians()) * q.lighting.sun_dir;
+        q
+    };
+    let run = |c: &mut Compositor, p: &FrameParams| {
+        let r = c.render(gpu(), p, Layer::Composite).unwrap();
+        (c.passes_run().shadow_drawn, c.passes_run().vertex_sun, r.rgba)
+    };
+    let (drawn, computed, _) = run(&mut c, &p);
+    assert!(drawn && computed, "the first frame: shadow drawn {drawn}, vertex sun {computed}");
+    let (drawn, computed, _) = run(&mut c, &p);
+    assert!(!drawn && !computed, "the same frame: shadow drawn {drawn}, vertex sun {computed}");
+    let once = turned(&p, 2.0);
+    let (drawn, computed, _) = run(&mut c, &once);
+    assert!(drawn && computed, "the sun moved after a kept frame: shadow drawn {drawn}, vertex sun {computed}");
+    let moving = turned(&p, 4.0);
+    let (drawn, computed, moving_frame) = run(&mut c, &moving);
+    assert!(drawn && !computed, "the sun moved on the next frame too: shadow drawn {drawn}, vertex sun {computed}");
+    assert!(c.sun_per_mesh().iter().all(|m| !m.1), "a moving map's frame drew a mesh per vertex: {:?}", c.sun_per_mesh());
+    // The same frame looked up per pixel on purpose (the map kept): the same image.
+    c.set_sun_edge_limit(0.0);
+    let (drawn, computed, per_pixel) = run(&mut c, &moving);
+    assert!(!drawn && !computed);
+    assert!(moving_frame == per_pixel, "the moving map's frame is not the per-pixel one");
+    // The map held still: the vertex sun runs on it, and the grid is drawn per vertex.
+    c.set_sun_edge_limit(previz::render::passes::model::MAX_SUN_EDGE_PX);
+    let (drawn, computed, still) = run(&mut c, &moving);
+    assert!(!drawn && computed, "the map held still: shadow drawn {drawn}, vertex sun {computed}");
+    assert!(c.sun_per_mesh()[0].1, "{:?}", c.sun_per_mesh());
+    let differ = still.chunks_exact(4).zip(per_pixel.chunks_exact(4)).filter(|(a, b)| a != b).count();
+    println!("{differ} pixels differ between the still map's frame (per vertex) and the per-pixel one");
+    assert!(differ > 0, "the still map's frame was not drawn per vertex");
+}
+
 /// The measurement behind the choice (docs/PERFORMANCE.md, ninth session): the truck of the
 /// demo scene and the dragon of `bench frame`, each drawn by three compositors in one process,
 /// frames interleaved: the sun per vertex on every culled mesh (no edge limit), with a 30-pixel
-/// limit, with the default limit, and per pixel everywhere. Per compositor: the model pass alone (each pass timed alone;
-/// minimum and median of `PREVIZ_FRAMES`, default 30), the shadow pass with the vertex sun after
-/// it (the sun turning, so the map is drawn every frame), and the frame's pixels that differ
-/// from the per-pixel one and their mean FLIP; per mesh its edges on screen. With
+/// limit, with the default limit, and per pixel everywhere. Per compositor (each pass timed
+/// alone; minimum and median of `PREVIZ_FRAMES`, default 30): the model pass of a frame whose
+/// map was drawn after a kept one (the vertex sun run), the vertex sun's lookup and split (timed
+/// each alone, on a kept map), a frame of the sun turning (the map drawn on consecutive frames:
+/// its shadow pass and its model pass, per pixel), and the frame's pixels that differ from the
+/// per-pixel one and their mean FLIP; per mesh its edges on screen. With
 /// `PREVIZ_CROPS=dir`, writes the frames and 2× crops (per pixel | per vertex without a limit)
 /// around where those two differ most. Run:
 /// `cargo test --release --test integration vertex_sun:: -- --ignored --nocapture bench_vertex_sun`.
@@ -392,20 +492,36 @@ fn bench_vertex_sun() {
             c.set_pass_timing(true);
         }
         let n = limits.len();
-        let (mut model_ms, mut shadow_ms, mut last, mut ran) = (vec![Vec::new(); n], vec![Vec::new(); n], vec![Vec::new(); n], vec![0; n]);
+        let (mut model_ms, mut shadow_ms, mut moving_ms) = (vec![Vec::new(); n], vec![Vec::new(); n], vec![Vec::new(); n]);
+        let mut after_shadow_ms: Vec<Vec<(f64, f64)>> = vec![Vec::new(); n];
+        let mut totals: Vec<Vec<(f64, f64)>> = vec![Vec::new(); n];
+        let (mut lookup_ms, mut split_ms, mut last, mut ran) = (vec![Vec::new(); n], vec![Vec::new(); n], vec![Vec::new(); n], vec![0; n]);
         for f in 0..frames + 2 {
             for (k, (c, p)) in cs.iter_mut().enumerate() {
                 let mut q = *p;
                 q.camera.pose *= Quat::from_rotation_y(1e-4 * f as f32);
+                // After a kept map (the last frame of the loop): the map drawn, the vertex sun run.
                 let r = c.render(gpu(), &q, Layer::Composite).unwrap();
-                // A second frame with the sun turned: the map (and the vertex sun) drawn.
+                // The sun turned on the next frame: the map drawn again (moving), per pixel.
                 let mut turning = q;
                 turning.lighting.sun_dir = Quat::from_rotation_z((0.5 * f as f32 + 0.25).to_radians()) * q.lighting.sun_dir;
                 let t = c.render(gpu(), &turning, Layer::Composite).unwrap();
                 ran[k] += usize::from(c.passes_run().vertex_sun);
+                // The same frame again: the map kept, the vertex sun run alone on it.
+                let kept = c.render(gpu(), &turning, Layer::Composite).unwrap();
                 if f >= 2 {
+                    // The two frames that draw the map, whole (their passes' sum).
+                    totals[k].push((r.timings.passes.unwrap().total(), t.timings.passes.unwrap().total()));
+                    if let Some([lookup, split]) = r.timings.passes.unwrap().vertex_sun {
+                        after_shadow_ms[k].push((lookup, split));
+                    }
                     model_ms[k].push(r.timings.passes.unwrap().model.unwrap());
                     shadow_ms[k].push(t.timings.passes.unwrap().shadow.unwrap());
+                    moving_ms[k].push(t.timings.passes.unwrap().model.unwrap());
+                    if let Some([lookup, split]) = kept.timings.passes.unwrap().vertex_sun {
+                        lookup_ms[k].push(lookup);
+                        split_ms[k].push(split);
+                    }
                 }
                 if f == frames + 1 {
                     // The unturned sun again for the images: its map drawn afresh.
@@ -415,7 +531,7 @@ fn bench_vertex_sun() {
         }
         let stats = |v: &mut Vec<f64>| {
             v.sort_by(f64::total_cmp);
-            (v[0], v[v.len() / 2])
+            v.first().map_or((f64::NAN, f64::NAN), |&min| (min, v[v.len() / 2]))
         };
         let (w, h) = (s.width, s.height);
         let rgb = |rgba: &[u8]| rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect::<Vec<u8>>();
@@ -429,6 +545,13 @@ fn bench_vertex_sun() {
         for (k, (label, _)) in limits.iter().enumerate() {
             let (m_min, m_med) = stats(&mut model_ms[k]);
             let (s_min, s_med) = stats(&mut shadow_ms[k]);
+            let (mv_min, mv_med) = stats(&mut moving_ms[k]);
+            let (l_min, l_med) = stats(&mut lookup_ms[k]);
+            let (sp_min, sp_med) = stats(&mut split_ms[k]);
+            let (a_min, a_med) = stats(&mut after_shadow_ms[k].iter().map(|t| t.0).collect());
+            let (b_min, b_med) = stats(&mut after_shadow_ms[k].iter().map(|t| t.1).collect());
+            let (r_min, r_med) = stats(&mut totals[k].iter().map(|t| t.0).collect());
+            let (t_min, t_med) = stats(&mut totals[k].iter().map(|t| t.1).collect());
             let flip = previz::bench::accuracy::flip_map(&rgb(&last[n - 1]), &rgb(&last[k]), w, h).unwrap();
             let mean_flip = flip.iter().map(|&v| f64::from(v)).sum::<f64>() / flip.len() as f64;
             let differ = last[k].chunks_exact(4).zip(last[n - 1].chunks_exact(4)).filter(|(a, b)| a != b).count();
@@ -438,7 +561,16 @@ fn bench_vertex_sun() {
                 cs[k].0.vertex_sun_split(gpu()).unwrap()
             );
             println!(
-                "    model pass min {m_min:.2} median {m_med:.2} ms; shadow (+ vertex sun) min {s_min:.2} median {s_med:.2} ms; vertex sun ran in {} of {} sun-turning frames; {differ} pixels differ from per pixel, mean FLIP {mean_flip:.5}",
+                "    model pass min {m_min:.2} median {m_med:.2} ms; vertex sun on a kept map: lookup min {l_min:.2} median {l_med:.2} ms, split min {sp_min:.2} median {sp_med:.2} ms; {differ} pixels differ from per pixel, mean FLIP {mean_flip:.5}"
+            );
+            println!(
+                "    vertex sun after the shadow pass (from its end): lookup min {a_min:.2} median {a_med:.2} ms, split min {b_min:.2} median {b_med:.2} ms"
+            );
+            println!(
+                "    frame drawing the map, passes' sum: after a kept map (vertex sun run) min {r_min:.2} median {r_med:.2} ms, on consecutive frames (per pixel) min {t_min:.2} median {t_med:.2} ms"
+            );
+            println!(
+                "    sun turning: shadow pass min {s_min:.2} median {s_med:.2} ms, model pass min {mv_min:.2} median {mv_med:.2} ms; vertex sun ran in {} of {} of those frames",
                 ran[k],
                 frames + 2
             );

@@ -61,10 +61,15 @@ impl GpuTimer {
 
     /// Milliseconds of each of the first `used` slots (after the submission completed).
     pub fn read_ms(&self, gpu: &Gpu, used: u32) -> Result<Vec<f64>> {
-        let bytes = super::read_buffer(gpu, &self.readback)?;
-        let ticks: &[u64] = bytemuck::cast_slice(&bytes);
-        let period_ns = f64::from(gpu.queue.get_timestamp_period());
+        let (ticks, period_ns) = self.read_ticks(gpu)?;
         Ok((0..used.min(self.capacity) as usize).map(|i| ticks_to_ms(ticks[2 * i], ticks[2 * i + 1], period_ns)).collect())
+    }
+
+    /// The raw timestamps (slot i's begin at 2i, its end at 2i + 1) and nanoseconds per tick, for
+    /// spans between the ends of consecutive passes (after the submission completed).
+    pub fn read_ticks(&self, gpu: &Gpu) -> Result<(Vec<u64>, f64)> {
+        let bytes = super::read_buffer(gpu, &self.readback)?;
+        Ok((bytemuck::cast_slice(&bytes).to_vec(), f64::from(gpu.queue.get_timestamp_period())))
     }
 }
 

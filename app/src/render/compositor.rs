@@ -32,14 +32,16 @@ use std::time::Instant;
 
 /// Timer slots: the shadow pass (with the model's sun per vertex after it), and the passes after
 /// it; with pass timing on ([`Compositor::set_pass_timing`]) the passes after it one by one
-/// instead.
+/// instead, and the shadow pass, the vertex sun's lookup and its split each alone.
 const SHADOW_SLOT: u32 = 0;
 const REST_SLOT: u32 = 1;
 const BACKGROUND_SLOT: u32 = 2;
 const MODEL_SLOT: u32 = 3;
 const GROUND_SLOT: u32 = 4;
 const FXAA_SLOT: u32 = 5;
-const TIMER_SLOTS: u32 = 6;
+const SUN_LOOKUP_SLOT: u32 = 6;
+const SUN_SPLIT_SLOT: u32 = 7;
+const TIMER_SLOTS: u32 = 8;
 
 /// Milliseconds spent in each stage of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -66,6 +68,9 @@ pub struct Timings {
 pub struct PassTimes {
     /// The shadow pass and the model's sun per vertex after it.
     pub shadow: Option<f64>,
+    /// Of `shadow`: the model's sun per vertex, its lookup and its split
+    /// (render::passes::vertex_sun), when it ran.
+    pub vertex_sun: Option<[f64; 2]>,
     /// The camera image (or the environment seen by the camera) filling the target.
     pub background: Option<f64>,
     pub model: Option<f64>,
@@ -111,6 +116,9 @@ pub struct Compositor {
     /// What the model's visibility-per-vertex buffers hold (None: nothing known): a frame
     /// whose map, level and lookup are the same does not run the pass again.
     vertex_sun_held: Option<VertexSunHeld>,
+    /// Per mesh, whether the buffers of `vertex_sun_held` were computed for it (the meshes the
+    /// model pass chose to draw per vertex then; the others' buffers hold nothing of use).
+    vertex_sun_meshes: Vec<bool>,
     /// The lookup the last prepared frame runs per vertex (None: the pass does not run).
     vertex_sun_run: Option<SunLookup>,
     background: BackgroundPass,
@@ -139,6 +147,10 @@ pub struct Compositor {
     /// What each shadow map holds (in the order of `ShadowPass::sizes`; None: nothing yet): a
     /// frame whose shadow would come out the same keeps the map instead of drawing it again.
     shadow_held: Vec<Option<ShadowDrawn>>,
+    /// Per shadow map, whether the last frame that sampled it drew it: a map drawn on two such
+    /// frames in a row (a sun turning, a model dragged) is moving, and its frames look the sun
+    /// up per pixel without the vertex sun's compute until it holds still for a frame.
+    shadow_redrawn: Vec<bool>,
     /// The ground's sky visibility the ground pass holds (from the model cache, for the model
     /// matrix without its translation), and how many times one has been uploaded: once per turn
     /// or scale of the model, not per frame.
@@ -177,8 +189,9 @@ pub struct PassesRun {
     /// less than an eighth of a texel) or when there is no sunlight (nothing to shadow).
     pub shadow_drawn: bool,
     /// The model's sun per vertex was looked up this frame (render::passes::vertex_sun): after
-    /// the shadow pass drew, or when the map, level or lookup the buffers hold is not the
-    /// frame's; never while they hold what the frame needs.
+    /// the shadow pass drew (unless the last frame that sampled that map drew it too: a moving
+    /// map is looked up per pixel), or when the map, level, lookup or meshes the buffers hold
+    /// are not the frame's; never while they hold what the frame needs.
     pub vertex_sun: bool,
     pub ground: bool,
 }
@@ -224,6 +237,7 @@ impl Compositor {
             shadow,
             vertex_sun,
             vertex_sun_held: None,
+            vertex_sun_meshes: Vec::new(),
             vertex_sun_run: None,
             background,
             ground,
@@ -240,6 +254,7 @@ impl Compositor {
             shadow_index: 0,
             passes_run: PassesRun::default(),
             pass_timing: false,
+            shadow_redrawn: vec![false; shadow_held.len()],
             shadow_held,
             ground_sky_uploaded: None,
             ground_sky_updates: 0,
@@ -344,6 +359,7 @@ impl Compositor {
         self.model = Some(uploaded);
         self.ground_sky_uploaded = None;
         self.shadow_held.fill(None);
+        self.shadow_redrawn.fill(false);
         self.vertex_sun_held = None;
         Ok(())
     }
@@ -372,7 +388,7 @@ impl Compositor {
     /// Per mesh of the loaded model, as the last frame drew it: its longest edge on screen
     /// (pixels at the model's nearest point; None where not measured) and whether it took the
     /// sun's visibility from its vertices.
-    pub fn sun_per_mesh(&self) -> &[(Option<f32>, bool)] {
+    pub fn sun_per_mesh(&self) -> Vec<(Option<f32>, bool)> {
         self.model_pass.sun_per_mesh()
     }
 
@@ -598,6 +614,7 @@ impl Compositor {
     fn forget_shadows_on_error<T>(&mut self, r: Result<T>) -> Result<T> {
         if r.is_err() {
             self.shadow_held.fill(None);
+            self.shadow_redrawn.fill(false);
             self.vertex_sun_held = None;
         }
         r
@@ -636,12 +653,31 @@ impl Compositor {
         let (gpu_ms, shadow_gpu_ms, passes) = match &self.timer {
             Some(timer) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
-                let shadow = (self.passes_run.shadow_drawn || self.passes_run.vertex_sun).then_some(ms[SHADOW_SLOT as usize]);
+                let run = self.passes_run;
+                let mut shadow = (run.shadow_drawn || run.vertex_sun).then_some(ms[SHADOW_SLOT as usize]);
                 if self.pass_timing {
                     let steps = self.composite_steps(layer);
                     let ran = |on: bool, slot: u32| on.then_some(ms[slot as usize]);
+                    // Each alone: the shadow pass, the vertex sun's lookup and its split. The
+                    // lookup's and split's spans end at their passes' ends and start at the end
+                    // of the pass before (on lavapipe a compute pass's beginning timestamp is
+                    // written with its end; docs/PERFORMANCE.md, eleventh session); a lookup on
+                    // a kept map starts at its own beginning timestamp.
+                    let vertex_sun = match run.vertex_sun {
+                        true => {
+                            let (ticks, period_ns) = timer.read_ticks(gpu)?;
+                            let end = |slot: u32| ticks[2 * slot as usize + 1];
+                            let start = if run.shadow_drawn { end(SHADOW_SLOT) } else { ticks[2 * SUN_LOOKUP_SLOT as usize] };
+                            let span = |a: u64, b: u64| crate::gpu::timer::ticks_to_ms(a, b, period_ns);
+                            Some([span(start, end(SUN_LOOKUP_SLOT)), span(end(SUN_LOOKUP_SLOT), end(SUN_SPLIT_SLOT))])
+                        }
+                        false => None,
+                    };
+                    shadow = (run.shadow_drawn || run.vertex_sun)
+                        .then(|| ran(run.shadow_drawn, SHADOW_SLOT).unwrap_or(0.0) + vertex_sun.map_or(0.0, |[a, b]| a + b));
                     let passes = PassTimes {
                         shadow,
+                        vertex_sun,
                         background: ran(steps[0], BACKGROUND_SLOT),
                         model: ran(steps[1], MODEL_SLOT),
                         ground: ran(steps[2], GROUND_SLOT),
@@ -719,26 +755,40 @@ impl Compositor {
         // A full-shadow reference looks the sun up per pixel everywhere.
         let sun_px = data.px_per_unit.filter(|_| !self.full_shadow);
         let per_vertex = self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull, (data.level, sun_px));
+        // A map drawn this frame and by the last frame that sampled it too is moving: the
+        // vertex sun's compute would be thrown away a frame later, and costs more than the
+        // per-pixel lookup it saves in one frame (docs/PERFORMANCE.md, eleventh session), so
+        // such a frame looks the sun up per pixel; the first frame that keeps the map runs it.
+        let moving = drawn && self.shadow_redrawn[shadow_index];
+        if shadow {
+            self.shadow_redrawn[shadow_index] = drawn;
+        }
         // The model's sun per vertex: looked up when the map was drawn this frame, or when the
-        // buffers hold another map, level or lookup than this frame's (a kept map of another
-        // size, a method with another lookup); otherwise they hold what this frame needs.
+        // buffers hold another map, level, lookup or set of meshes than this frame's (a kept map
+        // of another size, a method with another lookup, a mesh now small enough on screen);
+        // otherwise they hold what this frame needs. Only for the meshes drawn per vertex.
         let wanted = match (SunLookup::of(p.method), self.shadow_held[shadow_index]) {
-            (Some(lookup), Some(map)) if shadow && per_vertex => {
+            (Some(lookup), Some(map)) if shadow && per_vertex && !moving => {
                 Some(VertexSunHeld { shadow_index, map, lookup, tan_sun_radius: data.light.sun[3] })
             }
             _ => None,
         };
-        self.vertex_sun_run = wanted.filter(|w| drawn || self.vertex_sun_held != Some(*w)).map(|w| w.lookup);
+        let same_meshes = self.vertex_sun_meshes == self.model_pass.vertex_sun_meshes();
+        self.vertex_sun_run = wanted.filter(|w| drawn || !same_meshes || self.vertex_sun_held != Some(*w)).map(|w| w.lookup);
         if self.vertex_sun_run.is_some() {
             model.reset_split_draws(queue);
             self.vertex_sun_held = wanted;
+            self.vertex_sun_meshes.clear();
+            self.vertex_sun_meshes.extend_from_slice(self.model_pass.vertex_sun_meshes());
         } else if drawn {
             // The map changed under buffers that were not looked up again.
             self.vertex_sun_held = None;
         }
         // The meshes draw the sun from their vertices only while the buffers and the split hold
-        // this frame's (not for a method without the sun's shadow, nor without a map).
-        self.model_pass.vertex_sun_valid(wanted.is_some() && self.vertex_sun_held == wanted);
+        // this frame's (not for a method without the sun's shadow, nor without a map, nor while
+        // the map moves).
+        let held = wanted.is_some() && self.vertex_sun_held == wanted && self.vertex_sun_meshes == self.model_pass.vertex_sun_meshes();
+        self.model_pass.vertex_sun_valid(held);
         self.level = data.level;
         self.shadow_index = shadow_index;
         self.passes_run = PassesRun {
@@ -863,13 +913,25 @@ impl Compositor {
         let timer = self.timer.as_ref().filter(|_| timed);
         let per_vertex = self.vertex_sun_run;
         if shadows {
-            let timestamps = timer.and_then(|t| t.render_pass(SHADOW_SLOT, true, per_vertex.is_none()));
+            let timestamps = timer.and_then(|t| t.render_pass(SHADOW_SLOT, true, per_vertex.is_none() || self.pass_timing));
             let mut pass = self.shadow.begin(encoder, self.shadow_index, timestamps);
             in_group(&mut pass, "shadow pass", |pass| self.shadow.draw(pass, model, self.level));
         }
         if let Some(lookup) = per_vertex {
-            let timestamps = timer.and_then(|t| t.compute_pass(SHADOW_SLOT, !shadows, true));
-            self.vertex_sun.encode(encoder, model, (self.level, self.shadow_index, lookup), timestamps);
+            // Timed with the shadow pass (its end written by the split), or (pass timing) the
+            // lookup and the split each alone.
+            let timestamps = match self.pass_timing {
+                true => [
+                    timer.and_then(|t| t.compute_pass(SUN_LOOKUP_SLOT, !shadows, true)),
+                    timer.and_then(|t| t.compute_pass(SUN_SPLIT_SLOT, false, true)),
+                ],
+                false => [
+                    timer.and_then(|t| t.compute_pass(SHADOW_SLOT, !shadows, false)),
+                    timer.and_then(|t| t.compute_pass(SHADOW_SLOT, false, true)),
+                ],
+            };
+            let chosen = self.model_pass.vertex_sun_meshes();
+            self.vertex_sun.encode(encoder, (model, chosen), (self.level, self.shadow_index, lookup), timestamps);
         }
         if self.background.from_env() {
             // With pass timing the environment view is not timed (the background step is).

@@ -333,10 +333,13 @@ impl ModelGpu {
         &self.prepared.chain.triangles
     }
 
-    /// Per mesh, the vertex-sun pass's bind group 1 at level of detail `level` (clamped) and how
-    /// many vertices that level uses.
-    pub fn sun_groups(&self, level: usize) -> impl Iterator<Item = (&wgpu::BindGroup, u32, u32)> {
-        self.meshes.iter().map(move |m| {
+    /// For each mesh `chosen` names (in mesh order: [`ModelPass::vertex_sun_meshes`], the meshes
+    /// the model pass draws with the sun from their vertices this frame; a mesh past its end is
+    /// not chosen), the vertex-sun pass's bind group 1 at level of detail `level` (clamped) and
+    /// how many vertices and triangles that level has. The meshes drawn per pixel are left out:
+    /// nothing reads their buffers this frame.
+    pub fn sun_groups<'a>(&'a self, level: usize, chosen: &'a [bool]) -> impl Iterator<Item = (&'a wgpu::BindGroup, u32, u32)> {
+        self.meshes.iter().zip(chosen).filter(|(_, c)| **c).map(move |(m, _)| {
             let (group, vertices, triangles) = &m.sun_groups[level.min(m.sun_groups.len() - 1)];
             (group, *vertices, *triangles)
         })
@@ -416,8 +419,11 @@ pub struct ModelPass {
     /// The vertex-sun pass's bind group 1 layout (each mesh's groups are made at upload).
     sun_mesh_layout: wgpu::BindGroupLayout,
     /// Per mesh, as the last frame written drew it: its longest edge on screen (pixels; None:
-    /// not measured) and whether it took the sun from its vertices.
-    sun_per_mesh: Vec<(Option<f32>, bool)>,
+    /// not measured) ...
+    sun_edges: Vec<Option<f32>>,
+    /// ... and whether it took the sun from its vertices (the choice [`ModelPass::write`] makes
+    /// once a frame; the vertex-sun pass runs for these meshes alone).
+    sun_chosen: Vec<bool>,
     material_layout: wgpu::BindGroupLayout,
     linear_sampler: wgpu::Sampler,
     repeat_sampler: wgpu::Sampler,
@@ -446,7 +452,8 @@ impl ModelPass {
             sun_edge_limit: MAX_SUN_EDGE_PX,
             layout: pipelines.model.layout.clone(),
             sun_mesh_layout: pipelines.vertex_sun.mesh_layout.clone(),
-            sun_per_mesh: Vec::new(),
+            sun_edges: Vec::new(),
+            sun_chosen: Vec::new(),
             material_layout: pipelines.model.material_layout.clone(),
             linear_sampler: pipelines.linear_sampler.clone(),
             repeat_sampler: pipelines.repeat_sampler.clone(),
@@ -669,29 +676,38 @@ impl ModelPass {
         for (buf, base) in &model.materials {
             queue.write_buffer(buf, 0, bytemuck::bytes_of(&material_uniforms(base, terms)));
         }
-        self.sun_per_mesh.clear();
+        self.sun_edges.clear();
+        self.sun_chosen.clear();
         for mesh in &model.meshes {
             let edge_px = sun_px.map(|px| px * mesh.longest_edge[level.min(mesh.longest_edge.len() - 1)]);
             let limit = self.sun_edge_limit;
             let per_vertex = limit > 0.0 && self.culls(mesh, level) && edge_px.is_some_and(|e| e <= limit);
-            self.sun_per_mesh.push((edge_px, per_vertex));
+            self.sun_edges.push(edge_px);
+            self.sun_chosen.push(per_vertex);
         }
-        self.sun_per_mesh.iter().any(|m| m.1)
+        self.sun_chosen.contains(&true)
     }
 
-    /// Whether the vertex-sun buffers and split hold this frame's values (the compositor's
-    /// bookkeeping); if not, every mesh looks the sun up per pixel this frame.
+    /// Whether the vertex-sun buffers and split hold this frame's values for the meshes
+    /// [`ModelPass::write`] chose (the compositor's bookkeeping); if not, every mesh looks the
+    /// sun up per pixel this frame.
     pub fn vertex_sun_valid(&mut self, valid: bool) {
         if !valid {
-            self.sun_per_mesh.iter_mut().for_each(|m| m.1 = false);
+            self.sun_chosen.fill(false);
         }
+    }
+
+    /// Per mesh, whether the last frame written draws it with the sun from its vertices (what
+    /// [`ModelGpu::sun_groups`] takes: the vertex-sun pass runs for these meshes alone).
+    pub fn vertex_sun_meshes(&self) -> &[bool] {
+        &self.sun_chosen
     }
 
     /// Per mesh, as the last frame written drew it: its longest edge on screen (pixels at the
     /// model's nearest point; None where not measured) and whether it took the sun's visibility
     /// from its vertices.
-    pub fn sun_per_mesh(&self) -> &[(Option<f32>, bool)] {
-        &self.sun_per_mesh
+    pub fn sun_per_mesh(&self) -> Vec<(Option<f32>, bool)> {
+        self.sun_edges.iter().copied().zip(self.sun_chosen.iter().copied()).collect()
     }
 
     /// Let the meshes whose edges on screen are at most `px` pixels long (over
@@ -728,7 +744,7 @@ impl ModelPass {
         for (k, mesh) in model.meshes.iter().enumerate() {
             let cull = self.culls(mesh, level);
             let per_pixel = &self.shading[shading_index(method, self.corrected, (cull, false))];
-            if self.sun_per_mesh.get(k).is_some_and(|m| m.1) {
+            if self.sun_chosen.get(k).is_some_and(|&c| c) {
                 mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, (cull, true))], per_pixel));
             } else {
                 pass.set_pipeline(per_pixel);

@@ -3,9 +3,10 @@
 //! drawn level, with the lookup the frame's method uses per pixel, into a buffer the model pass
 //! binds as a vertex attribute (model.wgsl `VertexIn.sun`). The sun's visibility at a surface
 //! does not depend on the view, so it runs only when the shadow map changes (or the lookup
-//! does), not every frame; the model pass then interpolates it instead of sampling the map per
-//! pixel on the meshes whose triangles are small on screen
-//! ([`crate::render::passes::model::MAX_SUN_EDGE_PX`]). A second entry point in the same pass
+//! does), not every frame, and not while the map is drawn on consecutive frames (a moving map:
+//! the compositor draws those per pixel); the model pass then interpolates it instead of
+//! sampling the map per pixel on the meshes whose triangles are small on screen
+//! ([`crate::render::passes::model::MAX_SUN_EDGE_PX`]), and it runs for those meshes alone. A second entry point in the same pass
 //! (`split`) sorts the level's triangles into those whose sunlit vertices agree, drawn with the
 //! sun interpolated, and those a shadow's edge crosses, drawn with the per-pixel lookup (two
 //! indexed indirect draws per mesh).
@@ -177,34 +178,50 @@ impl VertexSunPass {
     }
 
     /// Look the sun up at every vertex of `model`'s level `level` in shadow map `shadow_index`
-    /// with `lookup`, into each mesh's visibility buffer; then split each mesh's triangles of
-    /// that level into those whose sunlit vertices agree and the others, with the counts in its
-    /// indirect draws (which [`ModelGpu::reset_split_draws`] must have zeroed for this
-    /// submission).
+    /// with `lookup`, into the visibility buffer of each mesh `chosen` names (in the order of the
+    /// model's meshes: those the model pass draws per vertex this frame,
+    /// [`ModelGpu::sun_groups`]); then split those meshes' triangles of that level into those
+    /// whose sunlit vertices agree and the others, with the counts in their indirect draws
+    /// (which [`ModelGpu::reset_split_draws`] must have zeroed for this submission). The lookup
+    /// and the split are two compute passes with their own `timestamps`. Returns how many meshes
+    /// were dispatched (0: nothing was recorded).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        model: &ModelGpu,
+        (model, chosen): (&ModelGpu, &[bool]),
         (level, shadow_index, lookup): (usize, usize, SunLookup),
-        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
-    ) {
-        let Some(group) = self.bind_groups.get(shadow_index) else { return };
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("vertex sun"), timestamp_writes: timestamps });
-        pass.set_pipeline(if lookup == SunLookup::Soft { &self.soft } else { &self.filtered });
-        pass.set_bind_group(0, group, &[]);
-        for (mesh_group, count, _) in model.sun_groups(level) {
-            if count > 0 {
-                pass.set_bind_group(1, mesh_group, &[]);
-                pass.dispatch_workgroups(count.div_ceil(WORKGROUP), 1, 1);
+        timestamps: [Option<wgpu::ComputePassTimestampWrites<'_>>; 2],
+    ) -> usize {
+        let Some(group) = self.bind_groups.get(shadow_index) else { return 0 };
+        if model.sun_groups(level, chosen).next().is_none() {
+            return 0;
+        }
+        let [lookup_ts, split_ts] = timestamps;
+        {
+            let mut pass =
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("vertex sun"), timestamp_writes: lookup_ts });
+            pass.set_pipeline(if lookup == SunLookup::Soft { &self.soft } else { &self.filtered });
+            pass.set_bind_group(0, group, &[]);
+            for (mesh_group, count, _) in model.sun_groups(level, chosen) {
+                if count > 0 {
+                    pass.set_bind_group(1, mesh_group, &[]);
+                    pass.dispatch_workgroups(count.div_ceil(WORKGROUP), 1, 1);
+                }
             }
         }
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("vertex sun split"), timestamp_writes: split_ts });
         pass.set_pipeline(&self.split);
-        for (mesh_group, _, triangles) in model.sun_groups(level) {
+        pass.set_bind_group(0, group, &[]);
+        let mut meshes = 0;
+        for (mesh_group, _, triangles) in model.sun_groups(level, chosen) {
+            meshes += 1;
             if triangles > 0 {
                 pass.set_bind_group(1, mesh_group, &[]);
                 pass.dispatch_workgroups(triangles.div_ceil(WORKGROUP), 1, 1);
             }
         }
+        meshes
     }
 }
 

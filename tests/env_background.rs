@@ -127,3 +127,33 @@ fn an_equirect_file_keeps_its_image_and_a_face_folder_has_none() {
     let Err(missing) = load_environment_and_equirect(&data("hdri/no_such_map.hdr")) else { panic!("a missing file loads") };
     assert!(format!("{missing:#}").contains("no_such_map.hdr"), "{missing:#}");
 }
+
+/// The background pass loads each pixel's own texel of the camera image (shaders/background.wgsl):
+/// a background-only frame is the image, byte for byte, with one sample per pixel (the live view
+/// on lavapipe) and with 4× MSAA (stills). The image is noise at the pixel scale and its size odd,
+/// so a lookup off by a pixel or half of one, a filter, or a flip would show.
+#[test]
+fn a_photograph_background_comes_out_pixel_for_pixel() {
+    use previz::render::Antialiasing;
+    use previz::scene::Rgba8Image;
+    let (w, h) = (97u32, 61u32);
+    let mut state = 0x2545_f491_u32;
+    let mut next = || {
+        // xorshift32: a fixed, reproducible noise.
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state
+    };
+    let pixels: Vec<u8> = (0..w * h).flat_map(|_| (next().to_le_bytes()[..3].to_vec()).into_iter().chain([255])).collect();
+    let image = Rgba8Image { width: w, height: h, pixels };
+    let s = scene(&format!("width = {w}\nheight = {h}\n"));
+    let env = common::east_red_west_blue(16);
+    let inputs = Inputs { model: triangle(), env, env_equirect: None, background: Some(image.clone()) };
+    for aa in [Antialiasing::Msaa(1), Antialiasing::STILL] {
+        let (mut compositor, params) = previz::setup::prepare_antialiased(gpu(), &s, &inputs, aa).unwrap();
+        let frame = compositor.render(gpu(), &params, Layer::Background).unwrap();
+        let differ = frame.rgba.chunks_exact(4).zip(image.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{aa:?}: {differ} of {} pixels differ from the image", w * h);
+    }
+}

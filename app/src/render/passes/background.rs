@@ -49,10 +49,10 @@ fn environment_view(device: &wgpu::Device, label: &str, technique: Technique, di
 }
 
 /// The background pipeline: a full-screen triangle into the composite target (`samples` per
-/// pixel).
+/// pixel), each pixel loading its texel of the background texture (the target's size: no
+/// sampler).
 pub fn pipeline(device: &wgpu::Device, samples: u32) -> PassPipeline {
-    let fs = ShaderStages::FRAGMENT;
-    let layout = build::layout(device, "background", &[build::texture_entry(0, fs, D2, true), build::sampler_entry(1, fs, Filtering)]);
+    let layout = build::layout(device, "background", &[build::texture_entry(0, ShaderStages::FRAGMENT, D2, true)]);
     let pipeline = pipeline_for(device, &layout, COLOR_FORMAT, samples);
     PassPipeline { layout, pipeline }
 }
@@ -92,12 +92,8 @@ impl BackgroundPass {
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
         let texture = build::texture(device, "background", (width, height, 1), COLOR_FORMAT, 1, usage);
         let view = texture.create_view(&Default::default());
-        let bind_group = build::bind_group(
-            device,
-            "background",
-            &pipelines.background.layout,
-            &[wgpu::BindingResource::TextureView(&view), wgpu::BindingResource::Sampler(&pipelines.linear_sampler)],
-        );
+        let bind_group =
+            build::bind_group(device, "background", &pipelines.background.layout, &[wgpu::BindingResource::TextureView(&view)]);
         BackgroundPass {
             pipeline: pipelines.background.pipeline.clone(),
             bind_group,

@@ -202,23 +202,7 @@ fn a_kept_shadow_map_gives_the_frame_a_fresh_one_gives() {
 fn cube() -> previz::scene::Model {
     use previz::scene::{Material, Mesh};
     let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let n = glam::Vec3::from_array(std::array::from_fn(|i| if i == axis { sign } else { 0.0 }));
-            let (u, v) = (n.any_orthonormal_vector(), n.cross(n.any_orthonormal_vector()));
-            let base = mesh.positions.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                let p = 0.5 * (n + a * u + b * v) + glam::Vec3::Y * 0.5;
-                mesh.positions.push(p.to_array());
-                mesh.normals.push(n.to_array());
-                mesh.uvs.push([0.0, 0.0]);
-            }
-            // Counter-clockwise seen from outside: (u, v, n) is right-handed when u × v = n.
-            let ccw = u.cross(v).dot(n) > 0.0;
-            let quad = if ccw { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
-            mesh.indices.extend(quad.iter().map(|i| base + i));
-        }
-    }
+    common::push_box(&mut mesh, glam::Vec3::Y * 0.5, glam::Vec3::splat(0.5));
     previz::scene::Model { meshes: vec![mesh], materials: vec![Material::default()] }
 }
 

@@ -4,54 +4,20 @@
 use crate::common;
 
 use common::gpu;
-use glam::{Mat4, Quat, Vec3};
-use previz::colour::transfer::TransferMethod;
-use previz::render::{Antialiasing, Compositor, FrameParams, Layer, LightingMethod, MaterialTerms, PassesRun, Rendered};
-use previz::scene::{CubeMap, Material, Mesh, Model, Sides};
-use previz::setup::{Inputs, prepare_antialiased};
+use glam::{Mat4, Vec3};
+use previz::render::{Compositor, FrameParams, Layer, LightingMethod, PassesRun, Rendered};
+use previz::scene::{Mesh, Model};
 
 /// A single-sided square grid of `n`×`n` quads, 2 model units wide, in the model's base plane
 /// (y = 0, facing +y), grey; a closed red box 0.4 wide and 0.3 high standing on its centre, and
 /// a red pole 0.1 wide and 2 high on its western corner.
 fn grid_and_standing_box(n: u32) -> Model {
-    let mut grid = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
-    for j in 0..=n {
-        for i in 0..=n {
-            grid.positions.push([2.0 * i as f32 / n as f32 - 1.0, 0.0, 2.0 * j as f32 / n as f32 - 1.0]);
-            grid.normals.push([0.0, 1.0, 0.0]);
-            grid.uvs.push([0.0, 0.0]);
-        }
-    }
-    let at = |i: u32, j: u32| j * (n + 1) + i;
-    for j in 0..n {
-        for i in 0..n {
-            // Counter-clockwise seen from +y.
-            grid.indices.extend([at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
-        }
-    }
-    let mut cube = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 1 };
+    let mut boxes = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 1 };
     // The box, and a pole 2 units high on the grid's western corner (its shadow falls off the
     // grid): the map then covers as much along the sun as across it, as a truck's.
-    for (centre, half) in
-        [(Vec3::new(0.0, 0.15, 0.0), Vec3::new(0.2, 0.15, 0.2)), (Vec3::new(-0.95, 1.0, -0.95), Vec3::new(0.05, 1.0, 0.05))]
-    {
-        for axis in 0..3 {
-            for sign in [-1.0f32, 1.0] {
-                let normal = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
-                let (u, v) = (normal.any_orthonormal_vector(), normal.cross(normal.any_orthonormal_vector()));
-                let base = cube.positions.len() as u32;
-                for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                    cube.positions.push((centre + half * (normal + a * u + b * v)).to_array());
-                    cube.normals.push(normal.to_array());
-                    cube.uvs.push([0.0, 0.0]);
-                }
-                let quad = if u.cross(v).dot(normal) > 0.0 { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
-                cube.indices.extend(quad.iter().map(|k| base + k));
-            }
-        }
-    }
-    let material = |diffuse: [f32; 3]| Material { diffuse, specular: [0.0; 3], sides: Sides::Front, ..Material::default() };
-    Model { meshes: vec![grid, cube], materials: vec![material([0.8; 3]), material([0.8, 0.0, 0.0])] }
+    common::push_box(&mut boxes, Vec3::new(0.0, 0.15, 0.0), Vec3::new(0.2, 0.15, 0.2));
+    common::push_box(&mut boxes, Vec3::new(-0.95, 1.0, -0.95), Vec3::new(0.05, 1.0, 0.05));
+    common::grey_grid_red_boxes(common::flat_grid(n), boxes)
 }
 
 /// A 320×240 compositor without antialiasing over the grid and box at full detail, seen from 3 m
@@ -82,27 +48,11 @@ fn frame(c: &mut Compositor, p: &FrameParams, elevation: f32, radius: f32) -> (R
 const SCALE: f32 = 4.0;
 
 fn set_up() -> (Compositor, FrameParams) {
-    let s = common::scene("width = 320\nheight = 240\n");
-    let env = CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
-    let inputs = Inputs { model: grid_and_standing_box(48), env, env_equirect: None, background: None };
-    let (mut c, mut p) = prepare_antialiased(gpu(), &s, &inputs, Antialiasing::Msaa(1)).unwrap();
-    c.set_full_detail(true);
-    p.method = LightingMethod::Sh9Ggx;
-    p.placement.position = Vec3::ZERO;
-    p.placement.rotation = Vec3::ZERO;
-    p.placement.scale = SCALE;
-    p.camera.position = Vec3::new(0.0, 0.0, 3.0 * SCALE);
-    p.camera.pose = Quat::IDENTITY;
-    p.camera.vfov = 60f32.to_radians();
-    (p.lighting.shadow_opacity, p.lighting.sky_occlusion) = (0.0, 0.0);
-    p.lighting.material = MaterialTerms { ambient: 0.0, diffuse: 1.0, specular: 0.0, gloss: None };
-    p.colour.method = TransferMethod::None;
-    (c, p)
+    common::sun_alone_from_above(grid_and_standing_box(48), LightingMethod::Sh9Ggx, SCALE)
 }
 
 fn linear(srgb: u8) -> f64 {
-    let c = f64::from(srgb) / 255.0;
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    f64::from(previz::colour::srgb_to_linear(f32::from(srgb) / 255.0))
 }
 
 /// The green channel (linear) of the grid at the ground points (x, y) × SCALE (world metres, z = 0)

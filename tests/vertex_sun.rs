@@ -6,49 +6,16 @@ use crate::common;
 
 use common::gpu;
 use glam::{Mat4, Quat, Vec3, Vec4};
-use previz::colour::transfer::TransferMethod;
-use previz::render::{Antialiasing, Compositor, FrameParams, Layer, LightingMethod, MaterialTerms};
-use previz::scene::{CubeMap, Material, Mesh, Model, Sides};
-use previz::setup::{Inputs, prepare_antialiased};
+use previz::render::{Antialiasing, Compositor, FrameParams, Layer, LightingMethod};
+use previz::scene::{Material, Mesh, Model, Sides};
 
 /// A single-sided square grid of `n`×`n` quads, 2 model units wide, in the model's base plane
-/// (y = 0, facing +y), grey; and a closed box 0.5 wide floating from y = 0.4 to 0.8 above its
+/// (y = 0, facing +y), grey; and a closed box 0.5 wide floating from y = 0.35 to 0.85 above its
 /// centre, red, which shadows it.
 fn grid_and_box(n: u32) -> Model {
-    let mut grid = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
-    for j in 0..=n {
-        for i in 0..=n {
-            let (x, z) = (2.0 * i as f32 / n as f32 - 1.0, 2.0 * j as f32 / n as f32 - 1.0);
-            grid.positions.push([x, 0.0, z]);
-            grid.normals.push([0.0, 1.0, 0.0]);
-            grid.uvs.push([0.0, 0.0]);
-        }
-    }
-    for j in 0..n {
-        for i in 0..n {
-            let at = |i: u32, j: u32| j * (n + 1) + i;
-            // Counter-clockwise seen from +y: x then -z.
-            grid.indices.extend([at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
-        }
-    }
     let mut cube = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 1 };
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let normal = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
-            let (u, v) = (normal.any_orthonormal_vector(), normal.cross(normal.any_orthonormal_vector()));
-            let base = cube.positions.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                let p = 0.25 * (normal + a * u + b * v) + Vec3::Y * 0.6;
-                cube.positions.push(p.to_array());
-                cube.normals.push(normal.to_array());
-                cube.uvs.push([0.0, 0.0]);
-            }
-            let quad = if u.cross(v).dot(normal) > 0.0 { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
-            cube.indices.extend(quad.iter().map(|k| base + k));
-        }
-    }
-    let material = |diffuse: [f32; 3]| Material { diffuse, specular: [0.0; 3], sides: Sides::Front, ..Material::default() };
-    Model { meshes: vec![grid, cube], materials: vec![material([0.8; 3]), material([0.8, 0.0, 0.0])] }
+    common::push_box(&mut cube, Vec3::new(0.0, 0.6, 0.0), Vec3::splat(0.25));
+    common::grey_grid_red_boxes(common::flat_grid(n), cube)
 }
 
 /// A 320×240 compositor without antialiasing over the grid and box, full detail (the flat grid
@@ -57,30 +24,15 @@ fn grid_and_box(n: u32) -> Model {
 /// ambient, no specular, no colour correction, no ground pass), so a grid pixel's value is its
 /// sun's visibility times a constant.
 fn set_up(model: Model, method: LightingMethod) -> (Compositor, FrameParams) {
-    let s = common::scene("width = 320\nheight = 240\n");
-    let env = CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
-    let inputs = Inputs { model, env, env_equirect: None, background: None };
-    let (mut c, mut p) = prepare_antialiased(gpu(), &s, &inputs, Antialiasing::Msaa(1)).unwrap();
-    c.set_full_detail(true);
-    p.method = method;
-    p.placement.position = Vec3::ZERO;
-    p.placement.rotation = Vec3::ZERO;
-    p.placement.scale = 1.0;
-    p.camera.position = Vec3::new(0.0, 0.0, 3.0);
-    p.camera.pose = Quat::IDENTITY;
-    p.camera.vfov = 60f32.to_radians();
+    let (c, mut p) = common::sun_alone_from_above(model, method, 1.0);
     let (el, az) = (60f32.to_radians(), 90f32.to_radians());
     p.lighting.sun_dir = Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
     p.lighting.sunlight = 1.0;
-    (p.lighting.shadow_opacity, p.lighting.sky_occlusion) = (0.0, 0.0);
-    p.lighting.material = MaterialTerms { ambient: 0.0, diffuse: 1.0, specular: 0.0, gloss: None };
-    p.colour.method = TransferMethod::None;
     (c, p)
 }
 
 fn linear(srgb: u8) -> f64 {
-    let c = f64::from(srgb) / 255.0;
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    f64::from(previz::colour::srgb_to_linear(f32::from(srgb) / 255.0))
 }
 
 /// A grid vertex's visibility: the per-pixel frame's there (bilinear between the four pixel

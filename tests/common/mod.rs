@@ -184,3 +184,76 @@ pub fn east_red_west_blue(size: u32) -> previz::scene::CubeMap {
     });
     previz::scene::CubeMap { size, faces }
 }
+
+/// A single-sided square grid of `n`×`n` quads, 2 model units wide, in the model's base plane
+/// (y = 0, facing +y), material 0.
+pub fn flat_grid(n: u32) -> Mesh {
+    let mut grid = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
+    for j in 0..=n {
+        for i in 0..=n {
+            grid.positions.push([2.0 * i as f32 / n as f32 - 1.0, 0.0, 2.0 * j as f32 / n as f32 - 1.0]);
+            grid.normals.push([0.0, 1.0, 0.0]);
+            grid.uvs.push([0.0, 0.0]);
+        }
+    }
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            // Counter-clockwise seen from +y: x then -z.
+            grid.indices.extend([at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+        }
+    }
+    grid
+}
+
+/// Adds a closed box to `mesh`: centred at `centre`, `half` its half-extent on each axis, flat
+/// faces wound counter-clockwise seen from outside.
+pub fn push_box(mesh: &mut Mesh, centre: glam::Vec3, half: glam::Vec3) {
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let normal = glam::Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
+            let (u, v) = (normal.any_orthonormal_vector(), normal.cross(normal.any_orthonormal_vector()));
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                mesh.positions.push((centre + half * (normal + a * u + b * v)).to_array());
+                mesh.normals.push(normal.to_array());
+                mesh.uvs.push([0.0, 0.0]);
+            }
+            let quad = if u.cross(v).dot(normal) > 0.0 { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
+            mesh.indices.extend(quad.iter().map(|k| base + k));
+        }
+    }
+}
+
+/// `grid` (material 0, grey 0.8) and `boxes` (material 1, red), single-sided, no specular.
+pub fn grey_grid_red_boxes(grid: Mesh, boxes: Mesh) -> Model {
+    let material = |diffuse: [f32; 3]| Material { diffuse, specular: [0.0; 3], sides: previz::scene::Sides::Front, ..Material::default() };
+    Model { meshes: vec![grid, boxes], materials: vec![material([0.8; 3]), material([0.8, 0.0, 0.0])] }
+}
+
+/// A 320×240 compositor without antialiasing over `model` drawn at full detail, and a frame
+/// seen from `3 × scale` straight above the model's base (image up = North), the model at the
+/// origin unturned and scaled by `scale`, lit by the sun alone (no ambient, no specular, no
+/// colour correction, no ground pass): a pixel is its sun's visibility × n·l × a constant. The
+/// map is a uniform grey cube.
+pub fn sun_alone_from_above(
+    model: Model,
+    method: previz::render::LightingMethod,
+    scale: f32,
+) -> (previz::render::Compositor, previz::render::FrameParams) {
+    use glam::{Quat, Vec3};
+    let s = scene("width = 320\nheight = 240\n");
+    let env = previz::scene::CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
+    let inputs = Inputs { model, env, env_equirect: None, background: None };
+    let (mut c, mut p) = previz::setup::prepare_antialiased(gpu(), &s, &inputs, previz::render::Antialiasing::Msaa(1)).unwrap();
+    c.set_full_detail(true);
+    p.method = method;
+    (p.placement.position, p.placement.rotation, p.placement.scale) = (Vec3::ZERO, Vec3::ZERO, scale);
+    p.camera.position = Vec3::new(0.0, 0.0, 3.0 * scale);
+    p.camera.pose = Quat::IDENTITY;
+    p.camera.vfov = 60f32.to_radians();
+    (p.lighting.shadow_opacity, p.lighting.sky_occlusion) = (0.0, 0.0);
+    p.lighting.material = previz::render::MaterialTerms { ambient: 0.0, diffuse: 1.0, specular: 0.0, gloss: None };
+    p.colour.method = previz::colour::transfer::TransferMethod::None;
+    (c, p)
+}

@@ -183,18 +183,18 @@ impl VertexSunPass {
     /// [`ModelGpu::sun_groups`]); then split those meshes' triangles of that level into those
     /// whose sunlit vertices agree and the others, with the counts in their indirect draws
     /// (which [`ModelGpu::reset_split_draws`] must have zeroed for this submission). The lookup
-    /// and the split are two compute passes with their own `timestamps`. Returns how many meshes
-    /// were dispatched (0: nothing was recorded).
+    /// and the split are two compute passes with their own `timestamps`; nothing is recorded
+    /// when no mesh is chosen.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         (model, chosen): (&ModelGpu, &[bool]),
         (level, shadow_index, lookup): (usize, usize, SunLookup),
         timestamps: [Option<wgpu::ComputePassTimestampWrites<'_>>; 2],
-    ) -> usize {
-        let Some(group) = self.bind_groups.get(shadow_index) else { return 0 };
+    ) {
+        let Some(group) = self.bind_groups.get(shadow_index) else { return };
         if model.sun_groups(level, chosen).next().is_none() {
-            return 0;
+            return;
         }
         let [lookup_ts, split_ts] = timestamps;
         {
@@ -213,15 +213,12 @@ impl VertexSunPass {
             encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("vertex sun split"), timestamp_writes: split_ts });
         pass.set_pipeline(&self.split);
         pass.set_bind_group(0, group, &[]);
-        let mut meshes = 0;
         for (mesh_group, _, triangles) in model.sun_groups(level, chosen) {
-            meshes += 1;
             if triangles > 0 {
                 pass.set_bind_group(1, mesh_group, &[]);
                 pass.dispatch_workgroups(triangles.div_ceil(WORKGROUP), 1, 1);
             }
         }
-        meshes
     }
 }
 

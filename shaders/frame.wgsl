@@ -133,12 +133,13 @@ fn env_map_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {
 // Fraction of sunlight reaching world point p with a penumbra that follows the sun's angular
 // size and the blocker's distance (percentage-closer soft shadows, Fernando 2005) in 14 texture
 // calls (5 gathers, 9 comparisons; it was 50): the mean depth of the blockers around p gives the penumbra's half-width
-// (receiver - blocker) * tan(angular radius); a box filter a little wider than that (at least
-// one shadow-map texel) over hardware-compared bilinear taps gives the visibility. The blocker
-// search is five textureGather of 2x2 depths: around p and at the corners of the search square
-// (the square the 5x5 depth loads of the 50-tap version it replaced covered); the filter is
-// SOFT_TAPS x SOFT_TAPS comparison taps spread over the box its 5x5 taps covered. Cost and
-// look against that version: docs/PERFORMANCE.md. The sun camera is orthographic, so metres
+// (receiver - blocker) * tan(angular radius); a filter with the spread of the sun's disc over
+// that half-width (at least one shadow-map texel) over hardware-compared bilinear taps gives
+// the visibility. The blocker search is five textureGather of 2x2 depths: around p and at the
+// corners of the search square (the square the 5x5 depth loads of the 50-tap version it
+// replaced covered); the filter is SOFT_TAPS x SOFT_TAPS comparison taps (cost and look against
+// that version: docs/PERFORMANCE.md; until the twelfth session they covered the box its 5x5
+// taps covered, 1.25 penumbrae either side). The sun camera is orthographic, so metres
 // per texel and per unit depth come from the rows of its matrix. `gather` samples the nearest
 // texel without comparison.
 //
@@ -202,9 +203,14 @@ fn sun_visibility_soft(map: texture_depth_2d, smp: sampler_comparison, gather: s
     }
     let distance = (receiver - blocker_depth / blockers) / depth_per_m;
     let penumbra = max(distance * tan_radius * uv_per_m, texel);
-    // SOFT_TAPS taps a side over the box of half-width 1.25 * penumbra (5 taps a side: the old
-    // filter exactly).
-    let step = 2.5 * penumbra / f32(SOFT_TAPS);
+    // SOFT_TAPS taps a side, `step` apart, spread as the sun's disc spreads an edge. Seen through
+    // a uniform disc of radius rho (the penumbra's half-width), a straight edge rises over 2 rho
+    // with a spread (standard deviation of the rise) of rho / 2; N taps s apart spread
+    // s * sqrt((N^2 - 1) / 12), so s = rho * sqrt(3 / (N^2 - 1)): 0.61 rho for 3 taps. It was
+    // 2.5 rho / N (a box 1.25 rho either side, 0.83 rho for 3 taps): penumbrae 1.36x too wide
+    // (tests/self_shadow.rs `a_penumbra_has_the_width_of_the_suns_disc`; docs/accuracy.md,
+    // twelfth session).
+    let step = penumbra * sqrt(3.0 / f32(SOFT_TAPS * SOFT_TAPS - 1));
     let first = -0.5 * f32(SOFT_TAPS - 1);
     var lit = 0.0;
     for (var y = 0; y < SOFT_TAPS; y++) {

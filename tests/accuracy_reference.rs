@@ -93,12 +93,17 @@ use std::path::Path;
 /// 0.0760), luminance 0.969, 1.007, 1.005, 1.008, 1.015; quarry_truck's bound 0.093 → 0.081
 /// (measured + 0.01 rounded up; its luminance error's 0.04 kept: measured + 0.03 would loosen it),
 /// the others as they were.
+/// Twelfth session (s12-penumbra, 2026-12-02, debug: the soft lookup's filter spreads an edge
+/// as the sun's disc does, 0.61 penumbrae between taps instead of 0.83): ROI 0.08588, 0.04966,
+/// 0.09225, 0.06861, 0.06964 (mean 0.07321, was 0.07343), luminance 0.9695, 1.0072, 1.0053,
+/// 1.0082, 1.0145; quarry_bunny's bound 0.097 → 0.096 and quarry_truck's 0.081 → 0.080
+/// (measured + 0.01 rounded up), the others as they were.
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.097, 0.04),
+    ("quarry_bunny", 0.096, 0.04),
     ("blouberg_teapot", 0.060, 0.04),
     ("courtyard_dragon", 0.103, 0.04),
     ("city_spot", 0.079, 0.04),
-    ("quarry_truck", 0.081, 0.04),
+    ("quarry_truck", 0.080, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,

@@ -1,5 +1,6 @@
-//! The model's sun shadow on its own lit surfaces (shaders/frame.wgsl `sun_visibility_soft`):
-//! a surface the sun grazes keeps its sun, and a real occluder still shadows it.
+//! The soft sun shadow (shaders/frame.wgsl `sun_visibility_soft`): on the model's own lit
+//! surfaces a surface the sun grazes keeps its sun and a real occluder still shadows it; a
+//! penumbra has the width of the sun's disc.
 
 use crate::common;
 
@@ -117,5 +118,98 @@ fn a_grazing_sun_keeps_its_light_on_a_lit_surface_and_an_occluder_still_shadows(
             assert!(mean >= 0.98 && worst >= 0.95, "{lookup}, radius {radius}: the lit grid keeps {mean:.4} (worst {worst:.4})");
             assert!(shadow_mean < 0.05, "{lookup}, radius {radius}: the box's shadow keeps {shadow_mean:.4} of the sun");
         }
+    }
+}
+
+/// A thin square plate floating above the ground (model units: 0.4 wide, 0.0025 thick, its
+/// underside at height 0.25; x from 0.25 to 0.65, z from -0.2 to 0.2), nothing else.
+fn floating_plate() -> Model {
+    let mut plate = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 1 };
+    common::push_box(&mut plate, Vec3::new(0.45, 0.25125, 0.0), Vec3::new(0.2, 0.00125, 0.2));
+    let mut empty = common::flat_grid(1);
+    empty.indices.clear();
+    common::grey_grid_red_boxes(empty, plate)
+}
+
+/// The sun's penumbra has the width of its disc seen from the shadowed point: a plate floats
+/// h = 1 m above the ground (model scale 4), the sun comes from the East at 60° with angular
+/// radius r (tan r 0.0296, quarry_01's measured sun, and 0.06), so the plate's northern edge,
+/// parallel to the sun's azimuth, casts on the ground an edge at y = 0.8 m whose penumbra runs
+/// ρ = d·tan r either side of it across (d = h / sin 60°, the distance along the sun's ray;
+/// across the sun's azimuth the disc is not foreshortened). Seen from 6 m above the edge with a
+/// 12° field of view (4.4 mm a pixel; ρ = 34 and 69 mm), the ground's shadow (the ground pass
+/// with the sun's whole share of its light: a pixel is the background times the visibility)
+/// across the edge, normalised between the umbra and the light far outside, is compared with a
+/// uniform disc's: the fraction of a disc of radius ρ beyond a line at distance x, whose spread
+/// (the standard deviation of the visibility's rise across the edge) is ρ / 2 and whose 10–90 %
+/// width is 1.374 ρ. Both within 20 %, and the middle of the edge (visibility 0.5) within ρ / 4
+/// of the plate's edge projected along the sun. Measured 2026-12-02 (debug, lavapipe): spread
+/// 0.512 / 0.527 ρ, width 1.375 / 1.371 ρ, middle −4.7 / −5.1 mm; main's filter (taps 0.83 ρ
+/// apart) gave spread 0.682 ρ and width 1.668 ρ at tan r 0.0296 (docs/accuracy.md, twelfth
+/// session). The ground is the receiver because the model's own surface, lit side, counts only
+/// blockers inside the sun's cone at the search's corners, which cuts the outer part of a
+/// penumbra there (same plate over the grid: spread 0.37 ρ, width 0.91 ρ; docs/accuracy.md).
+#[test]
+fn a_penumbra_has_the_width_of_the_suns_disc() {
+    let (mut c, mut p) = common::sun_alone_from_above(floating_plate(), LightingMethod::Sh9Ggx, SCALE);
+    p.lighting.shadow_opacity = 1.0;
+    let edge = 0.2 * SCALE;
+    let h = 0.25 * SCALE;
+    p.camera.position = Vec3::new(0.75, edge, 6.0);
+    p.camera.vfov = 12f32.to_radians();
+    let view_proj = Mat4::from_cols_array_2d(&c.frame_uniforms(&p).unwrap().frame.view_proj);
+    let elevation = 60f32;
+    let d = h / elevation.to_radians().sin();
+    for tan_r in [0.0296f32, 0.06] {
+        let (r, _) = frame(&mut c, &p, elevation, tan_r.atan().to_degrees());
+        let rho = d * tan_r;
+        // The green channel along y in 1 mm steps over ±4ρ, each step the mean of the nearest
+        // pixels of 9 points from x = 0.55 to 0.95 m (inside the shadow's run from the east,
+        // x = 0.42-2.02 m, and clear of the plate as the camera sees it).
+        let steps = (8.0 * rho / 0.001) as i32;
+        let ys: Vec<f32> = (0..=steps).map(|k| edge - 4.0 * rho + 0.001 * k as f32).collect();
+        let across = |y: f32| {
+            (0..9)
+                .map(|i| {
+                    let ndc = view_proj.project_point3(Vec3::new(0.55 + 0.05 * i as f32, y, 0.0));
+                    let px = (((ndc.x * 0.5 + 0.5) * r.width as f32) as u32).min(r.width - 1);
+                    let py = (((0.5 - ndc.y * 0.5) * r.height as f32) as u32).min(r.height - 1);
+                    linear(r.rgba[4 * (py * r.width + px) as usize + 1])
+                })
+                .sum::<f64>()
+                / 9.0
+        };
+        let (lit, umbra) = (across(edge + 6.0 * rho), across(edge - 6.0 * rho));
+        let v: Vec<f64> = ys.iter().map(|&y| (across(y) - umbra) / (lit - umbra)).collect();
+        // Spread: the standard deviation of y weighted by the visibility's rise across the edge.
+        let (mut w, mut m1, mut m2) = (0.0, 0.0, 0.0);
+        for k in 1..v.len() {
+            let dv = (v[k] - v[k - 1]).max(0.0);
+            let y = f64::from(0.5 * (ys[k] + ys[k - 1]));
+            (w, m1, m2) = (w + dv, m1 + dv * y, m2 + dv * y * y);
+        }
+        let mean = m1 / w;
+        let spread = (m2 / w - mean * mean).max(0.0).sqrt();
+        let crossing = |t: f64| f64::from(ys[v.iter().position(|&x| x >= t).unwrap_or(v.len() - 1)]);
+        let width = crossing(0.9) - crossing(0.1);
+        let middle = crossing(0.5) - f64::from(edge);
+        let rho = f64::from(rho);
+        println!(
+            "tan r {tan_r}: rho {:.1} mm; spread {:.1} mm = {:.3} rho (disc 0.5), 10-90 % width {:.1} mm = {:.3} rho (disc 1.374), middle {:+.1} mm from the edge; lit {lit:.3}, umbra {umbra:.3}",
+            rho * 1e3,
+            spread * 1e3,
+            spread / rho,
+            width * 1e3,
+            width / rho,
+            middle * 1e3,
+        );
+        assert!(lit > 0.2 && umbra < 0.05 * lit, "tan r {tan_r}: lit {lit:.3}, umbra {umbra:.3}");
+        assert!((spread / rho - 0.5).abs() <= 0.1, "tan r {tan_r}: the penumbra's spread is {:.3} rho, the disc's 0.5", spread / rho);
+        assert!(
+            (width / rho - 1.374).abs() <= 0.275,
+            "tan r {tan_r}: the penumbra's 10-90 % width is {:.3} rho, the disc's 1.374",
+            width / rho
+        );
+        assert!(middle.abs() <= rho / 4.0, "tan r {tan_r}: the edge's middle is {:.1} mm off", middle * 1e3);
     }
 }

@@ -112,9 +112,10 @@ fn light_frame(sun: Vec3, corners: &[Vec3; 8], centre: Vec3, radius: f32) -> (Ma
 /// lookup (shaders/frame.wgsl `sun_visibility_soft`) can still see the model, for a `size`²
 /// map over `extent` metres (its rectangle's sides), a model of bounding `radius` (the map's
 /// depth range is 2 radii, so no blocker is farther than that from a receiver) and a sun of
-/// angular radius tan = `tan_radius`. The lookup's comparison taps reach 5/6 of the penumbra
-/// (3×3 taps over 2.5 penumbrae) plus one texel of bilinear footprint from the point; this
-/// allows 1.25 penumbrae plus two texels.
+/// angular radius tan = `tan_radius`. The lookup's comparison taps reach 0.61 of the penumbra
+/// (3×3 taps 0.61 penumbrae apart, the spread of the sun's disc) plus one texel of bilinear
+/// footprint from the point; this allows 1.25 penumbrae plus two texels (sized when the taps
+/// reached 5/6 of it, before the twelfth session; a margin, kept).
 pub fn lookup_reach(size: u32, extent: Vec2, radius: f32, tan_radius: f32) -> f32 {
     let texel = extent.max_element() / size.max(1) as f32;
     let penumbra = (2.0 * radius * tan_radius.max(0.0)).max(texel);

@@ -92,13 +92,17 @@ use std::path::Path;
 /// grazes no longer shadows itself): ROI 0.0863, 0.0497, 0.0923, 0.0688, 0.0701 (mean 0.0734, was
 /// 0.0760), luminance 0.969, 1.007, 1.005, 1.008, 1.015; quarry_truck's bound 0.093 → 0.081
 /// (measured + 0.01 rounded up; its luminance error's 0.04 kept: measured + 0.03 would loosen it),
-/// the others as they were.
+/// the others as they were. Twelfth session (2026-12-02 05:40 UTC, s12-mip, debug): the model's
+/// textures with their mip chain, sampled at a bias of -1.5 levels (shaders/model.wgsl): ROI
+/// 0.0863, 0.0497, 0.0923, 0.0688, 0.0699 (the truck's was 0.0701), luminance 0.969, 1.007,
+/// 1.005, 1.008, 1.016 (the truck's was 1.015); the truck's bound 0.081 -> 0.080 (measured + 0.01
+/// rounded up), the others kept.
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.097, 0.04),
     ("blouberg_teapot", 0.060, 0.04),
     ("courtyard_dragon", 0.103, 0.04),
     ("city_spot", 0.079, 0.04),
-    ("quarry_truck", 0.081, 0.04),
+    ("quarry_truck", 0.080, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,

@@ -98,13 +98,22 @@ fn vertex_sun(in: VertexOut) -> f32 {
     return select(0.0, clamp(in.sun.x / in.sun.y, 0.0, 1.0), in.sun.y > 0.0);
 }
 
+// The diffuse texture's level-of-detail bias (mip levels; negative reads finer levels than
+// the sampler's own choice). The texture has its whole mip chain (render/mip_chain.rs); the
+// sampler picks the level from the larger of the pixel's two footprint axes and blends two
+// levels of bilinear texels, a kernel wider than the pixel, so at bias 0 the truck was blurrier
+// than the path-traced references (64 samples a pixel, box filter) and its sh9-ggx ROI FLIP
+// rose 0.0701 -> 0.0743; -1, -1.5, -2 gave 0.0708, 0.0699, 0.0698 (docs/PERFORMANCE.md,
+// twelfth session): -1.5 is the smallest of those no less accurate than level 0 alone (0.0701).
+const DIFFUSE_LOD_BIAS: f32 = -1.5;
+
 // The surface's diffuse reflectance after colour correction (seed §5.6), which acts on what the
 // model priors were measured on: the diffuse texture's linear colour when there is one, else
 // the material's diffuse colour. A corrected reflectance is kept at or below 1.
 fn surface_albedo(uv: vec2<f32>) -> vec3<f32> {
     let albedo = material.albedo.rgb;
     if (material.albedo.a > 0.5) {
-        let texel = textureSample(diffuse_tex, diffuse_smp, uv).rgb;
+        let texel = textureSampleBias(diffuse_tex, diffuse_smp, uv, DIFFUSE_LOD_BIAS).rgb;
         return albedo * min(corrected_colour(texel), vec3<f32>(1.0));
     }
     return min(corrected_colour(albedo), vec3<f32>(1.0));

@@ -145,6 +145,66 @@ fn the_layers_hide_a_single_sided_back_face_as_the_composite_does() {
     );
 }
 
+/// A texture seen from far away renders as its mean, not as a few of its texels (aliasing):
+/// the model's textures carry their mip chain (render/mip_chain.rs) and the material sampler
+/// filters between levels. A 2×2-unit square, 256×256 black-and-white texels of one texel
+/// each, lit by the sun alone from straight above (a pixel is the texel's linear value × a
+/// constant), is drawn 30 px wide: 8.6 texels a pixel, level 3.1, 1.6 after model.wgsl's bias
+/// of -1.5, so every level the sampler blends is 1 or coarser, and each of those is uniform:
+/// 188, the linear mean 0.5 encoded. The same square with a uniform 188 texture is its
+/// reference, so the bound is the 8-bit rounding of the same value: one level. Without the
+/// chain each pixel reads 4 of the 0/255 texels of level 0 and lands anywhere between black
+/// and white. Near (0.46 texels a pixel) the checks show, which proves the texture is what is
+/// drawn.
+#[test]
+fn a_far_checkerboard_renders_its_mean() {
+    use glam::Vec3;
+    let n = 256u32;
+    let texture = |code: &dyn Fn(u32, u32) -> u8| previz::scene::Rgba8Image {
+        width: n,
+        height: n,
+        pixels: (0..n * n)
+            .flat_map(|i| {
+                let v = code(i % n, i / n);
+                [v, v, v, 255]
+            })
+            .collect(),
+    };
+    let square = |tex: previz::scene::Rgba8Image| {
+        let mut grid = common::flat_grid(1);
+        grid.uvs = grid.positions.iter().map(|p| [(p[0] + 1.0) / 2.0, (p[2] + 1.0) / 2.0]).collect();
+        let material = previz::scene::Material {
+            diffuse: [1.0; 3],
+            specular: [0.0; 3],
+            sides: Sides::Front,
+            texture: Some(tex),
+            ..previz::scene::Material::default()
+        };
+        Model { meshes: vec![grid], materials: vec![material] }
+    };
+    // The square's pixels at height `z` (the camera looks straight down at it), 2 px inside its
+    // edges (vfov 60°, 240 px: half-width 120 / (z tan 30°) px; at most 100 px).
+    let draw = |tex: previz::scene::Rgba8Image, z: f32| -> Vec<[u8; 4]> {
+        let (mut c, mut p) = common::sun_alone_from_above(square(tex), previz::render::LightingMethod::Hemisphere, 1.0);
+        p.lighting.sun_dir = Vec3::Z;
+        p.lighting.sunlight = 1.0;
+        p.camera.position = Vec3::new(0.0, 0.0, z);
+        let r = c.render(gpu(), &p, Layer::Composite).unwrap();
+        let half = (120.0 / (z * 30f32.to_radians().tan())).min(100.0) as u32 - 2;
+        (120 - half..120 + half).flat_map(|y| (160 - half..160 + half).map(move |x| (x, y))).map(|(x, y)| common::pixel(&r, x, y)).collect()
+    };
+    let checks = || texture(&|x, y| if (x + y) % 2 == 0 { 0 } else { 255 });
+    let far = draw(checks(), 14.0);
+    let mean = draw(texture(&|_, _| 188), 14.0);
+    assert!(far.len() > 500, "{} pixels", far.len());
+    assert!(mean.iter().all(|p| p[1] > 60), "the uniform square is lit: {:?}", mean[0]);
+    let worst = far.iter().zip(&mean).flat_map(|(a, b)| (0..3).map(|c| a[c].abs_diff(b[c]))).max().unwrap();
+    assert!(worst <= 1, "far away the checks differ from their mean by up to {worst} levels (aliasing)");
+    let near = draw(checks(), 0.75);
+    let (lo, hi) = near.iter().fold((255, 0), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+    assert!(hi - lo > 150, "near, the checks show: {lo}..{hi}");
+}
+
 /// glTF 2.0 §3.9.5: a double-sided material's back face has "its normals reversed before the
 /// lighting equation is evaluated". The sun stands south of the squares, behind the camera, so
 /// the front-facing square's normal (south) faces it. Reversed, the back-facing square's normal

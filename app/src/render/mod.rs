@@ -7,6 +7,7 @@ pub mod frame;
 pub mod ground_worker;
 pub mod layers;
 pub mod method;
+pub mod mip_chain;
 pub mod model_cache;
 pub mod params;
 pub mod passes;

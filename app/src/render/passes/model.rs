@@ -8,6 +8,7 @@ use crate::gpu::{Gpu, build};
 use crate::light::ggx;
 use crate::render::LightingMethod;
 use crate::render::environment::EnvironmentViews;
+use crate::render::mip_chain;
 use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
 use crate::render::passes::vertex_sun;
@@ -517,15 +518,25 @@ impl ModelPass {
     /// swaps it in once the GPU accepted the upload).
     pub fn upload(&self, gpu: &Gpu, model: &Model, prepared: Arc<PreparedModel>) -> Result<ModelGpu> {
         let device = &gpu.device;
-        let textures: Vec<Option<wgpu::TextureView>> = model
-            .materials
-            .iter()
-            .map(|m| {
-                m.texture
-                    .as_ref()
-                    .map(|t| build::sampled_texture(device, &gpu.queue, &m.name, (t.width, t.height), COLOR_FORMAT, &t.pixels))
-            })
-            .collect();
+        // Each texture with its whole mip chain (render/mip_chain.rs), sampled trilinearly; a
+        // texture that an earlier material holds too (the truck's two materials share one) is
+        // built and uploaded once.
+        let mut textures: Vec<Option<wgpu::TextureView>> = Vec::with_capacity(model.materials.len());
+        for (i, m) in model.materials.iter().enumerate() {
+            let view = match &m.texture {
+                None => None,
+                Some(t) => {
+                    let same = |o: &crate::scene::Material| {
+                        o.texture.as_ref().is_some_and(|o| (o.width, o.height) == (t.width, t.height) && o.pixels == t.pixels)
+                    };
+                    match model.materials[..i].iter().position(same) {
+                        Some(j) => textures[j].clone(),
+                        None => Some(mip_chain::upload(device, &gpu.queue, &m.name, t)?),
+                    }
+                }
+            };
+            textures.push(view);
+        }
         let mut meshes = Vec::new();
         let mut materials = Vec::new();
         for ((mesh, lods), vertices) in model.meshes.iter().zip(&prepared.chain.meshes).zip(&prepared.vertices) {

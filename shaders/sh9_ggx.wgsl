@@ -1,17 +1,18 @@
 // The sh9-ggx lighting method (issue 9), appended to model.wgsl's module: light measured from
 // the environment, in colour.
-//   diffuse  = albedo * ((SH9 irradiance of the sky above the horizon without the sun, facing
-//                         the bent normal, * ao.x
-//                         + a uniform ground's irradiance * mix(ao.y, ao.z, sun's share)
-//                         + both * ao.w) / pi * a_c
+//   diffuse  = albedo * ((the sky above the horizon without the sun through the vertex's own
+//                         open rays, weighted by its binned radiance, plus the model's own
+//                         surfaces' reflection of it, in the colour of SH9 along the bent normal
+//                         + a uniform ground's irradiance * mix(ao.y, ao.z, sun's share)) / pi * a_c
 //                        + the sun's irradiance / pi * max(n.l, 0) * soft shadow * d_c)
 //   specular = the environment prefiltered for the GGX lobe at the surface's roughness, times the
 //              split-sum BRDF terms F0 * A + B (Karis 2013), times (ao.x + ao.w) * s_c
 // ao: the vertex's shares of the sky's light, of the ground's where the sky lights it (past the
 // model's contact shadow on the ground), of the ground's past the model alone, and the model's
-// own reflected light (scene::occlusion::model_sky_ground); the ground's sunlit part is taken as
-// unshadowed. The sky is looked up along the bent normal (the mean direction of the vertex's rays
-// that pass the model): a surface in a crevice gets the light of the sky it sees.
+// own reflected light by the multi-bounce fit (scene::occlusion::model_sky_ground; ao.x and ao.w
+// now weight the specular alone); the ground's sunlit part is taken as unshadowed. The sky's
+// colour is looked up along the bent normal (the mean direction of the vertex's rays that pass
+// the model): a surface in a crevice gets the light of the sky it sees.
 // The sky's and sun's levels are frame.daylight and frame.sunlight, so the DL/SL multipliers
 // and the live view's sliders act on them; a_c, d_c, s_c (the scene's material terms, seed
 // Eq. 3) scale the sky, sun and specular terms: s_c = 0 gives a Lambertian surface, the
@@ -46,14 +47,26 @@ fn sh9_eval(d: vec3<f32>) -> vec3<f32> {
 
 // The light of the sky (above the horizon) and of the ground the model stands on, on a surface
 // facing world normal n, as irradiance / pi per unit of frame.daylight; ao: the vertex's shares
-// (VertexIn.ao); bent: the unit world direction the sky is looked up along (VertexIn.bent). A
-// uniform ground of radiance L below the horizon gives E / pi = L (1 - n.z) / 2;
-// the ground's light is the sky's (shadowed by the model: ao.y) and the sun's (light.ground.w of
-// it, unshadowed here: ao.z); the model's own surfaces reflect ao.w of the open light.
-fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>) -> vec3<f32> {
+// (VertexIn.ao); bent: the unit world direction of the vertex's open rays (VertexIn.bent); seen:
+// the sky's light the vertex gets, through its own open rays and reflected by the model's own
+// surfaces, as irradiance / pi relative to the sky's mean radiance (render::model_cache::
+// PreparedModel::vertices_under, carried in the bent normal's length), given the colour of the
+// SH9 irradiance along the bent normal. A uniform ground of radiance L below the horizon gives
+// E / pi = L (1 - n.z) / 2; the ground's light is the sky's (shadowed by the model: ao.y) and the
+// sun's (light.ground.w of it, unshadowed here: ao.z). The ground's light the model's own surfaces
+// reflect is not added: previz's ground term alone is 0.965 of the path tracer's whole ground-lit
+// light on the courtyard dragon, its interreflection included (docs/accuracy.md, "Twelfth session
+// — the model's sky and bounce from its own rays").
+fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, seen: f32) -> vec3<f32> {
     let sky = sh9_eval(env_map_dir(frame, bent));
+    let lum = vec3<f32>(0.2126, 0.7152, 0.0722);
+    let l = dot(sky, lum);
+    // The upper hemisphere's mean radiance: L00 Y00 / (2 pi Y00^2) = L00 * 2 Y00.
+    let mean = light.sh[0].rgb * 0.5641896;
+    let colour = select(mean / max(dot(mean, lum), 1e-8), sky / max(l, 1e-8), l > 1e-6);
+    let visible = colour * (seen * dot(mean, lum));
     let ground = light.ground.rgb * (0.5 * (1.0 - n.z));
-    return sky * ao.x + ground * mix(ao.y, ao.z, light.ground.w) + (sky + ground) * ao.w;
+    return visible + ground * mix(ao.y, ao.z, light.ground.w);
 }
 
 // GGX roughness of a Blinn-Phong exponent (light::ggx::roughness_from_exponent).
@@ -71,7 +84,8 @@ fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
     let ao = in.ao.x + in.ao.w;
     // The bent normal turns with the normal when the back face is seen.
     let b = normalize(in.bent) * select(1.0, -1.0, dot(in.normal, n) < 0.0);
-    let sky = sky_and_ground(n, in.ao, b) * (frame.daylight * material.terms.x);
+    let seen = length(in.bent) / max(length(in.normal), 1e-8);
+    let sky = sky_and_ground(n, in.ao, b, seen) * (frame.daylight * material.terms.x);
     let l = frame.sun_dir;
     let n_dot_l = max(dot(n, l), 0.0);
     // Interpolated from the vertices (VERTEX_SUN, model.wgsl), or looked up per pixel.

@@ -103,11 +103,19 @@ use std::path::Path;
 /// 0.0863, 0.0497, 0.0923, 0.0688, 0.0699 (the truck's was 0.0701), luminance 0.969, 1.007,
 /// 1.005, 1.008, 1.016 (the truck's was 1.015); the truck's bound 0.081 -> 0.080 (measured + 0.01
 /// rounded up), the others kept.
+/// Twelfth session (s12-skybounce, 2026-12-02 05:22 UTC, debug): the model's sky from each
+/// vertex's own open rays weighted by the sky's binned radiance, plus the light of that sky the
+/// model's own surfaces reflect onto it, measured from what the rays meet (scene::occlusion::
+/// ModelRays::sky), instead of SH9 along the bent normal × the sky share and the multi-bounce fit:
+/// ROI 0.0843, 0.0469, 0.0896, 0.0579, 0.0698 (mean 0.0697, was 0.0734), luminance 0.967, 1.000,
+/// 1.002, 0.999, 0.984; bounds = measured + 0.01 rounded up to three decimals; luminance errors
+/// measured + 0.03 rounded up where that tightens them (blouberg_teapot 0.031, courtyard_dragon
+/// 0.033, city_spot 0.032).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.096, 0.04),
-    ("blouberg_teapot", 0.060, 0.04),
-    ("courtyard_dragon", 0.103, 0.04),
-    ("city_spot", 0.079, 0.04),
+    ("quarry_bunny", 0.095, 0.04),
+    ("blouberg_teapot", 0.057, 0.031),
+    ("courtyard_dragon", 0.100, 0.033),
+    ("city_spot", 0.068, 0.032),
     ("quarry_truck", 0.080, 0.04),
 ];
 
@@ -124,9 +132,11 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// tightened the same way (the dragon's 0.042 as it was). The level rule (same session): 0.0255,
 /// 0.0149, 0.0317, 0.0186, 0.0263; the bounds above hold and are kept. Eleventh session (the
 /// model's own surface not a blocker of itself): 0.0253, 0.0148, 0.0313, 0.0182, 0.0241; the
-/// truck's tightened to 0.035, the others kept.
+/// truck's tightened to 0.035, the others kept. Twelfth session (the model's sky and its bounce
+/// from its own rays): 0.0251, 0.0146, 0.0309, 0.0174, 0.0240; the dragon's tightened to 0.041
+/// and Spot's to 0.028, the others kept.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.042), ("city_spot", 0.029), ("quarry_truck", 0.035)];
+    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.041), ("city_spot", 0.028), ("quarry_truck", 0.035)];
 
 #[test]
 fn default_method_against_path_traced_references() {

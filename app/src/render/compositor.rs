@@ -156,6 +156,9 @@ pub struct Compositor {
     /// or scale of the model, not per frame.
     ground_sky_uploaded: Option<Arc<occlusion::GroundSky>>,
     ground_sky_updates: usize,
+    /// The model's vertices the model pass holds with the sky each one sees
+    /// (PreparedModel::vertices_under): rewritten once per turn of the model or new sky.
+    model_sky_uploaded: Option<super::model_cache::MeshVertices>,
     /// Cast a new placement's ground rays on the model cache's worker, drawing the previous map
     /// meanwhile (the live view), instead of waiting for them (a composite).
     ground_in_background: bool,
@@ -257,6 +260,7 @@ impl Compositor {
             shadow_redrawn: vec![false; shadow_held.len()],
             shadow_held,
             ground_sky_uploaded: None,
+            model_sky_uploaded: None,
             ground_sky_updates: 0,
             ground_in_background: false,
             ground_regions: RegionCache::default(),
@@ -358,6 +362,7 @@ impl Compositor {
         let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
         self.ground_sky_uploaded = None;
+        self.model_sky_uploaded = None;
         self.shadow_held.fill(None);
         self.shadow_redrawn.fill(false);
         self.vertex_sun_held = None;
@@ -734,6 +739,17 @@ impl Compositor {
             self.update_ground_sky(gpu, sky)?;
         }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        if p.method == super::LightingMethod::Sh9Ggx {
+            // The sky each vertex sees under this sky and turn of the model (the model cache
+            // makes it once per turn and sky; the same Arc while they stay).
+            let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+            let matrix = super::view::model_matrix(model.bounds(), &p.placement);
+            let vertices = model.prepared.vertices_under(matrix, &p.lighting.sky_radiance, env.heading);
+            if !self.model_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &vertices)) {
+                model.write_vertices(&gpu.queue, &vertices);
+                self.model_sky_uploaded = Some(vertices);
+            }
+        }
         let shadow_index = self.shadow.index_of(data.shadow_map_size);
         let shadow = layer != Layer::Background && data.shadow_pass;
         // Without sunlight (overcast, night) the map is not drawn: every lookup of it is

@@ -24,8 +24,9 @@ pub enum LightingMethod {
     /// Transparent material (Eq. 7) refracting the camera image behind it (§5.5.3).
     LiveRefraction,
     /// Light measured from the environment, in colour (issue 9; shaders/sh9_ggx.wgsl): the sky
-    /// without the sun as SH9 irradiance times ambient occlusion, the sun with soft (PCSS)
-    /// shadows, GGX specular from the prefiltered environment (split-sum, Karis 2013).
+    /// without the sun through each vertex's own open rays (weighted by its binned radiance,
+    /// plus its bounce off the model) in SH9's colour, the sun with soft (PCSS) shadows, GGX
+    /// specular from the prefiltered environment (split-sum, Karis 2013).
     Sh9Ggx,
 }
 

@@ -15,7 +15,7 @@ use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
 use crate::light::sh9::SkyRadiance;
 use crate::scene::lod::LodChain;
-use crate::scene::occlusion::{self, BounceLight, GroundSky, GroundTransfer, Occluders};
+use crate::scene::occlusion::{self, BounceLight, GroundSky, GroundTransfer, ModelRays, Occluders};
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::{Mat4, Vec3};
@@ -79,6 +79,20 @@ impl From<SkyRadiance> for GroundLight {
     }
 }
 
+/// Per mesh, its vertices (shared: the model cache keeps the last, the compositor the uploaded).
+pub type MeshVertices = Arc<Vec<Vec<Vertex>>>;
+
+/// What [`PreparedModel::vertices_under`] depends on: the placement's rotation (its 3 × 3 part's
+/// bits, scale included), the sky's bins and its heading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ModelSkyKey([u32; 9], SkyRadiance, u32);
+
+impl ModelSkyKey {
+    fn of(placement: Mat4, radiance: &SkyRadiance, heading: f32) -> ModelSkyKey {
+        ModelSkyKey(glam::Mat3::from_mat4(placement).to_cols_array().map(f32::to_bits), *radiance, heading.to_bits())
+    }
+}
+
 /// The last placement's ground: the model matrix's bits, its transfer, and the last light with
 /// its map.
 struct Ground {
@@ -125,6 +139,13 @@ pub struct PreparedModel {
     model: Model,
     colour: OnceLock<std::result::Result<ColourStats, String>>,
     occluders: Arc<Occluders>,
+    /// What each vertex's rays passed and met (one cast at load): its sky and bounce under any
+    /// sky and placement ([`PreparedModel::vertices_under`]).
+    rays: ModelRays,
+    /// The vertices under the last placement and sky asked for.
+    sky: Mutex<Option<(ModelSkyKey, MeshVertices)>>,
+    /// Vertex sets made for a new placement or sky.
+    sky_computed: AtomicUsize,
     /// The ground under the last placement and sky asked for, and the cast of a newer one.
     ground: Mutex<GroundState>,
     /// Ground transfers cast, casts a caller waited for, and maps recombined.
@@ -153,7 +174,7 @@ impl PreparedModel {
         // (occluders reflect light too: the multi-bounce fit for the mesh material's albedo),
         // and the bent normal its sky is looked up along.
         let mut occluders = Occluders::of_model(model);
-        let shares = occlusion::model_sky_ground(model, &occluders);
+        let (shares, rays) = occlusion::model_light(model, &occluders);
         // What lights each triangle, for the light the model reflects onto the ground.
         occluders.attach_light_shares(model, &shares);
         for (vertices, ao) in vertices.iter_mut().zip(shares) {
@@ -174,11 +195,64 @@ impl PreparedModel {
             model: model.clone(),
             colour: OnceLock::new(),
             occluders: Arc::new(occluders),
+            rays,
+            sky: Mutex::default(),
+            sky_computed: Default::default(),
             ground: Mutex::default(),
             ground_cast: Default::default(),
             ground_waited: Default::default(),
             ground_computed: Default::default(),
         })
+    }
+
+    /// Per mesh, its vertices under a sky of radiance `radiance` turned by `heading` (as
+    /// [`GroundLight`]'s), the model placed by `placement` (model space → world; its translation
+    /// is not used): each vertex's bent normal scaled to the length of its normal times the sky's
+    /// light it gets (occlusion::ModelRays::sky: through its own open rays, plus what the model's
+    /// own surfaces reflect of it; irradiance over π relative to the sky's mean radiance), which
+    /// shaders/sh9_ggx.wgsl reads as the bent normal's length over the normal's. Made from the
+    /// rays kept at load (no ray is cast); the same `Arc` comes back while the placement's
+    /// rotation and the sky stay (counted in [`PreparedModel::sky_computed`] when made).
+    pub fn vertices_under(&self, placement: Mat4, radiance: &SkyRadiance, heading: f32) -> MeshVertices {
+        let key = ModelSkyKey::of(placement, radiance, heading);
+        let mut held = self.sky.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((k, v)) = held.as_ref()
+            && *k == key
+        {
+            return v.clone();
+        }
+        let frame = glam::Mat3::from_mat4(placement);
+        let sky = self.rays.sky(&self.model, &|d| radiance.radiance((frame * d).normalize_or_zero(), heading));
+        let vertices: Vec<Vec<Vertex>> = self
+            .vertices
+            .iter()
+            .zip(sky)
+            .map(|(vs, s)| {
+                vs.iter()
+                    .zip(s)
+                    .map(|(v, s)| {
+                        let n = Vec3::from(v.normal);
+                        let b = Vec3::from(v.bent).normalize_or(n.normalize_or_zero()) * s.max(1e-4) * n.length();
+                        Vertex { bent: b.to_array(), ..*v }
+                    })
+                    .collect()
+            })
+            .collect();
+        let vertices = Arc::new(vertices);
+        self.sky_computed.fetch_add(1, Relaxed);
+        *held = Some((key, vertices.clone()));
+        vertices
+    }
+
+    /// How many vertex sets [`PreparedModel::vertices_under`] made (for a new placement or sky).
+    pub fn sky_computed(&self) -> usize {
+        self.sky_computed.load(Relaxed)
+    }
+
+    /// Bytes the model keeps per vertex for [`PreparedModel::vertices_under`] (its rays; inner
+    /// samples counted with their triangles' vertices).
+    pub fn ray_bytes(&self) -> usize {
+        self.rays.bytes()
     }
 
     /// Colour statistics of the model's texture (or diffuse colours), the colour correction's
@@ -533,6 +607,32 @@ mod tests {
         }
         bins[4] = bright;
         SkyRadiance { bins }
+    }
+
+    #[test]
+    fn the_models_sky_is_made_once_per_turn_and_sky() {
+        let prepared = PreparedModel::new(&tetrahedron()).unwrap();
+        let sky = east_sky(4.0);
+        let here = Mat4::from_translation(Vec3::new(1.0, 2.0, 0.0));
+        let a = prepared.vertices_under(here, &sky, 0.0);
+        // Moved, not turned: the same vertices.
+        assert!(Arc::ptr_eq(&a, &prepared.vertices_under(Mat4::from_translation(Vec3::X), &sky, 0.0)));
+        assert_eq!(prepared.sky_computed(), 1);
+        // The sky turned by the map's heading, or the model turned: made again, and different
+        // (the sky's bright side is elsewhere); the bent normals keep their directions.
+        let b = prepared.vertices_under(here, &sky, 2.0);
+        let c = prepared.vertices_under(Mat4::from_rotation_z(2.0) * here, &sky, 0.0);
+        assert_eq!(prepared.sky_computed(), 3);
+        let length = |v: &Vertex| Vec3::from(v.bent).length() / Vec3::from(v.normal).length();
+        let lengths = |vs: &Arc<Vec<Vec<Vertex>>>| vs[0].iter().map(length).collect::<Vec<_>>();
+        assert_ne!(lengths(&a), lengths(&b));
+        assert_ne!(lengths(&a), lengths(&c));
+        for (v, w) in a[0].iter().zip(&b[0]) {
+            assert!(Vec3::from(v.bent).normalize().distance(Vec3::from(w.bent).normalize()) < 1e-5);
+        }
+        // Nothing hides a tetrahedron's outward faces from the sky but its own base: each vertex
+        // gets some of it.
+        assert!(lengths(&a).iter().all(|&l| l > 0.0 && l.is_finite()), "{:?}", lengths(&a));
     }
 
     #[test]

@@ -28,9 +28,11 @@ pub struct Vertex {
     /// light (scene::occlusion::model_sky_ground; shaders/model.wgsl `VertexIn.ao`, location
     /// [`AO_LOCATION`]); (1, 1, 1, 0) until the model's occlusion is computed.
     pub ao: [f32; 4],
-    /// The mean direction (model space, unit) of the rays that pass the model, along which the
-    /// sky's light is looked up (scene::occlusion::VertexLight::bent; shaders/model.wgsl
+    /// The mean direction (model space) of the rays that pass the model, along which the sky's
+    /// colour is looked up (scene::occlusion::VertexLight::bent; shaders/model.wgsl
     /// `VertexIn.bent`, location [`BENT_LOCATION`]); the normal until the occlusion is computed.
+    /// Its length over the normal's is the sky's light the vertex gets under the frame's sky
+    /// (render::model_cache::PreparedModel::vertices_under, written before sh9-ggx draws).
     pub bent: [f32; 3],
 }
 

@@ -160,6 +160,15 @@ impl Occluders {
     /// the ray's origin, and its light shares and albedo ([`Occluders::attach_light_shares`]).
     /// None when it hits nothing: a ray [`Occluders::blocked`] lets through (the same tests).
     pub fn nearest_hit(&self, origin: Vec3, dir: Vec3) -> Option<(f32, Vec3, [f32; 5])> {
+        let (t, i) = self.nearest_triangle(origin, dir)?;
+        let [a, b, c] = self.triangles[i];
+        let n = (b - a).cross(c - a);
+        Some((t, if n.dot(dir) > 0.0 { -n } else { n }, self.shares.get(i).copied().unwrap_or(OPEN_SURFACE)))
+    }
+
+    /// The nearest triangle the ray `origin + t·dir`, t > 0, hits (either side): its distance t
+    /// and its index in the hierarchy's order ([`Occluders::triangle`]).
+    pub fn nearest_triangle(&self, origin: Vec3, dir: Vec3) -> Option<(f32, usize)> {
         if self.triangles.is_empty() {
             return None;
         }
@@ -187,10 +196,17 @@ impl Occluders {
                 top += 2;
             }
         }
-        let (t, i) = nearest?;
-        let [a, b, c] = self.triangles[i];
-        let n = (b - a).cross(c - a);
-        Some((t, if n.dot(dir) > 0.0 { -n } else { n }, self.shares.get(i).copied().unwrap_or(OPEN_SURFACE)))
+        nearest
+    }
+
+    /// The corners of triangle `i` in the hierarchy's order ([`Occluders::nearest_triangle`]).
+    pub fn triangle(&self, i: usize) -> Option<[Vec3; 3]> {
+        self.triangles.get(i).copied()
+    }
+
+    /// How many triangles the hierarchy holds.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
     }
 
     /// The cosine-weighted visibility of the hemisphere around unit `normal` at `point`, from
@@ -275,16 +291,25 @@ impl Occluders {
     /// Cast `rays` cosine-distributed rays about unit `n` from `point` (a Hammersley set shifted
     /// by `seed`): `each(direction, blocked)` for each.
     fn cast(&self, point: Vec3, n: Vec3, rays: u32, seed: u32, mut each: impl FnMut(Vec3, bool)) {
-        let (t, b) = orthonormal_basis(n);
         let origin = point + n * self.epsilon;
-        let shift = (unit_hash(seed), unit_hash(seed.wrapping_mul(0x9E37_79B9) ^ 0x5bd1_e995));
-        for i in 0..rays.max(1) {
-            let (u1, u2) = hammersley(i, rays.max(1));
-            let d = cosine_direction((u1 + shift.0).fract(), (u2 + shift.1).fract());
-            let dir = t * d.x + b * d.y + n * d.z;
+        for dir in ray_directions(n, rays, seed) {
             each(dir, self.blocked(origin, dir, f32::INFINITY));
         }
     }
+}
+
+/// The directions [`Occluders::cast`] casts: `rays` (at least one) cosine-distributed about unit
+/// `n`, a Hammersley set shifted by `seed`. The same directions every time, so a ray's direction
+/// need not be kept ([`SampleRays`]).
+pub fn ray_directions(n: Vec3, rays: u32, seed: u32) -> impl Iterator<Item = Vec3> {
+    let (t, b) = orthonormal_basis(n);
+    let shift = (unit_hash(seed), unit_hash(seed.wrapping_mul(0x9E37_79B9) ^ 0x5bd1_e995));
+    let rays = rays.max(1);
+    (0..rays).map(move |i| {
+        let (u1, u2) = hammersley(i, rays);
+        let d = cosine_direction((u1 + shift.0).fract(), (u2 + shift.1).fract());
+        t * d.x + b * d.y + n * d.z
+    })
 }
 
 /// The rotation of `placement` (a rotation and a uniform scale): model directions → world.
@@ -536,39 +561,53 @@ fn parallel_map<I: Sync, T: Send + Clone>(items: &[I], empty: T, f: impl Fn(usiz
 /// [`ground_transfer`]). The model stands upright on its bounding box's base (model space y up,
 /// render::view::model_matrix without a tilt).
 pub fn model_sky_ground(model: &Model, occluders: &Occluders) -> Vec<Vec<VertexLight>> {
+    model_light(model, occluders).0
+}
+
+/// [`model_sky_ground`] and, from the same rays (one cast), what each sample's rays passed and
+/// met ([`ModelRays`]): the sky and the bounce it sees under any sky.
+pub fn model_light(model: &Model, occluders: &Occluders) -> (Vec<Vec<VertexLight>>, ModelRays) {
     let Some(bounds) = model.bounds() else {
-        return model.meshes.iter().map(|m| vec![VertexLight::from(OPEN); m.positions.len()]).collect();
+        let open = model.meshes.iter().map(|m| vec![VertexLight::from(OPEN); m.positions.len()]).collect();
+        return (open, ModelRays::default());
     };
     let ground = standing_ground(occluders, bounds, GROUND_TEXELS, GROUND_RAYS);
     let spacing = SAMPLE_SPACING * (bounds.1 - bounds.0).length();
     let inner: Vec<Vec<SurfaceSample>> = model.meshes.iter().map(|m| triangle_samples(m, spacing)).collect();
     let samples = model.meshes.iter().map(|m| m.positions.len()).sum::<usize>() + inner.iter().map(Vec::len).sum::<usize>();
     let rays = rays_per_vertex(samples);
-    model
+    let none = (OPEN, SampleRays::default());
+    let mut kept = Vec::with_capacity(model.meshes.len());
+    let lights = model
         .meshes
         .iter()
-        .zip(&inner)
+        .zip(inner)
         .map(|(mesh, inner)| {
             let albedo = model.materials.get(mesh.material).map_or(0.8, |m| crate::colour::luminance_bt709(m.diffuse));
             let light =
                 |start: Vec3, normal: Vec3, seed: u32| light_at(occluders, &ground, bounds.0.y, (start, normal), rays, seed, albedo);
-            let values = per_vertex(mesh, OPEN, light);
+            let (values, at_vertices): (Vec<Values>, Vec<SampleRays>) = per_vertex(mesh, none.clone(), light).into_iter().unzip();
             let smooth: [Vec<f32>; VALUES] =
                 std::array::from_fn(|k| smooth_over_neighbours(mesh, &values.iter().map(|v| v[k]).collect::<Vec<_>>()));
             let mut out: Vec<Values> = (0..values.len()).map(|i| std::array::from_fn(|k| smooth[k][i])).collect();
+            let mut inner_rays = Vec::new();
             if !inner.is_empty() {
                 let first = mesh.positions.len() as u32;
-                let sampled = parallel_map(inner, OPEN, |k, s| light(s.point, s.normal, first + k as u32));
-                let projected = lumped_projection(mesh, spacing, &values, inner, &sampled);
+                let sampled: Vec<Values>;
+                (sampled, inner_rays) =
+                    parallel_map(&inner, none.clone(), |k, s| light(s.point, s.normal, first + k as u32)).into_iter().unzip();
+                let projected = lumped_projection(mesh, spacing, &values, &inner, &sampled);
                 for (o, p) in out.iter_mut().zip(projected) {
                     if let Some(p) = p {
                         *o = p;
                     }
                 }
             }
+            kept.push(MeshRays { at_vertices, inner, inner_rays });
             out.into_iter().map(VertexLight::from).collect()
         })
-        .collect()
+        .collect();
+    (lights, ModelRays { meshes: kept, rays, spacing, triangles: hit_triangles(model, occluders) })
 }
 
 /// What [`model_sky_ground`] gives one vertex.
@@ -612,18 +651,28 @@ fn light_at(
     rays: u32,
     seed: u32,
     albedo: f32,
-) -> Values {
-    let Some(n) = normal.try_normalize() else { return OPEN };
+) -> (Values, SampleRays) {
+    let Some(n) = normal.try_normalize() else { return (OPEN, SampleRays::default()) };
     // (rays, open rays) going up; (rays, open rays, Σ ground visibility) going down.
     let (mut up, mut up_open, mut down, mut down_open, mut lit) = (0u32, 0u32, 0u32, 0u32, 0f32);
     let mut bent = Vec3::ZERO;
-    occluders.cast(start, n, rays, seed, |d, hit| {
+    let mut kept = SampleRays { normal: n, open_up: 0, hits: Vec::new() };
+    let origin = start + n * occluders.epsilon;
+    for (i, d) in ray_directions(n, rays, seed).enumerate() {
+        let nearest = occluders.nearest_triangle(origin, d);
+        let hit = nearest.is_some();
+        if let Some((_, t)) = nearest {
+            kept.hits.push(t as u32);
+        }
         if !hit {
             bent += d;
         }
         if d.y > 0.0 {
             up += 1;
             up_open += u32::from(!hit);
+            if !hit && i < 64 {
+                kept.open_up |= 1 << i;
+            }
         } else {
             down += 1;
             if !hit {
@@ -633,12 +682,175 @@ fn light_at(
                 lit += ground.at(Vec2::new(g.x, -g.z));
             }
         }
-    });
+    }
     let open = (up_open + down_open) as f32 / rays.max(1) as f32;
     let share = |k: u32, n: u32| if n > 0 { k as f32 / n as f32 } else { open };
     let lit = if down > 0 { lit / down as f32 } else { open };
     let b = bent.try_normalize().unwrap_or(n);
-    [share(up_open, up), lit, share(down_open, down), multi_bounce(open, albedo) - open, b.x, b.y, b.z]
+    ([share(up_open, up), lit, share(down_open, down), multi_bounce(open, albedo) - open, b.x, b.y, b.z], kept)
+}
+
+/// What one sample's rays ([`ray_directions`] about `normal`, [`model_light`]'s count and seed)
+/// passed and met.
+#[derive(Clone, Debug, Default)]
+pub struct SampleRays {
+    /// The unit normal the rays were cast about (zero: none were).
+    normal: Vec3,
+    /// Bit i: ray i goes up (model space y) and passes the model.
+    open_up: u64,
+    /// Per ray that meets the model, the nearest triangle's index in the occluders' order.
+    hits: Vec<u32>,
+}
+
+/// One mesh's [`SampleRays`]: at its vertices, and at its large triangles' inner samples.
+#[derive(Clone, Debug, Default)]
+struct MeshRays {
+    at_vertices: Vec<SampleRays>,
+    inner: Vec<SurfaceSample>,
+    inner_rays: Vec<SampleRays>,
+}
+
+/// Each sample's rays of [`model_light`] (one cast at load), kept so that any sky gives each
+/// vertex the light it sees through its own rays and the light of that sky the model's own
+/// surfaces reflect onto it ([`ModelRays::sky`]).
+#[derive(Clone, Debug, Default)]
+pub struct ModelRays {
+    meshes: Vec<MeshRays>,
+    /// Rays cast per sample (open or not, up or down).
+    rays: u32,
+    spacing: f32,
+    /// Per triangle of the occluders (their order): its corners as indices into every mesh's
+    /// vertices in turn and its albedo's luminance (the mesh material's diffuse colour times its
+    /// texture at the triangle's centre); None: not a model triangle.
+    triangles: Vec<Option<HitTriangle>>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct HitTriangle {
+    corners: [u32; 3],
+    albedo: f32,
+}
+
+/// Bounces of the model's own light that [`ModelRays`] follows: the second lets each surface the
+/// rays meet carry the first's.
+pub const BOUNCES: usize = 2;
+
+/// [`ModelRays::triangles`] of `model`'s triangles in `occluders` ([`Occluders::of_model`]).
+fn hit_triangles(model: &Model, occluders: &Occluders) -> Vec<Option<HitTriangle>> {
+    let key = |t: [Vec3; 3]| t.map(|p| p.to_array().map(f32::to_bits));
+    let mut by_corners = std::collections::HashMap::new();
+    let mut first = 0u32;
+    for mesh in &model.meshes {
+        if let Some(material) = model.materials.get(mesh.material) {
+            for t in mesh.indices.chunks_exact(3) {
+                let Some((corners, p, _)) = triangle_of(mesh, t) else { continue };
+                let uv = |i: u32| glam::Vec2::from(mesh.uvs.get(i as usize).copied().unwrap_or([0.0; 2]));
+                let centre = (uv(corners[0]) + uv(corners[1]) + uv(corners[2])) / 3.0;
+                let texel = material.texture.as_ref().map_or([1.0; 3], |tex| texel_at(tex, centre));
+                let albedo = crate::colour::luminance_bt709(std::array::from_fn(|k| material.diffuse[k] * texel[k]));
+                by_corners.insert(key(p), HitTriangle { corners: corners.map(|c| c + first), albedo });
+            }
+        }
+        first += mesh.positions.len() as u32;
+    }
+    occluders.triangles.iter().map(|t| by_corners.get(&key(*t)).copied()).collect()
+}
+
+impl ModelRays {
+    /// Per mesh of `model` (the one the rays were cast for), per vertex: `value` of each sample
+    /// averaged over the vertex's neighbours and projected from a large triangle's inner samples
+    /// as [`model_sky_ground`]'s values are. `value(mesh, sample, rays)`: a mesh's samples are its
+    /// vertices, then its inner samples (the index is the rays' seed).
+    fn per_vertex(&self, model: &Model, value: &(dyn Fn(usize, usize, &SampleRays) -> f32 + Sync)) -> Vec<Vec<f32>> {
+        let pack = |v: f32| -> Values { [v, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0] };
+        model
+            .meshes
+            .iter()
+            .zip(&self.meshes)
+            .enumerate()
+            .map(|(j, (mesh, rays))| {
+                let values = parallel_map(&rays.at_vertices, 0.0, |i, r| value(j, i, r));
+                let mut out = smooth_over_neighbours(mesh, &values);
+                if !rays.inner.is_empty() {
+                    let first = rays.at_vertices.len();
+                    let inner = parallel_map(&rays.inner_rays, pack(0.0), |k, r| pack(value(j, first + k, r)));
+                    let at: Vec<Values> = values.iter().map(|&v| pack(v)).collect();
+                    for (o, p) in out.iter_mut().zip(lumped_projection(mesh, self.spacing, &at, &rays.inner, &inner)) {
+                        if let Some(p) = p {
+                            *o = p[0];
+                        }
+                    }
+                }
+                out
+            })
+            .collect()
+    }
+
+    /// The light the surfaces a sample's rays meet reflect onto it, (1/N) Σ over those rays of
+    /// the surface's albedo times `light(triangle)` (its irradiance over π), N the rays cast
+    /// (cosine-distributed: the mean of the radiance they meet is the irradiance over π).
+    fn reflected(&self, r: &SampleRays, light: &dyn Fn(&HitTriangle) -> f32) -> f32 {
+        let sum: f32 = r.hits.iter().filter_map(|&h| self.triangles.get(h as usize)?.as_ref()).map(|t| t.albedo * light(t)).sum();
+        sum / self.rays.max(1) as f32
+    }
+
+    /// The mean of `values` (every mesh's vertices in turn) over a triangle's corners.
+    fn corner_mean(values: &[f32], t: &HitTriangle) -> f32 {
+        t.corners.iter().map(|&c| values.get(c as usize).copied().unwrap_or(0.0)).sum::<f32>() / 3.0
+    }
+
+    /// Per mesh, per vertex: the sky's light as irradiance over π, relative to the sky's mean
+    /// radiance, for a sky of radiance `radiance(d)` (d: unit, model space, y up) — the light
+    /// through the vertex's own open up-going rays, (1/N) Σ L(d) over them (N the rays cast,
+    /// cosine-distributed: a lone plane tilted θ under a uniform sky of 1 gets (1 + cos θ) / 2),
+    /// plus the sky's light the model's own surfaces reflect onto it ([`BOUNCES`] bounces): each
+    /// surface its rays meet, of albedo ρ, sends ρ times its own sky light (the mean of its
+    /// corners' values).
+    pub fn sky(&self, model: &Model, radiance: &(dyn Fn(Vec3) -> f32 + Sync)) -> Vec<Vec<f32>> {
+        self.sky_with(model, radiance, BOUNCES)
+    }
+
+    /// [`ModelRays::sky`] with `bounces` bounces (0: the sky the vertices see through their own
+    /// rays alone).
+    pub fn sky_with(&self, model: &Model, radiance: &(dyn Fn(Vec3) -> f32 + Sync), bounces: usize) -> Vec<Vec<f32>> {
+        let n = self.rays.max(1);
+        let seen_at = |r: &SampleRays, seed: u32| -> f32 {
+            if r.open_up == 0 {
+                return 0.0;
+            }
+            let sum: f32 = ray_directions(r.normal, n, seed)
+                .enumerate()
+                .filter(|(i, _)| *i < 64 && r.open_up & (1 << i) != 0)
+                .map(|(_, d)| radiance(d).max(0.0))
+                .sum();
+            sum / n as f32
+        };
+        // Each sample's own sky, kept for the bounces (per mesh: vertices, then inner samples).
+        let seen: Vec<Vec<f32>> = self
+            .meshes
+            .iter()
+            .map(|m| {
+                let samples: Vec<&SampleRays> = m.at_vertices.iter().chain(&m.inner_rays).collect();
+                parallel_map(&samples, 0.0, |i, r| seen_at(r, i as u32))
+            })
+            .collect();
+        let mut out = self.per_vertex(model, &|j, i, _| seen[j][i]);
+        for _ in 0..bounces {
+            let all = out.concat();
+            out = self.per_vertex(model, &|j, i, r| seen[j][i] + self.reflected(r, &|t| Self::corner_mean(&all, t)));
+        }
+        out
+    }
+
+    /// Bytes held (the rays' masks and hits, the samples and the triangles' table).
+    pub fn bytes(&self) -> usize {
+        let rays = |r: &[SampleRays]| r.iter().map(|s| std::mem::size_of::<SampleRays>() + 4 * s.hits.capacity()).sum::<usize>();
+        self.meshes
+            .iter()
+            .map(|m| rays(&m.at_vertices) + rays(&m.inner_rays) + m.inner.len() * std::mem::size_of::<SurfaceSample>())
+            .sum::<usize>()
+            + self.triangles.len() * std::mem::size_of::<Option<HitTriangle>>()
+    }
 }
 
 /// Largest distance between the points where [`model_sky_ground`] samples the light, as a share
@@ -1157,6 +1369,78 @@ mod tests {
         [[p(x0, y0), p(x1, y0), p(x1, y1)], [p(x0, y0), p(x1, y1), p(x0, y1)]]
     }
 
+    #[test]
+    fn an_open_vertex_sees_the_tilted_planes_share_of_the_sky_through_its_own_rays() {
+        // A lone quad whose normal leans θ from the model's up (y): under a sky of radiance 1 above
+        // the horizon, E / π = (1 + cos θ) / 2, the tilted plane's view factor to the sky; a
+        // level quad under a sky of 2 towards +x and 1 towards −x: E / π = (2 + 1) / 2. Nothing
+        // is met, so nothing is reflected.
+        for theta in [0.0f32, 30.0, 60.0, 90.0, 120.0] {
+            let t = theta.to_radians();
+            let n = Vec3::new(t.sin(), t.cos(), 0.0);
+            let (u, v) = (Vec3::Z, n.cross(Vec3::Z));
+            let positions = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(a, b)| (u * a + v * b).to_array()).to_vec();
+            let mesh = Mesh { positions, normals: vec![n.to_array(); 4], uvs: vec![], indices: vec![0, 1, 2, 0, 2, 3], material: 0 };
+            let model = Model { meshes: vec![mesh], materials: vec![crate::scene::Material::default()] };
+            let (_, rays) = model_light(&model, &Occluders::of_model(&model));
+            let sky = rays.sky(&model, &|d| if d.y > 0.0 { 1.0 } else { 0.0 });
+            let mean = sky[0].iter().sum::<f32>() / 4.0;
+            let want = (1.0 + t.cos()) / 2.0;
+            assert!((mean - want).abs() < 0.03, "θ {theta}: {mean} against {want}");
+            if theta == 0.0 {
+                let sky = rays.sky(&model, &|d| if d.x > 0.0 { 2.0 } else { 1.0 });
+                let mean = sky[0].iter().sum::<f32>() / 4.0;
+                assert!((mean - 1.5).abs() < 0.05, "{mean}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_vertex_in_a_closed_box_gets_only_the_light_its_walls_reflect() {
+        // A closed cube of albedo 0.5 (normals inwards) with a small level quad of albedo 0.8
+        // floating inside, facing up: no ray of the quad passes, so it sees no sky, and the
+        // quad gets only what its walls reflect. Walls lit by E / π = 3: every ray of the quad
+        // meets a wall, so its vertices get 0.5 × 3, the walls' albedo times their light.
+        let mut walls = Mesh::default();
+        for axis in 0..3 {
+            for side in [-1.0f32, 1.0] {
+                let mut n = Vec3::ZERO;
+                n[axis] = -side;
+                let (u, v) = orthonormal_basis(n);
+                let first = walls.positions.len() as u32;
+                for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    walls.positions.push((-n + u * a + v * b).to_array());
+                    walls.normals.push(n.to_array());
+                }
+                // Wound so that (b − a) × (c − a) is the inward normal.
+                walls.indices.extend([0, 1, 2, 0, 2, 3].map(|i| first + i));
+            }
+        }
+        let quad = Mesh {
+            positions: vec![[-0.1, 0.0, -0.1], [-0.1, 0.0, 0.1], [0.1, 0.0, 0.1], [0.1, 0.0, -0.1]],
+            normals: vec![[0.0, 1.0, 0.0]; 4],
+            uvs: vec![],
+            indices: vec![0, 1, 2, 0, 2, 3],
+            material: 1,
+        };
+        let grey = |g: f32| crate::scene::Material { diffuse: [g; 3], ..Default::default() };
+        let model = Model { meshes: vec![walls, quad], materials: vec![grey(0.5), grey(0.8)] };
+        let (shares, rays) = model_light(&model, &Occluders::of_model(&model));
+        // The quad sees no sky; what it gets is its walls' light (the walls' own vertices, at the
+        // cube's corners and edges, let a few grazing rays out between faces) times their albedo.
+        let seen = rays.sky_with(&model, &|_| 1.0, 0);
+        assert!(seen[1].iter().all(|&v| v == 0.0), "{:?}", seen[1]);
+        let sky = rays.sky(&model, &|_| 1.0);
+        let brightest_wall = sky[0].iter().copied().fold(0.0, f32::max);
+        assert!(sky[1].iter().all(|&v| v > 0.0 && v <= 0.5 * brightest_wall + 1e-6), "{sky:?}");
+        let lit = rays.per_vertex(&model, &|_, _, r| rays.reflected(r, &|_| 3.0));
+        for v in &lit[1] {
+            assert!((v - 1.5).abs() < 1e-4, "{:?}", lit[1]);
+        }
+        // The vertices' own shares agree: no ray of the quad passes the box.
+        assert!(shares[1].iter().all(|v| v.ao[0] == 0.0 && v.ao[2] == 0.0), "{:?}", shares[1]);
+    }
+
     /// A UV sphere of radius r at the origin with outward unit normals.
     fn sphere(r: f32, rings: u32, segments: u32) -> Mesh {
         let mut mesh = Mesh::default();
@@ -1449,14 +1733,14 @@ mod tests {
         }
         let occ = Occluders::new(tris);
         let ground = GroundSky { min: Vec2::ZERO, max: Vec2::ONE, z: 0.0, size: 1, visibility: vec![1.0], bounce: Vec::new() };
-        let v = light_at(&occ, &ground, 0.0, (Vec3::new(-1e-3, 0.0, 0.0), Vec3::Y), 4096, 1, 0.0);
+        let (v, _) = light_at(&occ, &ground, 0.0, (Vec3::new(-1e-3, 0.0, 0.0), Vec3::Y), 4096, 1, 0.0);
         let bent = Vec3::new(v[4], v[5], v[6]);
         let lean = bent.angle_between(Vec3::Y).to_degrees();
         let want = (2.0 / std::f32::consts::PI).atan().to_degrees();
         assert!((lean - want).abs() < 1.0, "{lean}° vs {want}°");
         assert!(bent.x < -0.5 && bent.z.abs() < 0.02, "{bent}");
         assert!((v[0] - 0.5).abs() < 0.01, "{v:?}");
-        let open = light_at(&Occluders::new(Vec::new()), &ground, 0.0, (Vec3::new(0.0, 5.0, 0.0), Vec3::Y), 256, 1, 0.0);
+        let (open, _) = light_at(&Occluders::new(Vec::new()), &ground, 0.0, (Vec3::new(0.0, 5.0, 0.0), Vec3::Y), 256, 1, 0.0);
         assert!(Vec3::new(open[4], open[5], open[6]).angle_between(Vec3::Y) < 0.02, "{open:?}");
     }
 

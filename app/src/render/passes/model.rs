@@ -319,6 +319,15 @@ pub struct ModelGpu {
 }
 
 impl ModelGpu {
+    /// Rewrite the meshes' vertices with `vertices` (per mesh of the model, as
+    /// [`PreparedModel::vertices`]: the same count; PreparedModel::vertices_under's sky).
+    pub fn write_vertices(&self, queue: &wgpu::Queue, vertices: &[Vec<crate::render::pipelines::Vertex>]) {
+        let drawn = vertices.iter().filter(|v| !v.is_empty());
+        for (m, v) in self.meshes.iter().zip(drawn) {
+            queue.write_buffer(&m.vertices, 0, bytemuck::cast_slice(v));
+        }
+    }
+
     /// Bounds in model space.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         self.prepared.bounds
@@ -569,7 +578,7 @@ impl ModelPass {
             let vertex_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
                 contents: bytemuck::cast_slice(vertices),
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             });
             // Lit until the vertex-sun pass writes it.
             let sun = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

@@ -149,7 +149,7 @@ fn default_method_against_path_traced_references() {
         let image = common::render_with(&scene, &inputs, Layer::Composite);
         let rgb: Vec<u8> = image.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         let (frame, roi, luminance) = score(&reference, &rgb).unwrap();
-        eprintln!("{name}: {}: FLIP frame {frame:.4}, ROI {roi:.4}, model luminance / reference {luminance:.3}", scene.method.name());
+        eprintln!("{name}: {}: FLIP frame {frame:.4}, ROI {roi:.5}, model luminance / reference {luminance:.4}", scene.method.name());
         assert!(roi <= bound, "{name}: mean FLIP in the model + shadow {roi:.3} > {bound}");
         let frame_bound = FRAME_BOUNDS.iter().find(|(n, _)| *n == name).map(|(_, b)| *b).unwrap();
         assert!(frame <= frame_bound, "{name}: mean FLIP over the frame {frame:.3} > {frame_bound}");
@@ -193,7 +193,7 @@ fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
     let rgb: Vec<u8> = image.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
     let (frame, roi, luminance) = score(&reference, &rgb).unwrap();
     eprintln!(
-        "{name} clipped: FLIP frame {frame:.4}, ROI {roi:.4}, model luminance / reference {luminance:.3}, beam turbidity {:?}",
+        "{name} clipped: FLIP frame {frame:.4}, ROI {roi:.5}, model luminance / reference {luminance:.4}, beam turbidity {:?}",
         light.beam_turbidity
     );
     assert!(roi <= 0.10, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.10");

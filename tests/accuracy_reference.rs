@@ -111,8 +111,12 @@ use std::path::Path;
 /// 1.002, 0.999, 0.984; bounds = measured + 0.01 rounded up to three decimals; luminance errors
 /// measured + 0.03 rounded up where that tightens them (blouberg_teapot 0.031, courtyard_dragon
 /// 0.033, city_spot 0.032).
+/// Twelfth session, merged main (s12-penumbra, s12-mip and s12-skybounce together, 2026-12-02
+/// 06:33 UTC, debug): ROI 0.0838, 0.0469, 0.0896, 0.0577, 0.0691 (mean 0.0694), luminance 0.967,
+/// 1.000, 1.002, 0.998, 0.983; quarry_bunny's bound 0.095 -> 0.094 (measured + 0.01 rounded up),
+/// the others as s12-skybounce set them (each within measured + 0.01).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.095, 0.04),
+    ("quarry_bunny", 0.094, 0.04),
     ("blouberg_teapot", 0.057, 0.031),
     ("courtyard_dragon", 0.100, 0.033),
     ("city_spot", 0.068, 0.032),

@@ -427,7 +427,9 @@ impl Compositor {
     }
 
     /// Cast the ground's rays for a new turn or scale of the model off the frame's thread
-    /// (`PreparedModel::ground_sky_without_waiting`): the live view. Off, a frame waits for them.
+    /// (`PreparedModel::ground_sky_without_waiting`), and make the model's sky for a new turn or
+    /// sky there too (`PreparedModel::vertices_under_without_waiting`): the live view. Off, a
+    /// frame waits for them.
     pub fn set_ground_in_background(&mut self, on: bool) {
         self.ground_in_background = on;
     }
@@ -741,10 +743,16 @@ impl Compositor {
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         if p.method == super::LightingMethod::Sh9Ggx {
             // The sky each vertex sees under this sky and turn of the model (the model cache
-            // makes it once per turn and sky; the same Arc while they stay).
+            // makes it once per turn and sky; the same Arc while they stay); in the live view on
+            // a thread of its own, drawing the previous set meanwhile, as the ground's map.
             let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
             let matrix = super::view::model_matrix(model.bounds(), &p.placement);
-            let vertices = model.prepared.vertices_under(matrix, &p.lighting.sky_radiance, env.heading);
+            let (sky, heading) = (&p.lighting.sky_radiance, env.heading);
+            let vertices = if self.ground_in_background {
+                model.prepared.vertices_under_without_waiting(matrix, sky, heading)
+            } else {
+                model.prepared.vertices_under(matrix, sky, heading)
+            };
             if !self.model_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &vertices)) {
                 model.write_vertices(&gpu.queue, &vertices);
                 self.model_sky_uploaded = Some(vertices);

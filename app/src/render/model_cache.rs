@@ -20,8 +20,8 @@ use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::{Mat4, Vec3};
 use std::hash::{Hash, Hasher};
-use std::sync::atomic::AtomicUsize;
-use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::Ordering::{AcqRel, Acquire, Relaxed, Release};
+use std::sync::atomic::{AtomicBool, AtomicUsize};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 /// Models kept per device (the least recently used goes first).
@@ -146,6 +146,9 @@ pub struct PreparedModel {
     sky: Mutex<Option<(ModelSkyKey, MeshVertices)>>,
     /// Vertex sets made for a new placement or sky.
     sky_computed: AtomicUsize,
+    /// A vertex set being made on a thread of its own
+    /// ([`PreparedModel::vertices_under_without_waiting`]).
+    sky_busy: AtomicBool,
     /// The ground under the last placement and sky asked for, and the cast of a newer one.
     ground: Mutex<GroundState>,
     /// Ground transfers cast, casts a caller waited for, and maps recombined.
@@ -198,6 +201,7 @@ impl PreparedModel {
             rays,
             sky: Mutex::default(),
             sky_computed: Default::default(),
+            sky_busy: Default::default(),
             ground: Mutex::default(),
             ground_cast: Default::default(),
             ground_waited: Default::default(),
@@ -215,12 +219,11 @@ impl PreparedModel {
     /// rotation and the sky stay (counted in [`PreparedModel::sky_computed`] when made).
     pub fn vertices_under(&self, placement: Mat4, radiance: &SkyRadiance, heading: f32) -> MeshVertices {
         let key = ModelSkyKey::of(placement, radiance, heading);
-        let mut held = self.sky.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some((k, v)) = held.as_ref()
-            && *k == key
-        {
-            return v.clone();
+        if let Some(v) = self.held_vertices(key).and_then(|(same, v)| same.then_some(v)) {
+            return v;
         }
+        // Made without the lock held, so that a caller that does not wait
+        // (vertices_under_without_waiting) gets the last set meanwhile.
         let frame = glam::Mat3::from_mat4(placement);
         let sky = self.rays.sky(&self.model, &|d| radiance.radiance((frame * d).normalize_or_zero(), heading));
         let vertices: Vec<Vec<Vertex>> = self
@@ -240,8 +243,44 @@ impl PreparedModel {
             .collect();
         let vertices = Arc::new(vertices);
         self.sky_computed.fetch_add(1, Relaxed);
-        *held = Some((key, vertices.clone()));
+        *self.sky.lock().unwrap_or_else(|p| p.into_inner()) = Some((key, vertices.clone()));
         vertices
+    }
+
+    /// The vertices made last, and whether they were made for `key`.
+    fn held_vertices(&self, key: ModelSkyKey) -> Option<(bool, MeshVertices)> {
+        self.sky.lock().unwrap_or_else(|p| p.into_inner()).as_ref().map(|(k, v)| (*k == key, v.clone()))
+    }
+
+    /// [`PreparedModel::vertices_under`] for the live view: the vertices of a new turn or sky
+    /// are made on a thread of their own while the set made last is returned, so that turning
+    /// the model never holds a frame (0.2–0.6 s for the dragon, debug: the ground's map does the
+    /// same on its worker). The first set, with none made before, is made here. While a set is
+    /// being made, newer turns start nothing; the next call after it is done starts the latest.
+    pub fn vertices_under_without_waiting(self: &Arc<Self>, placement: Mat4, radiance: &SkyRadiance, heading: f32) -> MeshVertices {
+        let last = match self.held_vertices(ModelSkyKey::of(placement, radiance, heading)) {
+            Some((true, v)) => return v,
+            Some((false, v)) => v,
+            None => return self.vertices_under(placement, radiance, heading),
+        };
+        if !self.sky_busy.swap(true, AcqRel) {
+            let (me, radiance) = (Arc::clone(self), *radiance);
+            let made = std::thread::Builder::new().name("previz-model-sky".into()).spawn(move || {
+                me.vertices_under(placement, &radiance, heading);
+                me.sky_busy.store(false, Release);
+            });
+            if made.is_err() {
+                // No thread to be had: make it here, as a composite does.
+                self.sky_busy.store(false, Release);
+                return self.vertices_under(placement, &radiance, heading);
+            }
+        }
+        last
+    }
+
+    /// Whether a vertex set is being made on its own thread.
+    pub fn sky_pending(&self) -> bool {
+        self.sky_busy.load(Acquire)
     }
 
     /// How many vertex sets [`PreparedModel::vertices_under`] made (for a new placement or sky).
@@ -633,6 +672,38 @@ mod tests {
         // Nothing hides a tetrahedron's outward faces from the sky but its own base: each vertex
         // gets some of it.
         assert!(lengths(&a).iter().all(|&l| l > 0.0 && l.is_finite()), "{:?}", lengths(&a));
+    }
+
+    #[test]
+    fn a_turn_keeps_the_previous_sky_while_its_vertices_are_made_on_their_thread() {
+        let model = tetrahedron();
+        let prepared = Arc::new(PreparedModel::new(&model).unwrap());
+        let sky = east_sky(4.0);
+        let here = Mat4::from_scale(Vec3::splat(2.0));
+        let turned = Mat4::from_rotation_z(0.7) * here;
+        let bytes = |v: &MeshVertices| v.iter().map(|m| bytemuck::cast_slice::<Vertex, u8>(m).to_vec()).collect::<Vec<_>>();
+        // The set each turn gets when the caller waits (a fresh cache).
+        let waited = |placement: Mat4| bytes(&PreparedModel::new(&model).unwrap().vertices_under(placement, &sky, 0.0));
+        // The first turn has no set to keep: made here.
+        let first = prepared.vertices_under_without_waiting(here, &sky, 0.0);
+        assert_eq!(prepared.sky_computed(), 1);
+        assert_eq!(bytes(&first), waited(here));
+        // A turn: the previous set comes back and the turn's is made on its own thread.
+        let during = prepared.vertices_under_without_waiting(turned, &sky, 0.0);
+        assert!(Arc::ptr_eq(&during, &first));
+        // Wait for the condition (the thread done), not for a time.
+        let start = std::time::Instant::now();
+        while prepared.sky_pending() {
+            assert!(start.elapsed() < std::time::Duration::from_secs(60), "the turn's vertices never arrived");
+            std::thread::yield_now();
+        }
+        assert_eq!(prepared.sky_computed(), 2);
+        let arrived = prepared.vertices_under_without_waiting(turned, &sky, 0.0);
+        assert_eq!(bytes(&arrived), waited(turned));
+        assert!(!Arc::ptr_eq(&arrived, &first));
+        // Kept while the turn stays: nothing more made.
+        assert!(Arc::ptr_eq(&arrived, &prepared.vertices_under_without_waiting(turned, &sky, 0.0)));
+        assert_eq!((prepared.sky_computed(), prepared.sky_pending()), (2, false));
     }
 
     #[test]

@@ -37,10 +37,12 @@ fn config() -> LiveConfig {
     }
 }
 
-/// The app's UI drawn over the frame the session draws now (two passes: egui windows size
-/// themselves in the first).
+/// The app's UI drawn over the frame the session draws now, as a still (two passes: egui
+/// windows size themselves in the first). A still waits for the model's sky and the ground's map
+/// of the current turn, which the live view makes on threads of their own: a golden needs the
+/// frame that does not depend on their timing.
 fn screen(app: &mut App, ui: &mut HeadlessUi) -> Rendered {
-    let frame = app.session_mut().render(gpu()).unwrap();
+    let frame = app.session_mut().render_still(gpu()).unwrap();
     let background = Rgba8Image { width: frame.width, height: frame.height, pixels: frame.rgba };
     ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
     let img = ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
@@ -524,7 +526,7 @@ fn composite_panels_never_overlap_at_phone_sizes_portrait_and_landscape() {
         }
         let mut ui = HeadlessUi::new(gpu(), w, h, 1.0).unwrap();
         ui.context().all_styles_mut(|s| s.animation_time = 0.0);
-        let frame = app.session_mut().render(gpu()).unwrap();
+        let frame = app.session_mut().render_still(gpu()).unwrap();
         let background = Rgba8Image { width: frame.width, height: frame.height, pixels: frame.rgba };
         ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();
         let img = ui.render(gpu(), &background, |ctx| app.ui(ctx, None, "15.0 fps")).unwrap();

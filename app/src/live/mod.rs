@@ -534,6 +534,14 @@ impl LiveSession {
         self.compositor.render(gpu, &self.params, self.layer)
     }
 
+    /// Render the current frame as a still: as [`LiveSession::render`], but the ground's map and
+    /// the model's sky of a new turn are waited for instead of drawn from the previous turn while
+    /// their threads make them (which frame shows them depends on timing), as the shutter's
+    /// export does ([`LiveSession::render_layer`]). Goldens of the app's screens use it.
+    pub fn render_still(&mut self, gpu: &Gpu) -> Result<Rendered> {
+        self.render_layer(gpu, self.layer)
+    }
+
     /// Whether a turn or scale of the model casts the ground's rays on a worker (the default)
     /// or the frame waits for them, as a composite does (`bench live` compares the two).
     pub fn set_ground_in_background(&mut self, on: bool) {

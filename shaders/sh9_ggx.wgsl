@@ -63,8 +63,15 @@ fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, seen: f32) -> ve
     let l = dot(sky, lum);
     // The upper hemisphere's mean radiance: L00 Y00 / (2 pi Y00^2) = L00 * 2 Y00.
     let mean = light.sh[0].rgb * 0.5641896;
-    let colour = select(mean / max(dot(mean, lum), 1e-8), sky / max(l, 1e-8), l > 1e-6);
-    let visible = colour * (seen * dot(mean, lum));
+    let mean_l = dot(mean, lum);
+    // Where SH9 gives a direction little of the sky's light (a bent normal turned down with a
+    // back face seen, at a silhouette where the interpolated normal faces away), its value is
+    // the band limit's ringing and its colour noise: one channel clamped at 0 made pure red
+    // samples on the full-detail bunny's edge. Below a tenth of the mean the colour fades to the
+    // mean sky's.
+    let trust = smoothstep(0.0, 0.1 * mean_l, l);
+    let colour = mix(mean / max(mean_l, 1e-8), sky / max(l, 1e-8), trust);
+    let visible = colour * (seen * mean_l);
     let ground = light.ground.rgb * (0.5 * (1.0 - n.z));
     return visible + ground * mix(ao.y, ao.z, light.ground.w);
 }

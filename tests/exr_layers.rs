@@ -87,6 +87,13 @@ fn the_layers_exr_composes_to_the_png_composite() {
     // 1 − opacity and the contact point under the bunny, where both are lost, 1 − opacity − sky
     // occlusion (0 here: the two shares of the ground's light add up to 1).
     let alpha = p("model.A");
+    // Light is never negative: sh9-ggx's sky colour from SH9 along a bent normal turned down at
+    // a silhouette once gave the full-detail bunny's edge samples (1.1, -0.012, 0.002) (model.G
+    // -0.0039 premultiplied at three pixels).
+    for c in ["R", "G", "B"] {
+        let lowest = p(&format!("model.{c}")).iter().copied().fold(f32::INFINITY, f32::min);
+        assert!(lowest >= 0.0, "model.{c} reaches {lowest}");
+    }
     let covered = alpha.iter().filter(|&&a| a > 0.0).count();
     assert!(covered > 1000 && covered < w * h / 2, "{covered} covered pixels");
     assert!(alpha.iter().any(|&a| a > 0.0 && a < 1.0), "no partial coverage");

@@ -246,7 +246,7 @@ pub fn sun_alone_from_above(
     let env = previz::scene::CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
     let inputs = Inputs { model, env, env_equirect: None, background: None };
     let (mut c, mut p) = previz::setup::prepare_antialiased(gpu(), &s, &inputs, previz::render::Antialiasing::Msaa(1)).unwrap();
-    c.set_full_detail(true);
+    c.set_detail(previz::render::Detail::Full);
     p.method = method;
     (p.placement.position, p.placement.rotation, p.placement.scale) = (Vec3::ZERO, Vec3::ZERO, scale);
     p.camera.position = Vec3::new(0.0, 0.0, 3.0 * scale);

@@ -9,7 +9,7 @@
 use super::median;
 use crate::colour::transfer::TransferMethod;
 use crate::gpu::Gpu;
-use crate::render::{Antialiasing, ColourSettings, Compositor, FrameParams, Layer, LightingMethod};
+use crate::render::{Antialiasing, ColourSettings, Compositor, Detail, FrameParams, Layer, LightingMethod};
 use crate::setup::scene_file::Scene;
 use crate::setup::{Inputs, camera_and_placement, prepare_antialiased};
 use anyhow::{Result, anyhow};
@@ -161,7 +161,7 @@ pub fn run(
                 p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir;
             }
             let c = &mut compositors[spec.compositor];
-            c.set_full_detail(spec.full);
+            c.set_detail(if spec.full { Detail::Full } else { Detail::Frame });
             c.set_full_shadow(spec.full);
             let t = std::time::Instant::now();
             let r = c.render(gpu, &p, spec.layer)?;
@@ -178,7 +178,7 @@ pub fn run(
         }
     }
     for c in &mut compositors {
-        c.set_full_detail(false);
+        c.set_detail(Detail::Frame);
         c.set_full_shadow(false);
     }
 
@@ -285,7 +285,7 @@ pub fn profile(
             if sun_turns {
                 p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir;
             }
-            c.set_full_detail(full);
+            c.set_detail(if full { Detail::Full } else { Detail::Frame });
             c.set_full_shadow(full);
             let r = c.render(gpu, &p, layer)?;
             if i >= warmup {
@@ -347,7 +347,7 @@ fn supersampled(gpu: &Gpu, scene: &Scene, inputs: &Inputs, p: &FrameParams) -> R
     let background = inputs.background.as_ref().map(|b| crate::scene::background::fit(b, 2 * w, 2 * h));
     let big_inputs = Inputs { model: inputs.model.clone(), env: inputs.env.clone(), env_equirect: inputs.env_equirect.clone(), background };
     let (mut c, big_params): (Compositor, FrameParams) = prepare_antialiased(gpu, &big, &big_inputs, Antialiasing::Msaa(4))?;
-    c.set_full_detail(true);
+    c.set_detail(Detail::Full);
     c.set_full_shadow(true);
     // Same camera and placement as `p` (the bigger scene places the model by the same rule).
     let params = FrameParams { camera: p.camera, placement: p.placement, ..big_params };

@@ -50,11 +50,11 @@ pub fn model_at_level(model: &Model, chain: &LodChain, k: usize) -> Model {
     Model { meshes, materials: model.materials.clone() }
 }
 
-/// The level of `chain` the renderer picks (`render::frame::lod_level`) for a model with `bounds` (model space) drawn
+/// The level of `chain` a frame draws (`render::frame::lod_level`, `Detail::Frame`) for a model with `bounds` (model space) drawn
 /// with `params` into an image `height_px` rows high; also the model's distance and the focal
 /// length in pixels.
 pub fn screen_level(chain: &LodChain, bounds: (Vec3, Vec3), params: &FrameParams, height_px: u32) -> (usize, f32, f32) {
-    crate::render::frame::lod_level(&chain.errors, &chain.triangles, bounds, params, height_px)
+    crate::render::frame::lod_level(&chain.errors, &chain.triangles, bounds, params, height_px, crate::scene::lod::MIN_TRIANGLE_AREA_PX)
 }
 
 /// Build the chain of `inputs.model`, render every level `frames` times, interleaved frame by
@@ -69,7 +69,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: &Inputs, frames: usize, progress: &
         let (mut c, params) = compositor_for(gpu, scene, &inputs.env, &model_at_level(&inputs.model, &chain, k))?;
         c.set_background(gpu, inputs.background.as_ref())?;
         // Each compositor draws exactly its level, not a coarser one its own chain allows.
-        c.set_full_detail(true);
+        c.set_detail(crate::render::Detail::Full);
         compositors.push((c, params));
     }
     let params = compositors[0].1;

@@ -7,7 +7,7 @@
 use super::antialiasing::{Antialiasing, FxaaPass};
 use super::environment::{self, Environment, EnvironmentTextures};
 use super::frame::{
-    FrameContext, FrameData, GroundMesh, GroundRegions, colour_correction, fit_shadow, frame_uniforms, ground_mesh, light_uniforms,
+    Detail, FrameContext, FrameData, GroundMesh, GroundRegions, colour_correction, fit_shadow, frame_uniforms, ground_mesh, light_uniforms,
     lod_level, sky_square,
 };
 use super::layers::{LayerImages, LayerPass, LayerPipelines, LayerTargets};
@@ -132,8 +132,8 @@ pub struct Compositor {
     model: Option<ModelGpu>,
     /// Slot 0: from the first pass's start to the composite pass's end.
     timer: Option<GpuTimer>,
-    /// Draw level 0 whatever the screen allows (a full-detail reference).
-    full_detail: bool,
+    /// Which level of detail it draws: a frame's, a still's or level 0.
+    detail: Detail,
     /// Draw the shadow into the largest map whatever the screen allows (a full-shadow reference).
     full_shadow: bool,
     /// The level of detail the last prepared frame drew.
@@ -251,7 +251,7 @@ impl Compositor {
             model: None,
             timer: GpuTimer::new(gpu, TIMER_SLOTS),
             pipelines,
-            full_detail: false,
+            detail: Detail::Frame,
             full_shadow: false,
             level: 0,
             shadow_index: 0,
@@ -369,10 +369,10 @@ impl Compositor {
         Ok(())
     }
 
-    /// Draw the model as loaded (level 0) instead of the level the screen allows: for the
-    /// full-detail references that measure what the levels cost in accuracy.
-    pub fn set_full_detail(&mut self, on: bool) {
-        self.full_detail = on;
+    /// Which level of detail to draw: a frame's (the default), a still's, or the model as loaded
+    /// (level 0, for the full-detail references that measure what the levels cost in accuracy).
+    pub fn set_detail(&mut self, detail: Detail) {
+        self.detail = detail;
     }
 
     /// Cull back faces where the frame may (true, the default: single-sided glTF materials, and
@@ -535,8 +535,9 @@ impl Compositor {
         let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
-        let (lod, distance, focal) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height);
-        let level = if self.full_detail || p.method.bends_rays() { 0 } else { lod };
+        let min_area = self.detail.min_triangle_area_px(self.antialiasing.samples()).unwrap_or(f32::INFINITY);
+        let (lod, distance, focal) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height, min_area);
+        let level = if self.detail == Detail::Full || p.method.bends_rays() { 0 } else { lod };
         // Back faces of a closed mesh are hidden from a camera outside its bounds, those of a
         // single-sided material culled wherever the camera is, unless a mirroring transform
         // turns the faces inside out.

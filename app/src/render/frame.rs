@@ -287,14 +287,50 @@ pub fn fit_shadow(p: &FrameParams, c: &FrameContext) -> shadow_fit::ShadowFit {
     )
 }
 
-/// The level of detail a frame draws for a model with model-space `bounds` and a chain with
-/// `errors` (model units) and `triangles` per level, placed and seen as in `p`, rendered
-/// `height_px` rows high: among the levels whose error projects under half a pixel
-/// (`scene::lod::select_level`), the finest whose triangles cover at least
-/// `lod::MIN_TRIANGLE_AREA_PX` each of the model's projected bounding sphere
-/// (`scene::lod::finest_worth_drawing`). Also the distance to the model's bounding box (world
-/// units: no vertex is nearer) and the focal length in pixels.
-pub fn lod_level(errors: &[f32], triangles: &[usize], bounds: (Vec3, Vec3), p: &FrameParams, height_px: u32) -> (usize, f32, f32) {
+/// Which level of the model's level-of-detail chain a compositor draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Detail {
+    /// Frames drawn one after another (the live view, `bench frame`): [`lod_level`] with triangles
+    /// of at least `lod::MIN_TRIANGLE_AREA_PX`, where a frame's cost stops following the count.
+    Frame,
+    /// A still image (`previz composite`, the goldens, `bench accuracy`): no frame budget, so
+    /// [`lod_level`] with triangles down to one sample of its antialiasing (1/samples px²). The
+    /// frame's 2 px² keeps the whole frame within FLIP 0.01 of level 0 (tests/lod.rs) but shows
+    /// on the dense scans' own pixels: against the path-traced references quarry_bunny's ROI FLIP
+    /// is 0.0839 at its frame level (5), 0.0707 at this rule's (2), 0.0712 at level 0; city_spot's
+    /// 0.0576 / 0.0511 / 0.0511 (docs/accuracy.md, thirteenth session).
+    Still,
+    /// Level 0 whatever the screen allows (the full-detail references).
+    Full,
+}
+
+impl Detail {
+    /// The smallest projected area per triangle (px²) a level is drawn for with `samples` per
+    /// pixel, or None for level 0.
+    pub fn min_triangle_area_px(self, samples: u32) -> Option<f32> {
+        match self {
+            Detail::Frame => Some(lod::MIN_TRIANGLE_AREA_PX),
+            Detail::Still => Some(1.0 / samples.max(1) as f32),
+            Detail::Full => None,
+        }
+    }
+}
+
+/// The level of detail drawn for a model with model-space `bounds` and a chain with `errors`
+/// (model units) and `triangles` per level, placed and seen as in `p`, rendered `height_px` rows
+/// high: among the levels whose error projects under half a pixel (`scene::lod::select_level`),
+/// the finest whose triangles cover at least `min_area_px` each of the model's projected
+/// bounding sphere (`scene::lod::finest_worth_drawing`; [`Detail::min_triangle_area_px`]). Also
+/// the distance to the model's bounding box (world units: no vertex is nearer) and the focal
+/// length in pixels.
+pub fn lod_level(
+    errors: &[f32],
+    triangles: &[usize],
+    bounds: (Vec3, Vec3),
+    p: &FrameParams,
+    height_px: u32,
+    min_area_px: f32,
+) -> (usize, f32, f32) {
     // The camera in model space: the model matrix turns, scales uniformly and moves.
     let camera = view::model_matrix(bounds, &p.placement).inverse().transform_point3(p.camera.position);
     let scale = p.placement.scale.abs();
@@ -303,7 +339,7 @@ pub fn lod_level(errors: &[f32], triangles: &[usize], bounds: (Vec3, Vec3), p: &
     let world: Vec<f32> = errors.iter().map(|e| e * scale).collect();
     let coarsest = lod::select_level(&world, distance, focal, lod::MAX_SCREEN_ERROR_PX);
     let area = model_area_px(bounds, p, height_px);
-    (lod::finest_worth_drawing(triangles, coarsest, area, lod::MIN_TRIANGLE_AREA_PX), distance, focal)
+    (lod::finest_worth_drawing(triangles, coarsest, area, min_area_px), distance, focal)
 }
 
 /// The projected area in pixels of the bounding sphere of a model with model-space `bounds`
@@ -597,7 +633,7 @@ mod tests {
         let errors = [0.0, 0.01, 0.036, 0.1];
         // Triangles far under a pixel each at every level: the error alone decides.
         let dense = [1 << 30, 1 << 29, 1 << 28, 1 << 27];
-        let lod_level = |e: &[f32], b, p: &FrameParams, h| lod_level(e, &dense, b, p, h);
+        let lod_level = |e: &[f32], b, p: &FrameParams, h| lod_level(e, &dense, b, p, h, lod::MIN_TRIANGLE_AREA_PX);
         let (level, distance, focal) = lod_level(&errors, c.bounds, &p, 200);
         assert!((focal - 100.0).abs() < 1e-3 && (distance - 8.0).abs() < 1e-4, "{focal} {distance}");
         // 0.036 * 100 / 8 = 0.45 px < 0.5 (at the sphere's 7.27 m: 0.50, too coarse); 0.1 →
@@ -625,11 +661,11 @@ mod tests {
         let area = PI * 30000.0 / 78.0;
         let fits = (area / lod::MIN_TRIANGLE_AREA_PX).floor() as usize;
         // Level 1's triangles cover the minimum each, level 0's a quarter of it: level 1.
-        assert_eq!(lod_level(&errors, &[4 * fits, fits, fits / 2, fits / 4], c.bounds, &p, 200).0, 1);
+        assert_eq!(lod_level(&errors, &[4 * fits, fits, fits / 2, fits / 4], c.bounds, &p, 200, lod::MIN_TRIANGLE_AREA_PX).0, 1);
         // Every level's triangles large enough: level 0, whatever the error allows.
-        assert_eq!(lod_level(&errors, &[fits, fits / 2, fits / 4, fits / 8], c.bounds, &p, 200).0, 0);
+        assert_eq!(lod_level(&errors, &[fits, fits / 2, fits / 4, fits / 8], c.bounds, &p, 200, lod::MIN_TRIANGLE_AREA_PX).0, 0);
         // None large enough: the coarsest within the error, level 2 (not 3).
-        assert_eq!(lod_level(&errors, &[8 * fits, 4 * fits, 2 * fits, fits], c.bounds, &p, 200).0, 2);
+        assert_eq!(lod_level(&errors, &[8 * fits, 4 * fits, 2 * fits, fits], c.bounds, &p, 200, lod::MIN_TRIANGLE_AREA_PX).0, 2);
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! the tests all set scenes up through here.
 
 use crate::gpu::Gpu;
-use crate::render::{Antialiasing, Camera, ColourSettings, Compositor, FrameParams, Lighting, MaterialTerms, Placement, view};
+use crate::render::{Antialiasing, Camera, ColourSettings, Compositor, Detail, FrameParams, Lighting, MaterialTerms, Placement, view};
 use crate::scene::environment::Equirect;
 use crate::scene::{CubeMap, Model, Rgba8Image, demo};
 use crate::setup::scene_file::Scene;
@@ -179,9 +179,10 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
     }
 }
 
-/// GPU resources for a still image of a scene ([`Antialiasing::STILL`]) and the parameters of
-/// its frame: what `previz composite`, the golden tests and the accuracy benchmark share. The
-/// live view's frames follow the adapter ([`compositor_for`]).
+/// GPU resources for a still image of a scene and the parameters of its frame: what `previz
+/// composite`, the golden tests and the accuracy benchmark share. A still has no frame budget:
+/// it draws [`Antialiasing::STILL`] and [`Detail::Still`] (triangles down to one sample). The
+/// live view's frames follow the adapter and the screen ([`compositor_for`]).
 pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
     prepare_with_light(gpu, scene, inputs).map(|(c, p, _)| (c, p))
 }
@@ -191,6 +192,7 @@ pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor,
 pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams, SceneLight)> {
     let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, Antialiasing::STILL)?;
     let (mut compositor, params, light) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
+    compositor.set_detail(Detail::Still);
     set_background(gpu, &mut compositor, inputs)?;
     Ok((compositor, params, light))
 }

@@ -115,17 +115,17 @@ use std::path::Path;
 /// 06:33 UTC, debug): ROI 0.0838, 0.0469, 0.0896, 0.0577, 0.0691 (mean 0.0694), luminance 0.967,
 /// 1.000, 1.002, 0.998, 0.983; quarry_bunny's bound 0.095 -> 0.094 (measured + 0.01 rounded up),
 /// the others as s12-skybounce set them (each within measured + 0.01).
-/// Thirteenth session (2026-12-02 08:30 UTC, debug): a still draws triangles down to one sample
-/// (render::Detail::Still: the bunny's level 2 instead of 5, the dragon's 2 instead of 5, Spot's
+/// Thirteenth session (2026-12-02 08:35 UTC, debug): a still draws triangles down to a pixel
+/// (render::Detail::Still: the bunny's level 4 instead of 5, the dragon's 4 instead of 5, Spot's
 /// 0 instead of 1), and sh9-ggx's sky colour fades to the mean sky's where SH9 rings: ROI
-/// 0.07065, 0.04676, 0.08564, 0.05106, 0.06911 (mean 0.0646, was 0.0694), luminance 0.977,
-/// 1.000, 0.981, 0.997, 0.983; bounds = measured + 0.01 rounded up to three decimals
-/// (quarry_bunny 0.094 -> 0.081, courtyard_dragon 0.100 -> 0.096, city_spot 0.068 -> 0.062),
+/// 0.07416, 0.04676, 0.08612, 0.05106, 0.06911 (mean 0.0654, was 0.0694), luminance 0.979,
+/// 1.000, 0.993, 0.997, 0.983; bounds = measured + 0.01 rounded up to three decimals
+/// (quarry_bunny 0.094 -> 0.085, courtyard_dragon 0.100 -> 0.097, city_spot 0.068 -> 0.062),
 /// luminance errors kept (measured + 0.03 would loosen each).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.081, 0.04),
+    ("quarry_bunny", 0.085, 0.04),
     ("blouberg_teapot", 0.057, 0.031),
-    ("courtyard_dragon", 0.096, 0.033),
+    ("courtyard_dragon", 0.097, 0.033),
     ("city_spot", 0.062, 0.032),
     ("quarry_truck", 0.080, 0.04),
 ];
@@ -145,11 +145,11 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// model's own surface not a blocker of itself): 0.0253, 0.0148, 0.0313, 0.0182, 0.0241; the
 /// truck's tightened to 0.035, the others kept. Twelfth session (the model's sky and its bounce
 /// from its own rays): 0.0251, 0.0146, 0.0309, 0.0174, 0.0240; the dragon's tightened to 0.041
-/// and Spot's to 0.028, the others kept. Thirteenth session (a still draws triangles down to one
-/// sample): 0.0238, 0.0146, 0.0302, 0.0169, 0.0239; quarry_bunny's and quarry_truck's tightened to 0.034,
-/// city_spot's to 0.027.
+/// and Spot's to 0.028, the others kept. Thirteenth session (a still draws triangles down to a
+/// pixel): 0.0241, 0.0146, 0.0303, 0.0169, 0.0239; quarry_truck's tightened to 0.034, city_spot's
+/// to 0.027.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.034), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.041), ("city_spot", 0.027), ("quarry_truck", 0.034)];
+    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.041), ("city_spot", 0.027), ("quarry_truck", 0.034)];
 
 #[test]
 fn default_method_against_path_traced_references() {
@@ -184,8 +184,8 @@ fn default_method_against_path_traced_references() {
 /// Measured 2026-12-01 (tenth session): ROI FLIP 0.0930 (`previz bench accuracy` on the
 /// clip_hdr.py map: 0.093), luminance 0.983; before (merged main, ninth session): 0.1107. The
 /// full map itself scores 0.0878. Bound: the goal, 0.10 (measured + 0.01 would be 0.103).
-/// Thirteenth session (a still draws triangles down to one sample): 0.07759, luminance 0.991;
-/// bound measured + 0.01 rounded up, 0.088.
+/// Thirteenth session (a still draws triangles down to a pixel): 0.08135, luminance 0.993;
+/// bound measured + 0.01 rounded up, 0.092.
 #[test]
 fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
     use previz::scene::environment::Equirect;
@@ -211,6 +211,6 @@ fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
         "{name} clipped: FLIP frame {frame:.4}, ROI {roi:.5}, model luminance / reference {luminance:.4}, beam turbidity {:?}",
         light.beam_turbidity
     );
-    assert!(roi <= 0.088, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.088");
+    assert!(roi <= 0.092, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.092");
     assert!((luminance - 1.0).abs() <= 0.04, "clipped {name}: model luminance / reference {luminance:.3}");
 }

@@ -74,7 +74,7 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
 /// path-traced reference 0.109 at level 1, 0.083 at level 0, tests/accuracy_reference.rs),
 /// while the 70k-triangle bunny, the same size at the same spot, draws a simplified level
 /// (about as many triangles as cover 2 px² each: more than the truck has, far fewer than its own).
-/// A still draws the level whose triangles cover one of its 4 samples each (`Detail::Still`).
+/// A still draws the level whose triangles cover a pixel each (`Detail::Still`).
 #[test]
 fn the_rule_keeps_large_triangles_and_simplifies_small_ones() {
     let place = "width = 320\nheight = 240\nenvironment = \"hdri/polyhaven_1k/quarry_01_1k.hdr\"\n[camera]\nheading = 300.0\npitch = -10.0\nvfov = 40.0\nheight = 1.6\n[placement]\nposition = [-10.392, 6.0, 0.0]\nrotation = [0.0, 0.0, 60.0]\nsize = 4.5\n";
@@ -90,14 +90,14 @@ fn the_rule_keeps_large_triangles_and_simplifies_small_ones() {
         let many = vec![usize::MAX; chain.len()];
         let (by_error, ..) = previz::render::frame::lod_level(&chain.errors, &many, c.model_bounds().unwrap(), &p, s.height, 2.0);
         let frame = c.lod_level();
-        // A still (no frame budget) keeps triangles down to one of its 4 samples (0.25 px²).
+        // A still (no frame budget) keeps triangles down to a pixel each (1 px²).
         c.set_detail(Detail::Still);
         c.render(gpu(), &p, Layer::Composite).unwrap();
         let still = c.lod_level();
         let area = previz::render::frame::model_area_px(c.model_bounds().unwrap(), &p, s.height);
         assert!(still <= frame, "a still at level {still}, a frame at {frame}");
-        assert!(still == 0 || area >= 0.25 * chain.triangles[still] as f32, "still level {still}: {} px² of {:?}", area, chain.triangles);
-        assert!(area < 0.25 * chain.triangles[still.saturating_sub(1)] as f32 || still == 0, "a finer level fits: {area} px²");
+        assert!(still == 0 || area >= chain.triangles[still] as f32, "still level {still}: {area} px² of {:?}", chain.triangles);
+        assert!(still == 0 || area < chain.triangles[still - 1] as f32, "a finer level fits: {area} px²");
         (frame, by_error, chain.triangles, still)
     };
     let (truck, truck_by_error, truck_triangles, truck_still) = drawn("textured_models/cesium_milk_truck_gltf/CesiumMilkTruck.glb");
@@ -107,7 +107,7 @@ fn the_rule_keeps_large_triangles_and_simplifies_small_ones() {
     let (bunny, bunny_by_error, bunny_triangles, bunny_still) = drawn("meshes/stanford-bunny.obj");
     // At most a quarter of its triangles, and no coarser than the error bound allows.
     assert!(bunny >= 2 && bunny <= bunny_by_error, "bunny level {bunny} (error bound {bunny_by_error}) of {bunny_triangles:?}");
-    // As a still it keeps finer levels (triangles down to 0.25 px² instead of 2).
+    // As a still it keeps a finer level (triangles down to 1 px² instead of 2).
     assert!(bunny_still < bunny, "bunny still level {bunny_still}, frame level {bunny} of {bunny_triangles:?}");
 }
 

@@ -293,24 +293,21 @@ pub enum Detail {
     /// Frames drawn one after another (the live view, `bench frame`): [`lod_level`] with triangles
     /// of at least `lod::MIN_TRIANGLE_AREA_PX`, where a frame's cost stops following the count.
     Frame,
-    /// A still image (`previz composite`, the goldens, `bench accuracy`): no frame budget, so
-    /// [`lod_level`] with triangles down to one sample of its antialiasing (1/samples px²). The
-    /// frame's 2 px² keeps the whole frame within FLIP 0.01 of level 0 (tests/lod.rs) but shows
-    /// on the dense scans' own pixels: against the path-traced references quarry_bunny's ROI FLIP
-    /// is 0.0839 at its frame level (5), 0.0707 at this rule's (2), 0.0712 at level 0; city_spot's
-    /// 0.0576 / 0.0511 / 0.0511 (docs/accuracy.md, thirteenth session).
+    /// A still image (`previz composite`, the goldens, `bench accuracy`): [`lod_level`] with
+    /// triangles down to `lod::STILL_MIN_TRIANGLE_AREA_PX` (one pixel). The frame's 2 px² keeps
+    /// the whole frame within FLIP 0.01 of level 0 (tests/lod.rs) but shows on the models' own
+    /// pixels against the path-traced references (docs/accuracy.md, thirteenth session).
     Still,
     /// Level 0 whatever the screen allows (the full-detail references).
     Full,
 }
 
 impl Detail {
-    /// The smallest projected area per triangle (px²) a level is drawn for with `samples` per
-    /// pixel, or None for level 0.
-    pub fn min_triangle_area_px(self, samples: u32) -> Option<f32> {
+    /// The smallest projected area per triangle (px²) a level is drawn for, or None for level 0.
+    pub fn min_triangle_area_px(self) -> Option<f32> {
         match self {
             Detail::Frame => Some(lod::MIN_TRIANGLE_AREA_PX),
-            Detail::Still => Some(1.0 / samples.max(1) as f32),
+            Detail::Still => Some(lod::STILL_MIN_TRIANGLE_AREA_PX),
             Detail::Full => None,
         }
     }

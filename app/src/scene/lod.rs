@@ -80,6 +80,12 @@ pub const MAX_SCREEN_ERROR_PX: f32 = 0.5;
 /// [`MAX_SCREEN_ERROR_PX`]: below it a frame's cost grows with the triangle count, above it
 /// fewer triangles save nothing measurable (docs/PERFORMANCE.md, tenth session).
 pub const MIN_TRIANGLE_AREA_PX: f32 = 2.0;
+/// The same for a still image, which has no frame budget: every triangle of a pixel or more.
+/// Against the path-traced references (sh9-ggx, `previz bench accuracy`, release, 2026-12-02,
+/// docs/accuracy.md "Thirteenth session"): ROI FLIP mean 0.0694 at 2 px², 0.0654 at 1, 0.065
+/// at 0.5 and 0.0648 at 0.25 (one 4× MSAA sample), the path tracer at equal error 28×, 27×, 25×
+/// and 23× slower: below a pixel the dense scans' triangles cost lavapipe more than they show.
+pub const STILL_MIN_TRIANGLE_AREA_PX: f32 = 1.0;
 
 impl LodChain {
     /// Simplify every mesh of `model` into levels of halving triangle count, down to

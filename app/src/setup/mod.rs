@@ -181,7 +181,7 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
 
 /// GPU resources for a still image of a scene and the parameters of its frame: what `previz
 /// composite`, the golden tests and the accuracy benchmark share. A still has no frame budget:
-/// it draws [`Antialiasing::STILL`] and [`Detail::Still`] (triangles down to one sample). The
+/// it draws [`Antialiasing::STILL`] and [`Detail::Still`] (triangles down to a pixel). The
 /// live view's frames follow the adapter and the screen ([`compositor_for`]).
 pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
     prepare_with_light(gpu, scene, inputs).map(|(c, p, _)| (c, p))

@@ -121,13 +121,16 @@ use std::path::Path;
 /// 0.07416, 0.04676, 0.08612, 0.05106, 0.06911 (mean 0.0654, was 0.0694), luminance 0.979,
 /// 1.000, 0.993, 0.997, 0.983; bounds = measured + 0.01 rounded up to three decimals
 /// (quarry_bunny 0.094 -> 0.085, courtyard_dragon 0.100 -> 0.097, city_spot 0.068 -> 0.062),
-/// luminance errors kept (measured + 0.03 would loosen each).
+/// luminance errors kept (measured + 0.03 would loosen each). Then an unclipped sun's aureole
+/// lit and shadowed as the sun (light::sun_finder::aureole; 08:55 UTC): ROI 0.06971, 0.04676,
+/// 0.08641, 0.05098, 0.06619 (mean 0.0640), luminance 0.977, 1.000, 0.992, 0.996, 0.981; bounds
+/// measured + 0.01 (quarry_bunny 0.080, city_spot 0.061, quarry_truck 0.077).
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.085, 0.04),
+    ("quarry_bunny", 0.080, 0.04),
     ("blouberg_teapot", 0.057, 0.031),
     ("courtyard_dragon", 0.097, 0.033),
-    ("city_spot", 0.062, 0.032),
-    ("quarry_truck", 0.080, 0.04),
+    ("city_spot", 0.061, 0.032),
+    ("quarry_truck", 0.077, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,

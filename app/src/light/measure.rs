@@ -33,7 +33,8 @@ pub enum SunSource {
 pub struct MeasuredLight {
     /// Unit direction to the sun (ENU); None without a sun.
     pub sun_dir: Option<Vec3>,
-    /// Sun irradiance on a surface facing it, linear RGB (zero without a sun).
+    /// Sun irradiance on a surface facing it, linear RGB (zero without a sun); an unclipped
+    /// sun's includes its aureole ([`sun_finder::aureole`]), which the sky then does not hold.
     pub sun_irradiance: [f32; 3],
     /// Angular radius of the sun as measured (rad; at least the real sun's 0.2666°); a restored
     /// sun's is the real sun's.
@@ -128,11 +129,18 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
     // An unclipped sun is measured; a clipped one, unless asked to restore it, is taken as it
     // is: what energy the map holds, white.
     if !sun.saturated || !options.restore_clipped {
-        let on_ground = sun.irradiance.map(|e| e * sun.dir.z.max(0.0));
+        // The aureole lights and is shadowed as the sun (sun_finder::aureole).
+        let (ring, aureole) = sun_finder::aureole(samples, &sun, &options.finder);
+        let mut sky_samples = sky_samples;
+        for &i in &ring {
+            sky_samples[i].radiance = sun.sky_radiance;
+        }
+        let irradiance: [f32; 3] = std::array::from_fn(|k| sun.irradiance[k] + aureole[k]);
+        let on_ground = irradiance.map(|e| e * sun.dir.z.max(0.0));
         let ground = bounded_ground(sky_samples, on_ground);
         return MeasuredLight {
             sun_dir: Some(sun.dir),
-            sun_irradiance: sun.irradiance,
+            sun_irradiance: irradiance,
             sun_angular_radius: radius,
             sky: Sh9::project(&ground),
             sky_and_ground: SkyAndGround::of(&ground),
@@ -454,7 +462,12 @@ mod tests {
         assert_eq!(light.source, SunSource::Measured);
         let sun = light.found.as_ref().unwrap();
         let total = luminance_bt709(brute_force_irradiance(&samples, Vec3::Z));
-        let sky = luminance_bt709(brute_force_irradiance(&sun_finder::without_sun(&samples, sun), Vec3::Z));
+        // The sun is the disc and its aureole (sun_finder::aureole), both out of the sky.
+        let mut without = sun_finder::without_sun(&samples, sun);
+        for i in sun_finder::aureole(&samples, sun, &Default::default()).0 {
+            without[i].radiance = sun.sky_radiance;
+        }
+        let sky = luminance_bt709(brute_force_irradiance(&without, Vec3::Z));
         let brute_share = 1.0 - sky / total;
         let share = light.sun_share_on_ground();
         assert!((share - brute_share).abs() < 0.02, "share {share} vs brute force {brute_share}");

@@ -95,6 +95,34 @@ impl Sun {
     }
 }
 
+/// The aureole around an unclipped `sun` found with `options`: the samples of its search cap
+/// above the horizon brighter than the sky around it (`sun.sky_radiance`, the ring's median)
+/// that are not the disc's region, and their irradiance at normal incidence Σ (L − L_sky) dΩ,
+/// linear RGB. The model hides the aureole from the ground as it hides the disc; left in the sky
+/// it reaches the sun's shadow through the ground's coarse sky occlusion (docs/accuracy.md,
+/// thirteenth session: 7 % of quarry_01's sun). None for a clipped sun, whose aureole is what
+/// the restore reads.
+pub fn aureole(samples: &[DirSample], sun: &Sun, options: &Options) -> (Vec<usize>, [f32; 3]) {
+    if sun.saturated {
+        return (Vec::new(), [0.0; 3]);
+    }
+    let in_disc = super::samples::mask(samples.len(), &sun.samples);
+    let (cos_r, sky_lum) = (options.search_radius.cos(), luminance_bt709(sun.sky_radiance));
+    let ring: Vec<usize> = (0..samples.len())
+        .filter(|&i| {
+            let s = &samples[i];
+            !in_disc[i] && s.dir.z >= 0.0 && s.dir.dot(sun.dir) >= cos_r && luminance_bt709(s.radiance) > sky_lum
+        })
+        .collect();
+    let mut irradiance = [0.0f32; 3];
+    for &i in &ring {
+        for (k, e) in irradiance.iter_mut().enumerate() {
+            *e += (samples[i].radiance[k] - sun.sky_radiance[k]).max(0.0) * samples[i].solid_angle;
+        }
+    }
+    (ring, irradiance)
+}
+
 /// The samples with the sun replaced by the sky around it.
 pub fn without_sun(samples: &[DirSample], sun: &Sun) -> Vec<DirSample> {
     let mut out = samples.to_vec();
@@ -373,6 +401,15 @@ mod tests {
         let total: f32 = samples.iter().map(|d| luminance_bt709(d.radiance) * d.solid_angle).sum();
         let share = luminance_bt709(s.irradiance) / total;
         assert!((0.35..0.5).contains(&share), "sun share {share}");
+        // Its aureole (the cap's samples above the horizon brighter than the ring, outside the
+        // disc's region): numpy over the same equirect (cos-latitude pixel solid angles, the
+        // brightest pixel's 6° cap, the 6–12° ring's median luminance subtracted) gives the disc's
+        // region 0.4941 of the map's 4π luminance and the whole cap 0.5290: the aureole 0.0349.
+        let (ring, aureole) = aureole(&samples, &s, &Options::default());
+        let aureole_share = luminance_bt709(aureole) / total;
+        assert!((aureole_share - 0.0349).abs() < 0.002, "aureole share {aureole_share}");
+        assert!((share - 0.4941).abs() < 0.005, "sun share {share}");
+        assert!(ring.iter().all(|i| !s.samples.contains(i) && samples[*i].dir.z >= 0.0));
         // Removing it leaves no pixel within 10x of the old peak.
         let rest = without_sun(&samples, &s);
         let peak = rest.iter().map(|d| luminance_bt709(d.radiance)).fold(0.0, f32::max);

@@ -123,18 +123,13 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
             found,
         };
     };
-    let sky_samples = sun_finder::without_sun(samples, &sun);
-    let sky = Sh9::project(&sky_samples);
+    // An unclipped sun's aureole lights and is shadowed as the sun (none for a clipped one).
+    let (ring, aureole) = sun_finder::aureole(samples, &sun, &options.finder);
+    let sky_samples = sun_finder::without_sun_and_aureole(samples, &sun, &ring);
     let radius = sun.angular_radius().max(SUN_ANGULAR_RADIUS);
     // An unclipped sun is measured; a clipped one, unless asked to restore it, is taken as it
     // is: what energy the map holds, white.
     if !sun.saturated || !options.restore_clipped {
-        // The aureole lights and is shadowed as the sun (sun_finder::aureole).
-        let (ring, aureole) = sun_finder::aureole(samples, &sun, &options.finder);
-        let mut sky_samples = sky_samples;
-        for &i in &ring {
-            sky_samples[i].radiance = sun.sky_radiance;
-        }
         let irradiance: [f32; 3] = std::array::from_fn(|k| sun.irradiance[k] + aureole[k]);
         let on_ground = irradiance.map(|e| e * sun.dir.z.max(0.0));
         let ground = bounded_ground(sky_samples, on_ground);
@@ -151,6 +146,7 @@ pub fn measure(samples: &[DirSample], options: &MeasureOptions) -> MeasuredLight
             found,
         };
     }
+    let sky = Sh9::project(&sky_samples);
     let elevation = options.solar_elevation.unwrap_or_else(|| sun_finder::azimuth_elevation(sun.dir).1);
     // How hazy the day is, from the shape of the sky the map kept: not the sun's region, nothing
     // saturated.
@@ -463,11 +459,8 @@ mod tests {
         let sun = light.found.as_ref().unwrap();
         let total = luminance_bt709(brute_force_irradiance(&samples, Vec3::Z));
         // The sun is the disc and its aureole (sun_finder::aureole), both out of the sky.
-        let mut without = sun_finder::without_sun(&samples, sun);
-        for i in sun_finder::aureole(&samples, sun, &Default::default()).0 {
-            without[i].radiance = sun.sky_radiance;
-        }
-        let sky = luminance_bt709(brute_force_irradiance(&without, Vec3::Z));
+        let ring = sun_finder::aureole(&samples, sun, &Default::default()).0;
+        let sky = luminance_bt709(brute_force_irradiance(&sun_finder::without_sun_and_aureole(&samples, sun, &ring), Vec3::Z));
         let brute_share = 1.0 - sky / total;
         let share = light.sun_share_on_ground();
         assert!((share - brute_share).abs() < 0.02, "share {share} vs brute force {brute_share}");

@@ -125,8 +125,14 @@ pub fn aureole(samples: &[DirSample], sun: &Sun, options: &Options) -> (Vec<usiz
 
 /// The samples with the sun replaced by the sky around it.
 pub fn without_sun(samples: &[DirSample], sun: &Sun) -> Vec<DirSample> {
+    without_sun_and_aureole(samples, sun, &[])
+}
+
+/// The samples with the sun and the `aureole` samples ([`aureole`]) replaced by the sky around
+/// it.
+pub fn without_sun_and_aureole(samples: &[DirSample], sun: &Sun, aureole: &[usize]) -> Vec<DirSample> {
     let mut out = samples.to_vec();
-    for &i in &sun.samples {
+    for &i in sun.samples.iter().chain(aureole) {
         if let Some(s) = out.get_mut(i) {
             s.radiance = sun.sky_radiance;
         }

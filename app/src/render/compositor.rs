@@ -535,9 +535,9 @@ impl Compositor {
         let sky = sky_square(model.bounds(), &p.placement);
         let light = light_uniforms(&p.lighting, (sky.min, sky.max));
         let colour = colour_correction(p.colour, &env.colour, || model.prepared.colour())?;
-        let min_area = self.detail.min_triangle_area_px().unwrap_or(f32::INFINITY);
+        let min_area = self.detail.min_triangle_area_px();
         let (lod, distance, focal) = lod_level(model.lod_errors(), model.lod_triangles(), model.bounds(), p, self.height, min_area);
-        let level = if self.detail == Detail::Full || p.method.bends_rays() { 0 } else { lod };
+        let level = if p.method.bends_rays() { 0 } else { lod };
         // Back faces of a closed mesh are hidden from a camera outside its bounds, those of a
         // single-sided material culled wherever the camera is, unless a mirroring transform
         // turns the faces inside out.

@@ -303,12 +303,13 @@ pub enum Detail {
 }
 
 impl Detail {
-    /// The smallest projected area per triangle (px²) a level is drawn for, or None for level 0.
-    pub fn min_triangle_area_px(self) -> Option<f32> {
+    /// The smallest projected area per triangle (px²) a level is drawn for; 0 for level 0, whose
+    /// triangles then always cover enough ([`lod_level`]).
+    pub fn min_triangle_area_px(self) -> f32 {
         match self {
-            Detail::Frame => Some(lod::MIN_TRIANGLE_AREA_PX),
-            Detail::Still => Some(lod::STILL_MIN_TRIANGLE_AREA_PX),
-            Detail::Full => None,
+            Detail::Frame => lod::MIN_TRIANGLE_AREA_PX,
+            Detail::Still => lod::STILL_MIN_TRIANGLE_AREA_PX,
+            Detail::Full => 0.0,
         }
     }
 }

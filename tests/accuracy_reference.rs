@@ -125,12 +125,17 @@ use std::path::Path;
 /// lit and shadowed as the sun (light::sun_finder::aureole; 08:55 UTC): ROI 0.06971, 0.04676,
 /// 0.08641, 0.05098, 0.06619 (mean 0.0640), luminance 0.977, 1.000, 0.992, 0.996, 0.981; bounds
 /// measured + 0.01 (quarry_bunny 0.080, city_spot 0.061, quarry_truck 0.077).
+/// Fourteenth session (2026-12-02 11:50 UTC, debug): a still supersampled 3 × 3, one sample
+/// each, and box-filtered in linear light, as the references integrate a pixel
+/// (render::supersample): ROI 0.06100, 0.04629, 0.08520, 0.04910, 0.05606 (mean 0.0595),
+/// luminance 0.979, 1.002, 0.978, 1.000, 0.975; bounds measured + 0.01 rounded up (quarry_bunny
+/// 0.071, courtyard_dragon 0.096, city_spot 0.060, quarry_truck 0.067), luminance errors kept.
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.080, 0.04),
+    ("quarry_bunny", 0.071, 0.04),
     ("blouberg_teapot", 0.057, 0.031),
-    ("courtyard_dragon", 0.097, 0.033),
-    ("city_spot", 0.061, 0.032),
-    ("quarry_truck", 0.077, 0.04),
+    ("courtyard_dragon", 0.096, 0.033),
+    ("city_spot", 0.060, 0.032),
+    ("quarry_truck", 0.067, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
@@ -150,9 +155,10 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// from its own rays): 0.0251, 0.0146, 0.0309, 0.0174, 0.0240; the dragon's tightened to 0.041
 /// and Spot's to 0.028, the others kept. Thirteenth session (a still draws triangles down to a
 /// pixel): 0.0241, 0.0146, 0.0303, 0.0169, 0.0239; quarry_truck's tightened to 0.034, city_spot's
-/// to 0.027.
+/// to 0.027. Fourteenth session (a supersampled still): 0.0227, 0.0146, 0.0306, 0.0165, 0.0214;
+/// quarry_bunny's tightened to 0.033, quarry_truck's to 0.032, the others kept.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.035), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.041), ("city_spot", 0.027), ("quarry_truck", 0.034)];
+    [("quarry_bunny", 0.033), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.041), ("city_spot", 0.027), ("quarry_truck", 0.032)];
 
 #[test]
 fn default_method_against_path_traced_references() {
@@ -188,7 +194,8 @@ fn default_method_against_path_traced_references() {
 /// clip_hdr.py map: 0.093), luminance 0.983; before (merged main, ninth session): 0.1107. The
 /// full map itself scores 0.0878. Bound: the goal, 0.10 (measured + 0.01 would be 0.103).
 /// Thirteenth session (a still draws triangles down to a pixel): 0.08135, luminance 0.993;
-/// bound measured + 0.01 rounded up, 0.092.
+/// bound measured + 0.01 rounded up, 0.092. Fourteenth session (a supersampled still): 0.07312,
+/// luminance 0.995; bound 0.084.
 #[test]
 fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
     use previz::scene::environment::Equirect;
@@ -214,6 +221,6 @@ fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
         "{name} clipped: FLIP frame {frame:.4}, ROI {roi:.5}, model luminance / reference {luminance:.4}, beam turbidity {:?}",
         light.beam_turbidity
     );
-    assert!(roi <= 0.092, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.092");
+    assert!(roi <= 0.084, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.084");
     assert!((luminance - 1.0).abs() <= 0.04, "clipped {name}: model luminance / reference {luminance:.3}");
 }

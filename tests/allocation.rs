@@ -17,7 +17,8 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     let equirect = Equirect::new(8, 4, vec![[0.5; 3]; 32]).unwrap();
     let env = CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) };
     let inputs = Inputs { model: triangle(), env, env_equirect: Some(std::sync::Arc::new(equirect)), background: None };
-    let (mut compositor, mut params) = prepare(gpu(), &s, &inputs).unwrap();
+    // Frames of the live view: one sample a pixel (a still, setup::prepare, is supersampled).
+    let (mut compositor, mut params) = prepare_antialiased(gpu(), &s, &inputs, Antialiasing::STILL).unwrap();
     assert!(compositor.background_sees_equirect());
     compositor.render(gpu(), &params, Layer::Composite).unwrap();
     let start = params;

@@ -141,9 +141,13 @@ fn the_layers_exr_composes_to_the_png_composite() {
     }
     let max_diff = histogram.iter().rposition(|&n| n > 0).unwrap();
     assert!(max_diff <= 1, "EXR beauty and PNG differ by up to {max_diff} levels: {:?}", &histogram[..=max_diff]);
-    // Most values agree exactly (measured: 190264 of 192000; the rest by the 8-bit path's
-    // intermediate rounding).
-    assert!(histogram[0] * 100 >= 95 * 3 * w * h, "only {} of {} values agree exactly", histogram[0], 3 * w * h);
+    // Most values agree exactly; the rest by the 8-bit path's intermediate rounding. Measured
+    // one sample a pixel: 190264 of 192000 (99 %). A supersampled still's 8-bit frame rounds
+    // each of its samples before their mean (render::supersample::box_mean_srgb8) while the
+    // EXR averages them in float: measured 165702 of 192000 (86 %) at 3 × 3 samples, the
+    // largest difference still one level (above).
+    let share = if json["supersample"].as_u64().unwrap_or(1) > 1 { 80 } else { 95 };
+    assert!(histogram[0] * 100 >= share * 3 * w * h, "only {} of {} values agree exactly", histogram[0], 3 * w * h);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -6,9 +6,9 @@ use crate::common;
 
 use common::{gpu, inputs, scene};
 use previz::bench::lod::{model_at_level, screen_level};
-use previz::render::{Detail, Layer};
+use previz::render::{Antialiasing, Detail, Layer};
 use previz::scene::lod::LodChain;
-use previz::setup::{Inputs, prepare};
+use previz::setup::{Inputs, prepare, prepare_antialiased};
 
 fn rgb(rgba: &[u8]) -> Vec<u8> {
     rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect()
@@ -22,14 +22,16 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     let full = inputs(&s);
     let chain = LodChain::build(&full.model);
     assert!(chain.len() >= 6, "the bunny's chain: {:?}", chain.triangles);
+    // Frames, one sample a pixel (a still's supersampling would draw its levels for its samples).
+    let frames = |i: &Inputs| prepare_antialiased(gpu(), &s, i, Antialiasing::STILL).unwrap();
     let render = |model| {
         let i = Inputs { model, env: full.env.clone(), env_equirect: None, background: None };
-        let (mut c, p) = prepare(gpu(), &s, &i).unwrap();
+        let (mut c, p) = frames(&i);
         c.set_detail(Detail::Full);
         rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba)
     };
     let reference = render(full.model.clone());
-    let (c, p) = prepare(gpu(), &s, &full).unwrap();
+    let (c, p) = frames(&full);
     let (chosen, ..) = screen_level(&chain, c.model_bounds().unwrap(), &p, s.height);
     assert!(chosen >= 1, "at a quarter fill a 70k-triangle bunny needs fewer triangles: {:?}", chain.triangles);
     let flip =
@@ -42,10 +44,9 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
     assert!(coarse_flip > chosen_flip, "level {coarsest}: {coarse_flip} vs level {chosen}: {chosen_flip}");
     // The compositor draws that level by itself (all levels uploaded once, chosen per frame),
     // and what it draws is the chosen level's image.
-    let (mut c, p) = prepare(gpu(), &s, &full).unwrap();
-    // A still draws the model as loaded (setup::prepare); frames drawn one after another (the
-    // live view, `bench frame`) draw the level the screen allows.
-    c.set_detail(Detail::Frame);
+    // Frames drawn one after another (the live view, `bench frame`) draw the level the screen
+    // allows.
+    let (mut c, p) = frames(&full);
     let drawn = rgb(&c.render(gpu(), &p, Layer::Composite).unwrap().rgba);
     assert_eq!(c.lod_level(), chosen);
     assert_eq!(c.lod_triangles().unwrap(), &chain.triangles[..]);
@@ -74,7 +75,7 @@ fn the_selected_level_is_invisible_and_coarser_levels_are_not() {
 /// path-traced reference 0.109 at level 1, 0.083 at level 0, tests/accuracy_reference.rs),
 /// while the 70k-triangle bunny, the same size at the same spot, draws a simplified level
 /// (about as many triangles as cover 2 px² each: more than the truck has, far fewer than its own).
-/// A still draws the level whose triangles cover a pixel each (`Detail::Still`).
+/// A still draws the level whose triangles cover one of its samples each (`Detail::Still`).
 #[test]
 fn the_rule_keeps_large_triangles_and_simplifies_small_ones() {
     let place = "width = 320\nheight = 240\nenvironment = \"hdri/polyhaven_1k/quarry_01_1k.hdr\"\n[camera]\nheading = 300.0\npitch = -10.0\nvfov = 40.0\nheight = 1.6\n[placement]\nposition = [-10.392, 6.0, 0.0]\nrotation = [0.0, 0.0, 60.0]\nsize = 4.5\n";
@@ -82,19 +83,20 @@ fn the_rule_keeps_large_triangles_and_simplifies_small_ones() {
         let s = scene(&format!("model = \"{model}\"\n{place}"));
         let full = inputs(&s);
         let chain = LodChain::build(&full.model);
-        let (mut c, p) = prepare(gpu(), &s, &full).unwrap();
-        c.set_detail(Detail::Frame); // the level a frame of the live view draws, not a still's
+        // The level a frame of the live view draws (one sample a pixel), then a still's.
+        let (mut c, p) = prepare_antialiased(gpu(), &s, &full, Antialiasing::STILL).unwrap();
         c.render(gpu(), &p, Layer::Composite).unwrap();
         // The level the half-pixel error bound alone allows (every level's triangles counted
         // as too many to keep).
         let many = vec![usize::MAX; chain.len()];
         let (by_error, ..) = previz::render::frame::lod_level(&chain.errors, &many, c.model_bounds().unwrap(), &p, s.height, 2.0);
         let frame = c.lod_level();
-        // A still (no frame budget) keeps triangles down to a pixel each (1 px²).
-        c.set_detail(Detail::Still);
+        // A still (no frame budget) keeps triangles down to one of its samples each (1 px² of
+        // the supersampled frame: render::supersample).
+        let (mut c, p) = prepare(gpu(), &s, &full).unwrap();
         c.render(gpu(), &p, Layer::Composite).unwrap();
         let still = c.lod_level();
-        let area = previz::render::frame::model_area_px(c.model_bounds().unwrap(), &p, s.height);
+        let area = previz::render::frame::model_area_px(c.model_bounds().unwrap(), &p, s.height * c.supersample());
         assert!(still <= frame, "a still at level {still}, a frame at {frame}");
         assert!(still == 0 || area >= chain.triangles[still] as f32, "still level {still}: {area} px² of {:?}", chain.triangles);
         assert!(still == 0 || area < chain.triangles[still - 1] as f32, "a finer level fits: {area} px²");
@@ -280,7 +282,9 @@ fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
     let sphere = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();
     for (name, model) in [("cube", cube()), ("sphere", sphere)] {
         let i = Inputs { model, env: inputs(&s).env, env_equirect: None, background: None };
-        let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
+        // Frames (one sample a pixel; a still's supersampling changes the per-vertex sun's
+        // choice with the samples' scale, which full_shadow below turns off).
+        let (mut c, mut p) = prepare_antialiased(gpu(), &s, &i, Antialiasing::STILL).unwrap();
         p.lighting.sunlight = 1.0;
         p.lighting.shadow_opacity = 0.8;
         p.lighting.sky_occlusion = 0.4;

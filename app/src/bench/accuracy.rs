@@ -160,7 +160,8 @@ pub struct AccuracyRow {
 pub fn attach_costs(rows: &mut [AccuracyRow], costs: &[crate::bench::frame::MethodCost]) -> Vec<String> {
     let mut missing = Vec::new();
     for r in rows.iter_mut() {
-        r.floor_ratio = costs.iter().find(|c| c.method == r.method).map(|c| c.floor_ratio);
+        // A frame draws one sample a pixel whatever a still's supersampling: the method's cost.
+        r.floor_ratio = costs.iter().find(|c| c.method == base_method(&r.method)).map(|c| c.floor_ratio);
         if r.floor_ratio.is_none() && !r.method.starts_with("path tracer") && !missing.contains(&r.method) {
             missing.push(r.method.clone());
         }
@@ -414,10 +415,14 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
         bail!("scene {name} renders {}x{} but its reference is {}x{}", scene.width, scene.height, reference.width, reference.height);
     }
     let mut rows = Vec::new();
-    for method in crate::render::LightingMethod::ALL {
+    let still = crate::render::supersample::STILL_FACTOR;
+    // Every method as a still draws it, then the default one with fewer samples a pixel: what
+    // supersampling buys (render::supersample).
+    let fewer = (1..still).map(|k| (crate::setup::method_choice::ORDINARY, k));
+    for (method, k) in crate::render::LightingMethod::ALL.into_iter().map(|m| (m, still)).chain(fewer) {
         let mut s = scene.clone();
         s.method = crate::setup::method_choice::MethodRequest::Fixed(method);
-        let (mut compositor, params) = crate::setup::prepare(gpu, &s, inputs)?;
+        let (mut compositor, params) = crate::setup::prepare_supersampled(gpu, &s, inputs, k)?;
         let (mut gpu_ms, mut wall_ms, mut image) = (Vec::new(), Vec::new(), None);
         for i in 0..WARM_UP_FRAMES + MEASURED_FRAMES {
             let t = std::time::Instant::now();
@@ -438,7 +443,7 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
         let (flip_frame, flip_roi, model_luminance_ratio) = score(reference, &rgb)?;
         rows.push(AccuracyRow {
             scene: name.into(),
-            method: method.name().into(),
+            method: supersampled_name(method.name(), k, still),
             flip_frame,
             flip_roi,
             model_luminance_ratio,
@@ -448,6 +453,17 @@ pub fn score_methods(gpu: &crate::gpu::Gpu, name: &str, scene: &Scene, inputs: &
         });
     }
     Ok(rows)
+}
+
+/// A row's method name: the method's own at a still's supersampling (`still` samples a side),
+/// else followed by its samples, "sh9-ggx 1x1".
+pub fn supersampled_name(method: &str, k: u32, still: u32) -> String {
+    if k == still { method.to_string() } else { format!("{method} {k}x{k}") }
+}
+
+/// The method a row's name (as [`supersampled_name`] writes it) is drawn with.
+fn base_method(name: &str) -> &str {
+    name.split(' ').next().unwrap_or(name)
 }
 
 /// Score the path tracer's own ladder: `NAME_sppN.png` (with `NAME_sppN.json` holding
@@ -566,9 +582,10 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
     let goal_ms = equal.map(|(_, at)| at.tracer_ms / 1000.0);
     let x_min = means.iter().map(|m| m.ms).chain(goal_ms).fold(f64::INFINITY, f64::min).max(1e-3) / 2.0;
     let x_max = means.iter().map(|m| m.ms).fold(0.0, f64::max) * 2.0;
-    // A decade and a half below the lowest point: the legend sits in the lower left, under the
-    // points (at / 1.5 it covered the default method's point once its error fell to 0.076).
-    let y_min = means.iter().map(|m| m.flip_roi).fold(0.06, f64::min) / 3.0;
+    // Far enough below the lowest point that the legend, in the lower left, sits under the
+    // points (at / 1.5 it covered the default method's point once its error fell to 0.076; at
+    // / 3 the supersampling rows' points at 0.06, fourteenth session).
+    let y_min = means.iter().map(|m| m.flip_roi).fold(0.06, f64::min) / 12.0;
     let y_max = means.iter().map(|m| m.flip_roi).fold(0.0, f64::max) * 1.5;
     let is_tracer = |m: &MethodMean| m.method.starts_with("path tracer");
     let palette = [
@@ -580,6 +597,8 @@ pub fn chart(rows: &[AccuracyRow]) -> Result<Vec<u8>> {
         RGBColor(227, 119, 194),
         RGBColor(23, 190, 207),
         RGBColor(188, 189, 34),
+        RGBColor(128, 0, 0),
+        RGBColor(0, 0, 128),
     ];
     let methods: Vec<(&MethodMean, RGBColor)> =
         means.iter().filter(|m| !is_tracer(m)).enumerate().map(|(i, m)| (m, palette[i % palette.len()])).collect();

@@ -30,7 +30,8 @@ pub enum What {
     /// and as many with the frame waiting for them (the frame's thread's time).
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
-    /// reference in --references (mean FLIP over the frame and the model + shadow, model
+    /// reference in --references, drawn as a still (3 × 3 samples a pixel), and the default
+    /// method with 1 × 1 and 2 × 2 (mean FLIP over the frame and the model + shadow, model
     /// luminance, time per frame: the median GPU time of 15 frames after 3 warm-up, with the wall
     /// clock including readback beside it), the path tracer's own 1/4/16/64-spp ladder, the
     /// default method against it at equal error (both per frame), and each scene's error

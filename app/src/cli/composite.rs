@@ -275,6 +275,7 @@ pub fn run(args: Args) -> Result<()> {
             "width": scene.width,
             "height": scene.height,
             "model_pixels": model_pixels,
+            "supersample": compositor.supersample(),
             "method": params.method.name(),
             "method_choice": {
                 "requested": choice.requested.name(),

@@ -20,8 +20,10 @@ impl Antialiasing {
     /// Every choice, for the study in `previz bench frame`.
     pub const ALL: [Antialiasing; 4] = [Antialiasing::Msaa(1), Antialiasing::Msaa(2), Antialiasing::Msaa(4), Antialiasing::Fxaa];
 
-    /// A still image (`previz composite`, its layers): 4× MSAA on every adapter — one frame has
-    /// no frame budget, and exported layers need the coverage in their alpha.
+    /// A still image (`previz composite`, its layers) drawn one sample a pixel (an output too
+    /// large to supersample, render::supersample): 4× MSAA on every adapter — one frame has no
+    /// frame budget, and exported layers need the coverage in their alpha. A supersampled still
+    /// needs none (render::supersample::antialiasing).
     pub const STILL: Antialiasing = Antialiasing::Msaa(4);
 
     /// Samples per pixel of the composite's colour and depth targets.

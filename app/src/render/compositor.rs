@@ -18,8 +18,9 @@ use super::passes::ground::{GroundPass, INVISIBLE_LOSS, RegionCache, sky_loss_pe
 use super::passes::model::{Culling, ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::passes::vertex_sun::{SunLookup, VertexSunPass};
-use super::pipelines::Pipelines;
+use super::pipelines::{LAYER_SAMPLES, Pipelines};
 use super::shadow_fit::{self, ShadowDrawn};
+use super::supersample;
 use super::targets::Targets;
 use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
 use crate::gpu::{Gpu, GpuTimer, build};
@@ -96,8 +97,11 @@ pub struct Rendered {
 /// GPU state for compositing at one output size.
 pub struct Compositor {
     pipelines: std::sync::Arc<Pipelines>,
+    /// The size the frame is drawn at: the output's times `supersample`.
     width: u32,
     height: u32,
+    /// Samples per side of each output pixel ([`Compositor::supersampled`]).
+    supersample: u32,
     /// The `Frame` uniform every pass reads.
     frame_buf: wgpu::Buffer,
     /// The model's transform, read by the shadow and model passes.
@@ -209,10 +213,29 @@ impl Compositor {
     /// [`Compositor::new`] with the antialiasing given (the study in `previz bench frame`).
     pub fn with_antialiasing(gpu: &Gpu, width: u32, height: u32, aa: Antialiasing) -> Result<Compositor> {
         gpu.check_size("output", width, height)?;
-        gpu.checked("the compositor's render targets", || Self::create(gpu, width, height, aa))
+        gpu.checked("the compositor's render targets", || Self::create(gpu, (width, height), aa, 1))
     }
 
-    fn create(gpu: &Gpu, width: u32, height: u32, aa: Antialiasing) -> Result<Compositor> {
+    /// A still's compositor: drawn at [`supersample::factor_for`] × the `width` × `height`
+    /// output (up to `wanted`, a still's [`supersample::STILL_FACTOR`]) and box-filtered down to
+    /// it when read back ([`Compositor::render`], [`Compositor::render_layers`]). Its k × k
+    /// samples antialias the edges too, so a supersampled still draws one sample each
+    /// ([`supersample::antialiasing`]); one of a single sample a pixel (an output too large to
+    /// supersample) draws [`Antialiasing::STILL`].
+    pub fn supersampled(gpu: &Gpu, width: u32, height: u32, wanted: u32) -> Result<Compositor> {
+        gpu.check_size("output", width, height)?;
+        let k = supersample::factor_for(width, height, wanted, gpu.device.limits().max_texture_dimension_2d);
+        gpu.checked("the compositor's render targets", || Self::create(gpu, (width, height), supersample::antialiasing(k), k))
+    }
+
+    /// Samples per side of each output pixel ([`Compositor::supersampled`]; 1 for frames).
+    pub fn supersample(&self) -> u32 {
+        self.supersample
+    }
+
+    /// Pipelines and targets for a `width` × `height` output drawn at `supersample` × its size.
+    fn create(gpu: &Gpu, (out_width, out_height): (u32, u32), aa: Antialiasing, supersample: u32) -> Result<Compositor> {
+        let (width, height) = (out_width * supersample, out_height * supersample);
         let device = &gpu.device;
         let pipelines = Pipelines::shared(gpu, aa.samples())?;
         let frame_buf = build::uniform_buffer::<FrameUniforms>(device, "frame");
@@ -222,7 +245,7 @@ impl Compositor {
         let fxaa = targets.aa_input().map(|input| FxaaPass::new(device, &pipelines, input));
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         shadow.clear_all(device, &gpu.queue);
-        let background = BackgroundPass::new(device, &pipelines, (width, height));
+        let background = BackgroundPass::new(device, &pipelines, (out_width, out_height), supersample);
         let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
         let model_pass = ModelPass::new(gpu, &pipelines);
         let vertex_sun = VertexSunPass::new(device, &pipelines, (&frame_buf, &instance_buf, &light_buf), shadow.maps());
@@ -230,6 +253,7 @@ impl Compositor {
         Ok(Compositor {
             width,
             height,
+            supersample,
             frame_buf,
             instance_buf,
             light_buf,
@@ -267,8 +291,9 @@ impl Compositor {
         })
     }
 
+    /// The output's size (the frame is drawn at [`Compositor::supersample`] × it).
     pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
+        (self.width / self.supersample, self.height / self.supersample)
     }
 
     /// How this compositor antialiases the composite.
@@ -657,7 +682,11 @@ impl Compositor {
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();
         gpu.queue.submit([encoder.finish()]);
-        let rgba = self.targets.read(gpu)?;
+        let k = self.supersample;
+        let rgba = match k {
+            1 => self.targets.read(gpu)?,
+            _ => supersample::box_mean_srgb8(&self.targets.read(gpu)?, (self.width, self.height), k),
+        };
         let (gpu_ms, shadow_gpu_ms, passes) = match &self.timer {
             Some(timer) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
@@ -700,7 +729,7 @@ impl Compositor {
         };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
         let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms, passes };
-        Ok(Rendered { width: self.width, height: self.height, rgba, timings })
+        Ok(Rendered { width: self.width / k, height: self.height / k, rgba, timings })
     }
 
     /// Render the frame's layers in float (render/layers.rs: background, shadow matte, model,
@@ -708,9 +737,13 @@ impl Compositor {
     /// pipelines are made on the first call; the 8-bit frame's are not touched.
     pub fn render_layers(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<LayerImages> {
         let r = gpu.checked("the layers", || {
-            let pipelines = LayerPipelines::shared(gpu, &self.pipelines)?;
+            // A supersampled still's layers take the frame's samples, so that they compose to
+            // its 8-bit image; a frame's layers take 4× MSAA whatever the frame's (their alpha
+            // is the coverage).
+            let samples = if self.supersample > 1 { self.pipelines.samples } else { LAYER_SAMPLES };
+            let pipelines = LayerPipelines::shared(gpu, &self.pipelines, samples)?;
             if self.layer_targets.is_none() {
-                self.layer_targets = Some(LayerTargets::new(&gpu.device, (self.width, self.height))?);
+                self.layer_targets = Some(LayerTargets::new(&gpu.device, (self.width, self.height), samples)?);
             }
             let data = self.write_frame(gpu, p, Layer::Composite)?;
             let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("layers") });
@@ -718,7 +751,8 @@ impl Compositor {
             let targets = self.layer_targets.as_ref().ok_or_else(|| anyhow!("no layer targets"))?;
             targets.copy_for_readback(&mut encoder);
             gpu.queue.submit([encoder.finish()]);
-            targets.read(gpu, glam::Mat4::from_cols_array_2d(&data.frame.view_proj), Vec3::from(data.frame.camera_pos))
+            let fine = targets.read(gpu, glam::Mat4::from_cols_array_2d(&data.frame.view_proj), Vec3::from(data.frame.camera_pos))?;
+            Ok(supersample::layers_mean(&fine, self.supersample))
         });
         self.forget_shadows_on_error(r)
     }

@@ -294,7 +294,8 @@ pub enum Detail {
     /// of at least `lod::MIN_TRIANGLE_AREA_PX`, where a frame's cost stops following the count.
     Frame,
     /// A still image (`previz composite`, the goldens, `bench accuracy`): [`lod_level`] with
-    /// triangles down to `lod::STILL_MIN_TRIANGLE_AREA_PX` (one pixel). The frame's 2 px² keeps
+    /// triangles down to `lod::STILL_MIN_TRIANGLE_AREA_PX` (one pixel of the frame drawn: one
+    /// sample of a supersampled still, render::supersample). The frame's 2 px² keeps
     /// the whole frame within FLIP 0.01 of level 0 (tests/lod.rs) but shows on the models' own
     /// pixels against the path-traced references (docs/accuracy.md, thirteenth session).
     Still,

@@ -16,7 +16,7 @@
 //! Targets and pipelines exist only once layers are asked for.
 
 use super::passes::{background, ground, model};
-use super::pipelines::{DEPTH_FORMAT, LAYER_SAMPLES, Pipelines};
+use super::pipelines::{DEPTH_FORMAT, Pipelines};
 use crate::gpu::{Gpu, Readback, build};
 use anyhow::Result;
 use glam::{Mat4, Vec3, Vec4};
@@ -49,8 +49,11 @@ pub const CHANNELS: [&str; 15] = [
 ];
 
 /// The float twins of the background, ground and model pipelines, and the model's depth-only
-/// pipeline: built on the first layers render, shared by every compositor on the device.
+/// pipeline: built on the first layers render at a sample count, shared by every compositor on
+/// the device that draws its layers with that many.
 pub struct LayerPipelines {
+    /// Samples per pixel of the layer targets they draw into.
+    samples: u32,
     background: wgpu::RenderPipeline,
     ground: wgpu::RenderPipeline,
     /// Without and with back faces culled, each indexed by `LightingMethod::shader_id`.
@@ -59,21 +62,38 @@ pub struct LayerPipelines {
     depth: [wgpu::RenderPipeline; 2],
 }
 
+/// The layer pipeline sets of one device, one per sample count asked for.
+#[derive(Default)]
+struct LayerSets(std::sync::Mutex<Vec<Arc<LayerPipelines>>>);
+
 impl LayerPipelines {
-    /// Made with the composite pipelines' bind-group layouts, so the passes' bind groups serve both.
-    pub fn shared(gpu: &Gpu, pipelines: &Pipelines) -> Result<Arc<LayerPipelines>> {
-        gpu.shared("the layer pipelines", |gpu| {
+    /// Made with the composite pipelines' bind-group layouts, so the passes' bind groups serve
+    /// both; for layer targets of `samples` per pixel ([`LayerTargets::new`]).
+    pub fn shared(gpu: &Gpu, pipelines: &Pipelines, samples: u32) -> Result<Arc<LayerPipelines>> {
+        let sets = gpu.shared("the layer pipeline sets", |_| Ok(LayerSets::default()))?;
+        let find = |sets: &LayerSets| sets.0.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|p| p.samples == samples).cloned();
+        if let Some(p) = find(&sets) {
+            return Ok(p);
+        }
+        let made = Arc::new(gpu.checked("the layer pipelines", || {
             let device = &gpu.device;
             Ok(LayerPipelines {
-                background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, LAYER_SAMPLES),
-                ground: ground::pipeline_for(device, &pipelines.ground.layout, (LAYER_FORMAT, LAYER_SAMPLES), true),
+                samples,
+                background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, samples),
+                ground: ground::pipeline_for(device, &pipelines.ground.layout, (LAYER_FORMAT, samples), true),
                 model: [false, true].map(|cull| {
                     let layouts = (&pipelines.model.layout, &pipelines.model.material_layout);
-                    model::pipelines_for(device, layouts, (LAYER_FORMAT, LAYER_SAMPLES), (true, cull))
+                    model::pipelines_for(device, layouts, (LAYER_FORMAT, samples), (true, cull))
                 }),
                 depth: [false, true].map(|cull| model::depth_pipeline(device, &pipelines.model, cull)),
             })
-        })
+        })?);
+        let mut list = sets.0.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(p) = list.iter().find(|p| p.samples == samples) {
+            return Ok(p.clone());
+        }
+        list.push(made.clone());
+        Ok(made)
     }
 
     pub fn background(&self) -> &wgpu::RenderPipeline {
@@ -125,6 +145,8 @@ struct Resolved {
 /// every layer pass draws into, a resolved float texture per colour layer, the single-sampled
 /// depth, and their readbacks.
 pub struct LayerTargets {
+    /// Samples per pixel of the targets drawn into (1: straight into the layers' textures).
+    samples: u32,
     msaa: wgpu::TextureView,
     msaa_depth: wgpu::TextureView,
     background: Resolved,
@@ -136,11 +158,12 @@ pub struct LayerTargets {
 }
 
 impl LayerTargets {
-    pub fn new(device: &wgpu::Device, (width, height): (u32, u32)) -> Result<LayerTargets> {
+    /// Targets of `width` × `height` pixels of `samples` each (resolved into single-sampled ones).
+    pub fn new(device: &wgpu::Device, (width, height): (u32, u32), samples: u32) -> Result<LayerTargets> {
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
         let size = (width, height, 1);
-        let msaa = build::texture(device, "layer msaa colour", size, LAYER_FORMAT, LAYER_SAMPLES, attach);
-        let msaa_depth = build::texture(device, "layer msaa depth", size, DEPTH_FORMAT, LAYER_SAMPLES, attach);
+        let msaa = build::texture(device, "layer msaa colour", size, LAYER_FORMAT, samples, attach);
+        let msaa_depth = build::texture(device, "layer msaa depth", size, DEPTH_FORMAT, samples, attach);
         let resolved = |label: &str| -> Result<Resolved> {
             let texture = build::texture(device, label, size, LAYER_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
             let readback = Readback::for_texture(device, label, &texture)?;
@@ -148,6 +171,7 @@ impl LayerTargets {
         };
         let depth = build::texture(device, "layer depth", size, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
         Ok(LayerTargets {
+            samples,
             msaa: msaa.create_view(&Default::default()),
             msaa_depth: msaa_depth.create_view(&Default::default()),
             background: resolved("background layer")?,
@@ -167,13 +191,18 @@ impl LayerTargets {
             LayerPass::Matte => &self.matte.view,
             LayerPass::Model => &self.model.view,
         };
+        // One sample a pixel draws into the layer's texture itself (nothing to resolve).
+        let (view, resolve_target, store) = match self.samples {
+            1 => (resolve, None, wgpu::StoreOp::Store),
+            _ => (&self.msaa, Some(resolve), wgpu::StoreOp::Discard),
+        };
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("layer"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.msaa,
+                view,
                 depth_slice: None,
-                resolve_target: Some(resolve),
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(layer.clear()), store: wgpu::StoreOp::Discard },
+                resolve_target,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(layer.clear()), store },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &self.msaa_depth,
@@ -241,6 +270,7 @@ impl LayerTargets {
 }
 
 /// The layers of one frame, linear light, row-major from the top-left pixel.
+#[derive(Clone, Debug)]
 pub struct LayerImages {
     pub width: u32,
     pub height: u32,

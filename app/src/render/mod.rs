@@ -14,6 +14,7 @@ pub mod passes;
 pub mod pipelines;
 pub mod shaders;
 pub mod shadow_fit;
+pub mod supersample;
 pub mod targets;
 pub mod uniforms;
 pub mod view;

@@ -12,8 +12,8 @@ use std::sync::Arc;
 /// Colour format of every render target: sRGB storage, linear shading.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Multisampling of the float layers (render/layers.rs: offline, so always the full 4×);
-/// the composite's comes from its [`super::Antialiasing`].
+/// Multisampling of a frame's float layers (render/layers.rs: offline, so the full 4× whatever
+/// the frame's [`super::Antialiasing`]); a supersampled still's layers take its own samples.
 pub const LAYER_SAMPLES: u32 = 4;
 
 /// Interleaved model vertex: position, normal, uv, ambient occlusion, bent normal (60 bytes).

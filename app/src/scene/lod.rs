@@ -85,6 +85,9 @@ pub const MIN_TRIANGLE_AREA_PX: f32 = 2.0;
 /// docs/accuracy.md "Thirteenth session"): ROI FLIP mean 0.0694 at 2 px², 0.0654 at 1, 0.065
 /// at 0.5 and 0.0648 at 0.25 (one 4× MSAA sample), the path tracer at equal error 28×, 27×, 25×
 /// and 23× slower: below a pixel the dense scans' triangles cost lavapipe more than they show.
+/// A supersampled still (render::supersample) counts its samples as pixels: 1 px² of the drawn
+/// frame; counting output pixels instead cost quarry_bunny's 3 × 3 still 0.061 → 0.064 of ROI
+/// FLIP (docs/accuracy.md, "Fourteenth session").
 pub const STILL_MIN_TRIANGLE_AREA_PX: f32 = 1.0;
 
 impl LodChain {

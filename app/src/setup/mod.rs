@@ -181,7 +181,8 @@ pub fn lighting(scene: &Scene, light: &LightTerms) -> Lighting {
 
 /// GPU resources for a still image of a scene and the parameters of its frame: what `previz
 /// composite`, the golden tests and the accuracy benchmark share. A still has no frame budget:
-/// it draws [`Antialiasing::STILL`] and [`Detail::Still`] (triangles down to a pixel). The
+/// it is supersampled ([`Compositor::supersampled`]: each pixel the mean of k × k samples,
+/// which antialias its edges too) and draws [`Detail::Still`] (triangles down to a sample). The
 /// live view's frames follow the adapter and the screen ([`compositor_for`]).
 pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams)> {
     prepare_with_light(gpu, scene, inputs).map(|(c, p, _)| (c, p))
@@ -190,7 +191,17 @@ pub fn prepare(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor,
 /// [`prepare`], and the light measured in the environment (for reporting it without measuring
 /// the map again).
 pub fn prepare_with_light(gpu: &Gpu, scene: &Scene, inputs: &Inputs) -> Result<(Compositor, FrameParams, SceneLight)> {
-    let compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, Antialiasing::STILL)?;
+    prepare_still(gpu, scene, inputs, crate::render::supersample::STILL_FACTOR)
+}
+
+/// [`prepare`] with up to `k` × `k` samples a pixel instead of a still's own (`previz bench
+/// accuracy` charts what each factor buys).
+pub fn prepare_supersampled(gpu: &Gpu, scene: &Scene, inputs: &Inputs, k: u32) -> Result<(Compositor, FrameParams)> {
+    prepare_still(gpu, scene, inputs, k).map(|(c, p, _)| (c, p))
+}
+
+fn prepare_still(gpu: &Gpu, scene: &Scene, inputs: &Inputs, k: u32) -> Result<(Compositor, FrameParams, SceneLight)> {
+    let compositor = Compositor::supersampled(gpu, scene.width, scene.height, k)?;
     let (mut compositor, params, light) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
     compositor.set_detail(Detail::Still);
     set_background(gpu, &mut compositor, inputs)?;

@@ -84,11 +84,17 @@ pub struct BackgroundPass {
     equirect_on: bool,
     /// True: the background is the environment seen by the camera; false: an uploaded image.
     from_env: bool,
+    /// Samples per side of each output pixel (render::supersample): the texture is this many
+    /// times the output's size, an image of the output's size is set with each pixel repeated.
+    supersample: u32,
 }
 
 impl BackgroundPass {
-    /// A `width`×`height` background texture, drawn from the environment until an image is set.
-    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, (width, height): (u32, u32)) -> BackgroundPass {
+    /// The background of a `width`×`height` output drawn at `supersample` × its size (its
+    /// texture that size), drawn from the environment until an image is set.
+    pub fn new(device: &wgpu::Device, pipelines: &Pipelines, (width, height): (u32, u32), supersample: u32) -> BackgroundPass {
+        let supersample = supersample.max(1);
+        let (width, height) = (width * supersample, height * supersample);
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
         let texture = build::texture(device, "background", (width, height, 1), COLOR_FORMAT, 1, usage);
         let view = texture.create_view(&Default::default());
@@ -105,6 +111,7 @@ impl BackgroundPass {
             equirect: None,
             equirect_on: false,
             from_env: true,
+            supersample,
         }
     }
 
@@ -191,22 +198,32 @@ impl BackgroundPass {
         self.equirect_on
     }
 
-    /// Use `image` (already the background's size) as the background, or `None` for the
-    /// environment seen by the camera. An image is one `write_texture`.
+    /// Use `image` (already the output's size) as the background, or `None` for the
+    /// environment seen by the camera. An image is one `write_texture` (each pixel repeated
+    /// over its samples when the output is supersampled: they average back to it).
     pub fn set_image(&mut self, gpu: &Gpu, image: Option<&Rgba8Image>) -> Result<()> {
         let Some(img) = image else {
             self.from_env = true;
             return Ok(());
         };
-        let (width, height) = (self.texture.width(), self.texture.height());
+        let k = self.supersample;
+        let (width, height) = (self.texture.width() / k, self.texture.height() / k);
         if (img.width, img.height) != (width, height) {
             bail!("background is {}x{}, the output is {width}x{height}", img.width, img.height);
         }
         if img.pixels.len() != (4 * img.width * img.height) as usize {
             bail!("background pixel buffer has the wrong length");
         }
+        let repeated;
+        let pixels = match k {
+            1 => &img.pixels,
+            _ => {
+                repeated = crate::render::supersample::repeat_pixels(&img.pixels, (img.width, img.height), k);
+                &repeated
+            }
+        };
         gpu.checked("the background image", || {
-            build::write_layer(&gpu.queue, &self.texture, 0, &img.pixels);
+            build::write_layer(&gpu.queue, &self.texture, 0, pixels);
             Ok(())
         })?;
         self.from_env = false;

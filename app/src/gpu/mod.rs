@@ -134,6 +134,26 @@ impl Gpu {
         Ok(made)
     }
 
+    /// [`Gpu::shared`] once per `key` of the same type (the pipelines of each sample count): the
+    /// first call for a key runs `make` inside [`Gpu::checked`], later calls for it return the
+    /// same value. A failed `make` is not cached.
+    pub fn shared_per<T: Any + Send + Sync>(&self, what: &str, key: u32, make: impl FnOnce(&Gpu) -> Result<T>) -> Result<Arc<T>> {
+        let sets = self.shared(what, |_| Ok(PerKey::<T>(Mutex::new(Vec::new()))))?;
+        let find =
+            |sets: &PerKey<T>| sets.0.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone());
+        if let Some(v) = find(&sets) {
+            return Ok(v);
+        }
+        // Built without the lock held, as in `shared`.
+        let made = Arc::new(self.checked(what, || make(self))?);
+        let mut list = sets.0.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, v)) = list.iter().find(|(k, _)| *k == key) {
+            return Ok(v.clone());
+        }
+        list.push((key, made.clone()));
+        Ok(made)
+    }
+
     fn lock_shared(&self) -> std::sync::MutexGuard<'_, HashMap<TypeId, Arc<dyn Any + Send + Sync>>> {
         self.shared.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
@@ -147,6 +167,9 @@ impl Gpu {
         Ok(())
     }
 }
+
+/// [`Gpu::shared_per`]'s values of one type, by key.
+struct PerKey<T>(Mutex<Vec<(u32, Arc<T>)>>);
 
 #[cfg(test)]
 pub(crate) mod tests {
@@ -185,6 +208,19 @@ pub(crate) mod tests {
         });
         assert_eq!(ok.unwrap(), 4);
         assert!(gpu.check_size("output", 0, 4).is_err() && gpu.check_size("output", too_wide, 4).is_err());
+    }
+
+    #[test]
+    fn shared_per_key_is_built_once_per_key() {
+        struct Key(u32);
+        let gpu = Gpu::headless().unwrap();
+        let one = gpu.shared_per("keyed", 1, |_| Ok(Key(1))).unwrap();
+        let four = gpu.shared_per("keyed", 4, |_| Ok(Key(4))).unwrap();
+        let again = gpu.shared_per("keyed", 1, |_: &Gpu| -> Result<Key> { panic!("built twice") }).unwrap();
+        assert!(Arc::ptr_eq(&one, &again) && one.0 == 1 && four.0 == 4);
+        // A failed build is not kept: the next call builds it.
+        assert!(gpu.shared_per("keyed", 2, |_: &Gpu| -> Result<Key> { bail!("no") }).is_err());
+        assert_eq!(gpu.shared_per("keyed", 2, |_| Ok(Key(2))).unwrap().0, 2);
     }
 
     #[test]

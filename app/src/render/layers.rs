@@ -52,8 +52,6 @@ pub const CHANNELS: [&str; 15] = [
 /// pipeline: built on the first layers render at a sample count, shared by every compositor on
 /// the device that draws its layers with that many.
 pub struct LayerPipelines {
-    /// Samples per pixel of the layer targets they draw into.
-    samples: u32,
     background: wgpu::RenderPipeline,
     ground: wgpu::RenderPipeline,
     /// Without and with back faces culled, each indexed by `LightingMethod::shader_id`.
@@ -62,23 +60,13 @@ pub struct LayerPipelines {
     depth: [wgpu::RenderPipeline; 2],
 }
 
-/// The layer pipeline sets of one device, one per sample count asked for.
-#[derive(Default)]
-struct LayerSets(std::sync::Mutex<Vec<Arc<LayerPipelines>>>);
-
 impl LayerPipelines {
     /// Made with the composite pipelines' bind-group layouts, so the passes' bind groups serve
-    /// both; for layer targets of `samples` per pixel ([`LayerTargets::new`]).
+    /// both; for layer targets of `samples` per pixel ([`LayerTargets::new`]), once per count.
     pub fn shared(gpu: &Gpu, pipelines: &Pipelines, samples: u32) -> Result<Arc<LayerPipelines>> {
-        let sets = gpu.shared("the layer pipeline sets", |_| Ok(LayerSets::default()))?;
-        let find = |sets: &LayerSets| sets.0.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|p| p.samples == samples).cloned();
-        if let Some(p) = find(&sets) {
-            return Ok(p);
-        }
-        let made = Arc::new(gpu.checked("the layer pipelines", || {
+        gpu.shared_per("the layer pipelines", samples, |gpu| {
             let device = &gpu.device;
             Ok(LayerPipelines {
-                samples,
                 background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, samples),
                 ground: ground::pipeline_for(device, &pipelines.ground.layout, (LAYER_FORMAT, samples), true),
                 model: [false, true].map(|cull| {
@@ -87,13 +75,7 @@ impl LayerPipelines {
                 }),
                 depth: [false, true].map(|cull| model::depth_pipeline(device, &pipelines.model, cull)),
             })
-        })?);
-        let mut list = sets.0.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some(p) = list.iter().find(|p| p.samples == samples) {
-            return Ok(p.clone());
-        }
-        list.push(made.clone());
-        Ok(made)
+        })
     }
 
     pub fn background(&self) -> &wgpu::RenderPipeline {
@@ -145,9 +127,9 @@ struct Resolved {
 /// every layer pass draws into, a resolved float texture per colour layer, the single-sampled
 /// depth, and their readbacks.
 pub struct LayerTargets {
-    /// Samples per pixel of the targets drawn into (1: straight into the layers' textures).
-    samples: u32,
-    msaa: wgpu::TextureView,
+    /// The multisampled colour target; None at one sample a pixel (drawn straight into the
+    /// layers' textures).
+    msaa: Option<wgpu::TextureView>,
     msaa_depth: wgpu::TextureView,
     background: Resolved,
     matte: Resolved,
@@ -162,7 +144,7 @@ impl LayerTargets {
     pub fn new(device: &wgpu::Device, (width, height): (u32, u32), samples: u32) -> Result<LayerTargets> {
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
         let size = (width, height, 1);
-        let msaa = build::texture(device, "layer msaa colour", size, LAYER_FORMAT, samples, attach);
+        let msaa = (samples > 1).then(|| build::texture(device, "layer msaa colour", size, LAYER_FORMAT, samples, attach));
         let msaa_depth = build::texture(device, "layer msaa depth", size, DEPTH_FORMAT, samples, attach);
         let resolved = |label: &str| -> Result<Resolved> {
             let texture = build::texture(device, label, size, LAYER_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
@@ -171,8 +153,7 @@ impl LayerTargets {
         };
         let depth = build::texture(device, "layer depth", size, DEPTH_FORMAT, 1, attach | wgpu::TextureUsages::COPY_SRC);
         Ok(LayerTargets {
-            samples,
-            msaa: msaa.create_view(&Default::default()),
+            msaa: msaa.map(|t| t.create_view(&Default::default())),
             msaa_depth: msaa_depth.create_view(&Default::default()),
             background: resolved("background layer")?,
             matte: resolved("shadow matte layer")?,
@@ -192,9 +173,9 @@ impl LayerTargets {
             LayerPass::Model => &self.model.view,
         };
         // One sample a pixel draws into the layer's texture itself (nothing to resolve).
-        let (view, resolve_target, store) = match self.samples {
-            1 => (resolve, None, wgpu::StoreOp::Store),
-            _ => (&self.msaa, Some(resolve), wgpu::StoreOp::Discard),
+        let (view, resolve_target, store) = match &self.msaa {
+            None => (resolve, None, wgpu::StoreOp::Store),
+            Some(msaa) => (msaa, Some(resolve), wgpu::StoreOp::Discard),
         };
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("layer"),

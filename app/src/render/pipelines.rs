@@ -142,18 +142,7 @@ impl Pipelines {
     /// once per sample count, inside a validation scope, and shared by every compositor on it
     /// (a second composite in the same process compiles no shaders).
     pub fn shared(gpu: &Gpu, samples: u32) -> Result<Arc<Pipelines>> {
-        let sets = gpu.shared("the render pipeline sets", |_| Ok(BySamples::default()))?;
-        let find = |sets: &BySamples| sets.0.lock().unwrap_or_else(|p| p.into_inner()).iter().find(|p| p.samples == samples).cloned();
-        if let Some(p) = find(&sets) {
-            return Ok(p);
-        }
-        let made = Arc::new(gpu.checked("the render pipelines", || Ok(Pipelines::new(&gpu.device, samples)))?);
-        let mut list = sets.0.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some(p) = list.iter().find(|p| p.samples == samples) {
-            return Ok(p.clone());
-        }
-        list.push(made.clone());
-        Ok(made)
+        gpu.shared_per("the render pipelines", samples, |gpu| Ok(Pipelines::new(&gpu.device, samples)))
     }
 
     fn new(device: &wgpu::Device, samples: u32) -> Pipelines {
@@ -187,7 +176,3 @@ impl Pipelines {
         }
     }
 }
-
-/// The pipeline sets of one device, one per sample count asked for.
-#[derive(Default)]
-struct BySamples(std::sync::Mutex<Vec<Arc<Pipelines>>>);

@@ -17,7 +17,7 @@ use crate::colour::{linear_to_srgb, srgb_to_linear};
 pub const STILL_FACTOR: u32 = 3;
 
 /// Most pixels a supersampled still is drawn at (8 Mi: a 960×640 still keeps 3×, a 1920×1080
-/// one gets 2×): the 4×-multisampled targets of the frame and of its float layers grow with it.
+/// one gets 2×): the targets of the frame and of its float layers grow with it.
 pub const SAMPLE_BUDGET: u64 = 1 << 23;
 
 /// The antialiasing of a still drawn at `k` × `k` samples a pixel: none beyond them when there

@@ -16,10 +16,11 @@ override SUN_SHADOW: bool = true;
 @group(0) @binding(2) var shadow_map: texture_depth_2d;
 @group(0) @binding(3) var shadow_smp: sampler_comparison;
 @group(0) @binding(4) var<uniform> light: Light;
-// r: the cosine-weighted sky the ground sees past the model; gba: the light the model reflects
-// onto it, a gain on the ground's light per channel; over light.ground_square (written once per
-// placement and light from scene::occlusion::GroundTransfer::map).
-@group(0) @binding(5) var ground_sky: texture_2d<f32>;
+// Layer 0, rgb: the share of each channel of the sky's (cosine-weighted) light the ground sees
+// past the model; layer 1, rgb: the light the model reflects onto it, a gain on the ground's
+// light per channel; over light.ground_square (written once per placement and light from
+// scene::occlusion::GroundTransfer::map, render::passes::ground::ground_texels).
+@group(0) @binding(5) var ground_sky: texture_2d_array<f32>;
 @group(0) @binding(6) var ground_sky_smp: sampler;
 // The shadow map's depths without comparison, nearest texel (the soft shadow's blocker search).
 @group(0) @binding(7) var shadow_gather_smp: sampler;
@@ -59,24 +60,25 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     // the (cosine-weighted) sky hidden here. Outside the square the sky is whole.
     let square = light.ground_square;
     let uv = (in.world.xy - square.xy) / max(square.zw - square.xy, vec2<f32>(1e-6));
-    var sky_seen = 1.0;
+    var sky_seen = vec3<f32>(1.0);
     var bounce = vec3<f32>(0.0);
     if (all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0))) {
-        let texel = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0.0);
-        sky_seen = texel.r;
-        bounce = texel.gba;
+        sky_seen = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0, 0.0).rgb;
+        bounce = textureSampleLevel(ground_sky, ground_sky_smp, uv, 1, 0.0).rgb;
     }
-    let sky_lost = light.ground_sky.x * (1.0 - sky_seen);
+    let sky_lost = light.ground_sky.x * (vec3<f32>(1.0) - sky_seen);
     return vec4<f32>(0.5 * (1.0 - ground_loss(sun_lost, sky_lost) + bounce), 0.0);
 }
 
 // What the ground loses per channel when it loses `sun_lost` of its light's luminance to the
-// sun's shadow and `sky_lost` to the model's occlusion of the sky. The ground's light is the
-// sun's, in the sun's colour (light.sun.rgb), and the sky's, in the sky's colour on the ground
-// (light.ground_sky.yzw), each of luminance 1; their luminance shares are
+// sun's shadow and, per channel, `sky_lost` of the sky's light in units of the sky's luminance
+// share (the share times the part of that channel of the sky the model hides). The ground's
+// light is the sun's, in the sun's colour (light.sun.rgb), and the sky's, in the sky's colour
+// on the ground (light.ground_sky.yzw), each of luminance 1; their luminance shares are
 // frame.shadow_opacity : light.ground_sky.x. Per channel each loses its own share, so a shadow
-// out of a warm sun under a blue sky is blue (issue 9: the shadow's colour).
-fn ground_loss(sun_lost: f32, sky_lost: f32) -> vec3<f32> {
+// out of a warm sun under a blue sky is blue, and one that hides the warm sky round a low sun
+// is bluer still (issue 9: the shadow's colour).
+fn ground_loss(sun_lost: f32, sky_lost: vec3<f32>) -> vec3<f32> {
     let sun_share = frame.shadow_opacity;
     let sky_share = light.ground_sky.x;
     let total = sun_share + sky_share;

@@ -130,12 +130,18 @@ use std::path::Path;
 /// (render::supersample): ROI 0.06100, 0.04629, 0.08520, 0.04910, 0.05606 (mean 0.0595),
 /// luminance 0.979, 1.002, 0.978, 1.000, 0.975; bounds measured + 0.01 rounded up (quarry_bunny
 /// 0.071, courtyard_dragon 0.096, city_spot 0.060, quarry_truck 0.067), luminance errors kept.
+/// Fifteenth session (2026-12-02 14:15 UTC, debug): the ground loses the sky's light per colour
+/// channel, each channel's rays weighted by that channel of the sky's bins (SkyRadiance::tint,
+/// GroundTransfer::map): ROI 0.04997, 0.03014, 0.06462, 0.04804, 0.05038 (mean 0.0486),
+/// luminance 0.979, 1.002, 0.978, 1.000, 0.975 (unchanged: the model is not drawn differently);
+/// bounds measured + 0.01 rounded up (quarry_bunny 0.060, blouberg_teapot 0.041,
+/// courtyard_dragon 0.075, city_spot 0.059, quarry_truck 0.061), luminance errors kept.
 const BOUNDS: [(&str, f32, f32); 5] = [
-    ("quarry_bunny", 0.071, 0.04),
-    ("blouberg_teapot", 0.057, 0.031),
-    ("courtyard_dragon", 0.096, 0.033),
-    ("city_spot", 0.060, 0.032),
-    ("quarry_truck", 0.067, 0.04),
+    ("quarry_bunny", 0.060, 0.04),
+    ("blouberg_teapot", 0.041, 0.031),
+    ("courtyard_dragon", 0.075, 0.033),
+    ("city_spot", 0.059, 0.032),
+    ("quarry_truck", 0.061, 0.04),
 ];
 
 /// (scene, largest allowed mean FLIP over the whole frame): most of the frame is the background,
@@ -156,9 +162,11 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// and Spot's to 0.028, the others kept. Thirteenth session (a still draws triangles down to a
 /// pixel): 0.0241, 0.0146, 0.0303, 0.0169, 0.0239; quarry_truck's tightened to 0.034, city_spot's
 /// to 0.027. Fourteenth session (a supersampled still): 0.0227, 0.0146, 0.0306, 0.0165, 0.0214;
-/// quarry_bunny's tightened to 0.033, quarry_truck's to 0.032, the others kept.
+/// quarry_bunny's tightened to 0.033, quarry_truck's to 0.032, the others kept. Fifteenth session
+/// (the ground's sky lost per channel): 0.0212, 0.0134, 0.0268, 0.0164, 0.0203; each tightened to
+/// measured + 0.01 rounded up (Spot's 0.027 as it was).
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.033), ("blouberg_teapot", 0.025), ("courtyard_dragon", 0.041), ("city_spot", 0.027), ("quarry_truck", 0.032)];
+    [("quarry_bunny", 0.032), ("blouberg_teapot", 0.024), ("courtyard_dragon", 0.037), ("city_spot", 0.027), ("quarry_truck", 0.031)];
 
 #[test]
 fn default_method_against_path_traced_references() {
@@ -195,7 +203,8 @@ fn default_method_against_path_traced_references() {
 /// full map itself scores 0.0878. Bound: the goal, 0.10 (measured + 0.01 would be 0.103).
 /// Thirteenth session (a still draws triangles down to a pixel): 0.08135, luminance 0.993;
 /// bound measured + 0.01 rounded up, 0.092. Fourteenth session (a supersampled still): 0.07312,
-/// luminance 0.995; bound 0.084.
+/// luminance 0.995; bound 0.084. Fifteenth session (the ground's sky lost per channel): 0.06375,
+/// luminance 0.995; bound 0.074.
 #[test]
 fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
     use previz::scene::environment::Equirect;
@@ -221,6 +230,6 @@ fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
         "{name} clipped: FLIP frame {frame:.4}, ROI {roi:.5}, model luminance / reference {luminance:.4}, beam turbidity {:?}",
         light.beam_turbidity
     );
-    assert!(roi <= 0.084, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.084");
+    assert!(roi <= 0.074, "clipped {name}: mean FLIP in the model + shadow {roi:.4} > 0.074");
     assert!((luminance - 1.0).abs() <= 0.04, "clipped {name}: model luminance / reference {luminance:.3}");
 }

@@ -77,6 +77,10 @@ pub struct SkyRadiance {
     /// Row-major from the horizon row; column k covers azimuths (k, k + 1) · 2π / SKY_COLUMNS
     /// clockwise from North (light::sun_finder::azimuth_elevation).
     pub bins: [f32; SKY_BINS],
+    /// Each bin's colour: its mean linear RGB over its luminance (BT.709 luminance 1; white for
+    /// a bin without light), rounded to 1/32 as the bins are: what the model hides of a sky
+    /// warm round a low sun and blue overhead is the colour of that part, not the sky's mean.
+    pub tint: [[f32; 3]; SKY_BINS],
 }
 
 impl Default for SkyRadiance {
@@ -87,18 +91,25 @@ impl Default for SkyRadiance {
 
 impl SkyRadiance {
     /// The same radiance from every direction.
-    pub const UNIFORM: SkyRadiance = SkyRadiance { bins: [1.0; SKY_BINS] };
+    pub const UNIFORM: SkyRadiance = SkyRadiance { bins: [1.0; SKY_BINS], tint: [[1.0; 3]; SKY_BINS] };
 
     /// The solid-angle mean luminance of the `samples` above the horizon in each bin, over their
     /// mean; a bin no sample falls in takes its row's mean (uniform when nothing above the horizon
     /// gives light).
     pub fn of(samples: &[DirSample]) -> SkyRadiance {
         let mut sum = [(0f64, 0f64); SKY_BINS];
+        let mut rgb = [[0f64; 3]; SKY_BINS];
         for s in samples.iter().filter(|s| s.dir.z > 0.0) {
-            let e = &mut sum[SkyRadiance::bin(s.dir)];
+            let b = SkyRadiance::bin(s.dir);
+            let e = &mut sum[b];
             e.0 += f64::from(crate::colour::luminance_bt709(s.radiance)) * f64::from(s.solid_angle);
             e.1 += f64::from(s.solid_angle);
+            rgb[b].iter_mut().zip(s.radiance).for_each(|(c, r)| *c += f64::from(r.max(0.0)) * f64::from(s.solid_angle));
         }
+        let tint = std::array::from_fn(|b| {
+            let lum = sum[b].0;
+            if lum > 0.0 { rgb[b].map(|c| ((c / lum) as f32 * 32.0).round() / 32.0) } else { [1.0; 3] }
+        });
         let mut bins = [f32::NAN; SKY_BINS];
         for (b, (l, w)) in bins.iter_mut().zip(sum) {
             if w > 0.0 {
@@ -115,7 +126,7 @@ impl SkyRadiance {
         if !(mean > 0.0 && mean.is_finite()) {
             return SkyRadiance::UNIFORM;
         }
-        SkyRadiance { bins: bins.map(|v| if v.is_finite() { (v.max(0.0) / mean * 32.0).round() / 32.0 } else { 1.0 }) }
+        SkyRadiance { bins: bins.map(|v| if v.is_finite() { (v.max(0.0) / mean * 32.0).round() / 32.0 } else { 1.0 }), tint }
     }
 
     /// The bin of a unit direction in the map's frame (z ≤ 0: the horizon row).
@@ -141,6 +152,15 @@ impl SkyRadiance {
             return 0.0;
         }
         self.bins[SkyRadiance::bin_at(azimuth - heading, z)]
+    }
+
+    /// [`SkyRadiance::at`] per colour channel: the bin's luminance times its [`tint`](SkyRadiance::tint).
+    pub fn at_rgb(&self, azimuth: f32, z: f32, heading: f32) -> [f32; 3] {
+        if z <= 0.0 {
+            return [0.0; 3];
+        }
+        let b = SkyRadiance::bin_at(azimuth - heading, z);
+        self.tint[b].map(|t| t * self.bins[b])
     }
 
     /// [`SkyRadiance::at`] towards unit world direction `d`.
@@ -217,6 +237,27 @@ pub fn brute_force_irradiance(samples: &[DirSample], n: Vec3) -> [f32; 3] {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn each_bin_keeps_the_colour_of_its_part_of_the_sky() {
+        // A warm patch North, 45° up, and a blue one South: each bin's tint is its RGB over
+        // its BT.709 luminance (2, 1, 0.5 has luminance 0.2126·2 + 0.7152 + 0.0722·0.5 =
+        // 1.1765: tint 1.700, 0.850, 0.425, in 32nds 1.6875, 0.84375, 0.4375); an empty bin is
+        // white, and the bin's luminance times its tint gives the colour back.
+        let up = std::f32::consts::FRAC_1_SQRT_2;
+        let warm = DirSample { dir: Vec3::new(0.0, up, up), radiance: [2.0, 1.0, 0.5], solid_angle: 0.1 };
+        let blue = DirSample { dir: Vec3::new(0.0, -up, up), radiance: [0.5, 1.0, 2.0], solid_angle: 0.1 };
+        let sky = SkyRadiance::of(&[warm, blue]);
+        assert_eq!(sky.tint[SkyRadiance::bin(warm.dir)], [1.6875, 0.84375, 0.4375]);
+        let b = SkyRadiance::bin(blue.dir);
+        let lum = 0.2126 * 0.5 + 0.7152 + 0.0722 * 2.0;
+        assert_eq!(sky.tint[b], [0.5f32 / lum, 1.0 / lum, 2.0 / lum].map(|t| (t * 32.0).round() / 32.0));
+        assert_eq!(sky.tint[SkyRadiance::bin(Vec3::new(1.0, 0.0, 0.1).normalize())], [1.0; 3]);
+        let rgb = sky.at_rgb(0.0, up, 0.0);
+        let k = sky.bins[SkyRadiance::bin(warm.dir)];
+        assert_eq!(rgb, [1.6875 * k, 0.84375 * k, 0.4375 * k]);
+        assert_eq!(sky.at_rgb(0.0, 0.0, 0.0), [0.0; 3], "the ground is not the sky");
+    }
 
     #[test]
     fn irradiance_colour_of_a_blue_sky_over_a_red_ground() {

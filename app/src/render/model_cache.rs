@@ -110,7 +110,7 @@ impl Ground {
         {
             return sky.clone();
         }
-        let sky = Arc::new(self.transfer.map(&|azimuth, z| light.radiance.at(azimuth, z, light.heading), &light.bounce));
+        let sky = Arc::new(self.transfer.map(&|azimuth, z| light.radiance.at_rgb(azimuth, z, light.heading), &light.bounce));
         computed.fetch_add(1, Relaxed);
         self.map = Some((light, sky.clone()));
         sky
@@ -645,7 +645,7 @@ mod tests {
             }
         }
         bins[4] = bright;
-        SkyRadiance { bins }
+        SkyRadiance { bins, ..SkyRadiance::UNIFORM }
     }
 
     #[test]

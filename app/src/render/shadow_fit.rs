@@ -321,8 +321,8 @@ pub const SKY_REGION_DIRECTIONS: usize = 16;
 /// Where on the ground the sky's occlusion under the model reaches `min_occlusion` (the share
 /// of the sky hidden) or the model's light on it reaches `min_bounce` in some channel (the gain
 /// on the ground's light, `GroundSky::bounce`): a convex polygon (counter-clockwise) around
-/// every texel of `sky` (its visibility as the ground pass holds it: in 255ths,
-/// passes::ground::sky_texels) hiding or gaining at least that much, widened by
+/// every texel of `sky` (its visibility as the ground pass holds it: in 255ths per channel,
+/// passes::ground::sky_texels, the channel losing most) hiding or gaining at least that much, widened by
 /// a texel on every side (the bilinear lookup's reach), from their support along
 /// [`SKY_REGION_DIRECTIONS`] directions; in the map's square as the ground pass places it (0..1
 /// from its min to its max corner: the map moves with the model). Outside it every lookup
@@ -336,7 +336,7 @@ pub fn sky_region(sky: &crate::scene::occlusion::GroundSky, min_occlusion: f32, 
     let gains = |i: usize| sky.bounce.get(i).map_or(0.0, |b| b.iter().copied().fold(0.0, f32::max));
     let points = (texels.iter().enumerate())
         // In whole 255ths, as the texture holds them.
-        .filter(|(i, v)| f32::from(255 - **v) >= min_occlusion * 255.0 - 1e-3 || gains(*i) >= min_bounce)
+        .filter(|(i, v)| f32::from(255 - v.iter().min().copied().unwrap_or(255)) >= min_occlusion * 255.0 - 1e-3 || gains(*i) >= min_bounce)
         .flat_map(|(i, _)| {
             let centre = (Vec2::new((i % n) as f32, (i / n) as f32) + 0.5) * texel;
             corners.map(|c| centre + c * texel)
@@ -704,6 +704,7 @@ mod tests {
             z: 0.0,
             size: 4,
             visibility,
+            visibility_rgb: Vec::new(),
             bounce: Vec::new(),
         };
         // At 10/255: texel (1, 2), centre (1.5, 2.5)/4, widened by a texel: [0.5, 2.5] x [1.5,
@@ -724,6 +725,13 @@ mod tests {
         assert!(close2(lo * 4.0, Vec2::new(-0.5, -0.5)) && close2(hi * 4.0, Vec2::new(2.5, 3.5)), "{lo} {hi}");
         let (lo, _) = bbox(&sky_region(&sky, 10.0 / 255.0, 0.03));
         assert!(close2(lo * 4.0, Vec2::new(0.5, 1.5)), "{lo}");
+        // A texel whose blue alone loses 12/255 (a model hiding the blue overhead) comes in at
+        // 10/255 whatever its luminance's share: texel (3, 0) widens the box to x = 4.5 quarters.
+        sky.bounce.clear();
+        sky.visibility_rgb = (0..16).map(|i| [sky.visibility[i]; 3]).collect();
+        sky.visibility_rgb[3] = [1.0, 1.0, 243.0 / 255.0];
+        let (lo, hi) = bbox(&sky_region(&sky, 10.0 / 255.0, 1.0));
+        assert!(close2(lo * 4.0, Vec2::new(0.5, -0.5)) && close2(hi * 4.0, Vec2::new(4.5, 3.5)), "{lo} {hi}");
     }
 
     #[test]

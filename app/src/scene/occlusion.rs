@@ -450,6 +450,26 @@ impl Transfer {
         if total > 0.0 { (open / total).clamp(0.0, 1.0) } else { self.plain }
     }
 
+    /// [`Transfer::weighted_visibility`] per colour channel, each ray weighted by that channel
+    /// of `radiance(azimuth, z)`: the share of each channel's light the point still sees (the
+    /// plain share for a channel without light).
+    pub fn weighted_visibility_rgb(&self, radiance: &dyn Fn(f32, f32) -> [f32; 3]) -> [f32; 3] {
+        let (mut open, mut total) = ([0f32; 3], [0f32; 3]);
+        for r in &self.rays {
+            let (azimuth, z) = r.direction();
+            let l = radiance(azimuth, z);
+            let w = row_weight(z);
+            for c in 0..3 {
+                let wc = l[c].max(0.0) * w;
+                total[c] += wc;
+                if r.open() {
+                    open[c] += wc;
+                }
+            }
+        }
+        std::array::from_fn(|c| if total[c] > 0.0 { (open[c] / total[c]).clamp(0.0, 1.0) } else { self.plain })
+    }
+
     /// The occluders' light at the point per channel, a gain on the point's own light, under
     /// `light` ([`BounceLight`]); clamped at 0 (the nine harmonics of a clamped cosine ring a
     /// little below it).
@@ -964,7 +984,7 @@ pub fn standing_ground(occluders: &Occluders, bounds: (Vec3, Vec3), size: u32, r
     // Model (x, y, z) → (x, −z, y): y up becomes z up (render::view::model_to_world_axes).
     let stance = Mat4::from_cols(glam::Vec4::X, glam::Vec4::Z, -glam::Vec4::Y, glam::Vec4::W);
     let (min, max, z, visibility) = over_ground(bounds, stance, size, |point, up, seed| occluders.visibility(point, up, rays, seed));
-    GroundSky { min, max, z, size: size.max(1), visibility, bounce: Vec::new() }
+    GroundSky { min, max, z, size: size.max(1), visibility, visibility_rgb: Vec::new(), bounce: Vec::new() }
 }
 
 /// Each vertex's value averaged with those of the vertices it shares a triangle with (each
@@ -1062,12 +1082,22 @@ pub struct GroundSky {
     /// sky visibility in 0..=1 at each texel's centre.
     pub size: u32,
     pub visibility: Vec<f32>,
+    /// The same per colour channel (linear RGB), each channel's rays weighted by that channel of
+    /// the sky ([`Transfer::weighted_visibility_rgb`]): a model that hides the warm sky round a
+    /// low sun leaves the ground bluer, not greyer. Row-major as `visibility`; empty: the
+    /// `visibility` in every channel.
+    pub visibility_rgb: Vec<[f32; 3]>,
     /// The model's light reflected onto each texel as a gain on the ground's own light, per
     /// channel (linear RGB; [`Transfer::reflected`]), row-major as `visibility`; empty: none.
     pub bounce: Vec<[f32; 3]>,
 }
 
 impl GroundSky {
+    /// Texel `i`'s visibility per channel ([`GroundSky::visibility_rgb`]).
+    pub fn channels(&self, i: usize) -> [f32; 3] {
+        self.visibility_rgb.get(i).copied().unwrap_or_else(|| [self.visibility.get(i).copied().unwrap_or(1.0); 3])
+    }
+
     /// The visibility at world (x, y) by bilinear interpolation between texel centres (1 outside
     /// the square: far from the model the sky is whole).
     pub fn at(&self, p: Vec2) -> f32 {
@@ -1133,16 +1163,19 @@ pub struct GroundTransfer {
 }
 
 impl GroundTransfer {
-    /// The ground's sky visibility under a sky of radiance `radiance(azimuth, z)` (a world
-    /// direction's, [`SkyRay::direction`]): each texel's rays weighted by it
-    /// ([`Transfer::weighted_visibility`]); no ray is cast.
+    /// The ground's sky visibility under a sky of linear RGB radiance `radiance(azimuth, z)` (a
+    /// world direction's, [`SkyRay::direction`]): each texel's rays weighted by its BT.709
+    /// luminance ([`Transfer::weighted_visibility`]) and, per channel, by each channel
+    /// ([`Transfer::weighted_visibility_rgb`]); no ray is cast.
     ///
     /// With it, the model's light on each texel ([`Transfer::reflected`]) under `bounce`
     /// ([`BounceLight::NONE`]: none, an empty `GroundSky::bounce`).
-    pub fn map(&self, radiance: &dyn Fn(f32, f32) -> f32, bounce: &BounceLight) -> GroundSky {
-        let visibility = self.texels.iter().map(|t| t.weighted_visibility(radiance)).collect();
+    pub fn map(&self, radiance: &dyn Fn(f32, f32) -> [f32; 3], bounce: &BounceLight) -> GroundSky {
+        let luminance = |azimuth, z| crate::colour::luminance_bt709(radiance(azimuth, z));
+        let visibility = self.texels.iter().map(|t| t.weighted_visibility(&luminance)).collect();
+        let visibility_rgb = self.texels.iter().map(|t| t.weighted_visibility_rgb(radiance)).collect();
         let bounce = if *bounce == BounceLight::NONE { Vec::new() } else { self.texels.iter().map(|t| t.reflected(bounce)).collect() };
-        GroundSky { min: self.min, max: self.max, z: self.z, size: self.size, visibility, bounce }
+        GroundSky { min: self.min, max: self.max, z: self.z, size: self.size, visibility, visibility_rgb, bounce }
     }
 }
 
@@ -1205,7 +1238,7 @@ pub(crate) fn ground_sky_direct(
         }
         if total > 0.0 { (open / total).clamp(0.0, 1.0) } else { plain }
     });
-    GroundSky { min, max, z, size: size.max(1), visibility, bounce: Vec::new() }
+    GroundSky { min, max, z, size: size.max(1), visibility, visibility_rgb: Vec::new(), bounce: Vec::new() }
 }
 
 fn mesh_triangles(mesh: &Mesh) -> impl Iterator<Item = [Vec3; 3]> + '_ {
@@ -1361,6 +1394,26 @@ fn unit_hash(mut x: u32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_point_loses_the_colour_of_the_sky_it_no_longer_sees() {
+        // Two rays in the same row: the one North sees a warm sky (R 2, G 1, B 0.5) and is
+        // blocked, the one South a blue one (0.5, 1, 2) and passes. Red keeps 0.5/2.5 of its
+        // light, green half, blue 2/2.5: a shadow that hides the warm part of a sky turns blue.
+        let up = std::f32::consts::FRAC_1_SQRT_2;
+        let t = Transfer {
+            plain: 0.5,
+            bounce: Bounce::default(),
+            rays: vec![SkyRay::new(Vec3::new(0.0, up, up), false), SkyRay::new(Vec3::new(0.0, -up, up), true)],
+        };
+        let sky = |azimuth: f32, _z: f32| if azimuth.cos() > 0.0 { [2.0, 1.0, 0.5] } else { [0.5, 1.0, 2.0] };
+        let v = t.weighted_visibility_rgb(&sky);
+        for (got, want) in v.iter().zip([0.2, 0.5, 0.8]) {
+            assert!((got - want).abs() < 1e-6, "{v:?}");
+        }
+        // A channel without light takes the plain share.
+        assert_eq!(t.weighted_visibility_rgb(&|_, _| [0.0, 1.0, 1.0])[0], 0.5);
+    }
     use super::*;
 
     /// Two triangles spanning the rectangle [x0, x1] x [y0, y1] at height z.
@@ -1732,7 +1785,15 @@ mod tests {
             tris.push(t.map(|p| Vec3::new(0.0, p.y, p.x))); // the wall: x = 0, 0 < y < 1000
         }
         let occ = Occluders::new(tris);
-        let ground = GroundSky { min: Vec2::ZERO, max: Vec2::ONE, z: 0.0, size: 1, visibility: vec![1.0], bounce: Vec::new() };
+        let ground = GroundSky {
+            min: Vec2::ZERO,
+            max: Vec2::ONE,
+            z: 0.0,
+            size: 1,
+            visibility: vec![1.0],
+            visibility_rgb: Vec::new(),
+            bounce: Vec::new(),
+        };
         let (v, _) = light_at(&occ, &ground, 0.0, (Vec3::new(-1e-3, 0.0, 0.0), Vec3::Y), 4096, 1, 0.0);
         let bent = Vec3::new(v[4], v[5], v[6]);
         let lean = bent.angle_between(Vec3::Y).to_degrees();
@@ -1765,7 +1826,7 @@ mod tests {
             Mat4::from_translation(Vec3::new(3.0, -1.0, 0.5)) * Mat4::from_rotation_z(0.7) * Mat4::from_scale(Vec3::splat(1.5)) * y_up;
         let bounds = (Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 3.0, 1.0));
         let occ = Occluders::new(mesh_triangles(&mesh).collect());
-        let sky = ground_transfer(&occ, bounds, model, 33, 256, &polynomials).map(&|_, _| 1.0, &BounceLight::NONE);
+        let sky = ground_transfer(&occ, bounds, model, 33, 256, &polynomials).map(&|_, _| [1.0; 3], &BounceLight::NONE);
         assert!((sky.z - 2.0).abs() < 1e-4, "{}", sky.z);
         let centre = Vec2::new(3.0, -1.0);
         assert!(((sky.min + sky.max) * 0.5 - centre).length() < 1e-4);
@@ -1796,7 +1857,7 @@ mod tests {
         let occ = Occluders::new(mesh_triangles(&mesh).collect());
         // Bounds that reach down to the ground (a model whose box includes a pedestal).
         let sky = ground_transfer(&occ, (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 3.0)), Mat4::IDENTITY, 25, 1024, &polynomials)
-            .map(&|_, _| 1.0, &BounceLight::NONE);
+            .map(&|_, _| [1.0; 3], &BounceLight::NONE);
         let under = sky.at(Vec2::ZERO);
         assert!((under - 0.75).abs() < 0.01, "{under}");
     }
@@ -1825,7 +1886,7 @@ mod tests {
         let transfer = ground_transfer(&occ, bounds, model, GROUND_TEXELS, GROUND_RAYS, &polynomials);
         let max_diff = |c: &[f32; TERMS]| {
             let direct = ground_sky_direct(&occ, bounds, model, GROUND_TEXELS, GROUND_RAYS, &|d| radiance(c, d));
-            let map = transfer.map(&|azimuth, z| radiance(c, world_direction(azimuth, z)), &BounceLight::NONE);
+            let map = transfer.map(&|azimuth, z| [radiance(c, world_direction(azimuth, z)); 3], &BounceLight::NONE);
             assert_eq!((map.min, map.max, map.z, map.size), (direct.min, direct.max, direct.z, direct.size));
             map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max)
         };
@@ -1838,7 +1899,7 @@ mod tests {
         }
         assert_eq!(max_diff(&UNIFORM), 0.0);
         // The map is not trivial: the sky is hidden under the sphere and at the foot of the wall.
-        let plain = transfer.map(&|_, _| 1.0, &BounceLight::NONE).visibility;
+        let plain = transfer.map(&|_, _| [1.0; 3], &BounceLight::NONE).visibility;
         assert!(plain.iter().copied().fold(1.0, f32::min) < 0.1);
         assert!(transfer.texels.iter().zip(&plain).all(|(t, v)| (t.plain - v).abs() < 1e-5));
     }
@@ -1907,10 +1968,10 @@ mod tests {
         let transfer = ground_transfer(&occ, bounds, Mat4::IDENTITY, 9, 1024, &polynomials);
         let mut tinted = BounceLight::NONE;
         tinted.sky[0] = [0.5, 1.0, 0.25];
-        let map = transfer.map(&|_, _| 1.0, &tinted);
+        let map = transfer.map(&|_, _| [1.0; 3], &tinted);
         let centre = map.bounce[4 * 9 + 4];
         assert!((centre[1] - 0.15).abs() < 0.006 && (centre[0] - 0.5 * centre[1]).abs() < 1e-6, "{centre:?}");
-        assert!(transfer.map(&|_, _| 1.0, &BounceLight::NONE).bounce.is_empty());
+        assert!(transfer.map(&|_, _| [1.0; 3], &BounceLight::NONE).bounce.is_empty());
     }
 
     #[test]
@@ -2022,6 +2083,41 @@ mod tests {
     }
 
     #[test]
+    fn a_wall_that_hides_a_warm_glow_leaves_each_channel_its_own_share() {
+        // The wall of nine_harmonics_smear_the_light_a_wall_hides_and_the_rays_keep_it hides
+        // x > 0, where a warm glow g = (1, 0.5, 0.25) lies low (0 < z < 0.2) in a blue sky
+        // b = (0.05, 0.1, 0.2). By hand each channel keeps the West's b π/2 of
+        // b π/2 + b (π/2 − π/50) + g π/50: red 0.05 / 0.138 = 0.362, green 0.1 / 0.216 = 0.463,
+        // blue 0.2 / 0.402 = 0.498, where the luminance alone would give every channel one share.
+        let (x, lo, hi) = (0.01, -100.0, 100.0);
+        let (a, b, c, d) = (Vec3::new(x, lo, 0.0), Vec3::new(x, hi, 0.0), Vec3::new(x, hi, 100.0), Vec3::new(x, lo, 100.0));
+        let occ = Occluders::new(vec![[a, b, c], [a, c, d]]);
+        let (glow, blue) = ([1.0f32, 0.5, 0.25], [0.05f32, 0.1, 0.2]);
+        let sky = |azimuth: f32, z: f32| {
+            if z <= 0.0 {
+                [0.0; 3]
+            } else if azimuth.sin() > 0.0 && z < 0.2 {
+                glow
+            } else {
+                blue
+            }
+        };
+        let t = occ.transfer((Vec3::ZERO, Vec3::Z), 1024, 3, Mat4::IDENTITY, crate::light::sh9::basis);
+        let got = t.weighted_visibility_rgb(&sky);
+        let pi = std::f32::consts::PI;
+        for c in 0..3 {
+            let want = blue[c] * pi / 2.0 / (blue[c] * pi / 2.0 + blue[c] * (pi / 2.0 - pi / 50.0) + glow[c] * pi / 50.0);
+            assert!((got[c] - want).abs() < 0.01, "channel {c}: {got:?} vs {want}");
+        }
+        // The ground map made from it holds the same per texel, and the luminance-weighted share
+        // between red's and blue's.
+        let transfer = GroundTransfer { min: Vec2::ZERO, max: Vec2::ONE, z: 0.0, size: 1, texels: vec![t] };
+        let map = transfer.map(&sky, &BounceLight::NONE);
+        assert_eq!(map.channels(0), got);
+        assert!(got[0] < map.visibility[0] && map.visibility[0] < got[2], "{got:?} {:?}", map.visibility);
+    }
+
+    #[test]
     fn a_transfer_weighs_its_rays_by_any_sky_as_casting_them_again_would() {
         // The sphere beside a wall of the_transfer_recombines_the_map_each_sky_would_cast, turned
         // and scaled, under a sky no nine harmonics hold (a lobe exp(20 (d·g − 1)), ~18° wide,
@@ -2037,14 +2133,14 @@ mod tests {
         );
         let lobe = |d: Vec3| 0.1 + 20.0 * (20.0 * (d.dot(g) - 1.0)).exp();
         let glow = |azimuth: f32, z: f32| lobe(Vec3::new(azimuth.sin() * (1.0 - z * z).sqrt(), azimuth.cos() * (1.0 - z * z).sqrt(), z));
-        let map = transfer.map(&glow, &BounceLight::NONE);
+        let map = transfer.map(&|azimuth, z| [glow(azimuth, z); 3], &BounceLight::NONE);
         let direct = ground_sky_direct(&occ, bounds, model, GROUND_TEXELS, 64, &lobe);
         assert_eq!((map.min, map.max, map.z, map.size), (direct.min, direct.max, direct.z, direct.size));
         let diff = map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
         // Measured: 7.0e-5.
         assert!(diff < 2e-4, "{diff}");
         // The sky matters: against the uniform sky's map, texels move by more than 0.1.
-        let plain = transfer.map(&|_, _| 1.0, &BounceLight::NONE);
+        let plain = transfer.map(&|_, _| [1.0; 3], &BounceLight::NONE);
         let moved = map.visibility.iter().zip(&plain.visibility).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
         assert!(moved > 0.1, "{moved}");
         // A ray keeps its direction to within its quantisation: 1/65536 turn and 1/32768 of z,

@@ -40,7 +40,7 @@ pub fn pipeline(device: &wgpu::Device, samples: u32) -> GroundPipelines {
             build::depth_texture_entry(2, fs),
             build::sampler_entry(3, fs, wgpu::SamplerBindingType::Comparison),
             build::uniform(4, fs),
-            build::texture_entry(5, fs, wgpu::TextureViewDimension::D2, true),
+            build::texture_entry(5, fs, wgpu::TextureViewDimension::D2Array, true),
             build::sampler_entry(6, fs, wgpu::SamplerBindingType::Filtering),
             build::sampler_entry(7, fs, wgpu::SamplerBindingType::NonFiltering),
         ],
@@ -109,30 +109,34 @@ pub struct GroundPass {
     bind_groups: Vec<wgpu::BindGroup>,
     /// The plane's transform (`InstanceUniforms`).
     instance: wgpu::Buffer,
-    /// The ground's sky visibility under the model (r, 1 = whole sky, in 255ths: [`sky_texels`])
-    /// and the model's light on it (gba: the gain on the ground's light per channel), Rgba16Float,
-    /// [`GROUND_TEXELS`]², over the square in the `Light` uniform's `ground_square`.
+    /// Two layers of Rgba16Float, [`GROUND_TEXELS`]², over the square in the `Light` uniform's
+    /// `ground_square` ([`ground_texels`]): the ground's sky visibility under the model per
+    /// channel (rgb, 1 = whole sky, in 255ths: [`sky_texels`]) and the model's light on it (rgb:
+    /// the gain on the ground's light per channel).
     sky: wgpu::Texture,
 }
 
 /// Texels per side of the ground pass's sky-visibility texture.
 pub const GROUND_TEXELS: u32 = occlusion::GROUND_TEXELS;
 
-/// A sky-visibility map in whole 255ths (0..=1 → 0..=255, rounded), as the ground pass holds it.
-pub fn sky_texels(sky: &GroundSky) -> Vec<u8> {
-    sky.visibility.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect()
+/// A sky-visibility map per channel ([`GroundSky::channels`]) in whole 255ths (0..=1 →
+/// 0..=255, rounded), as the ground pass holds it.
+pub fn sky_texels(sky: &GroundSky) -> Vec<[u8; 3]> {
+    (0..sky.visibility.len()).map(|i| sky.channels(i).map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)).collect()
 }
 
-/// The ground pass's texels of a map: the visibility in 255ths ([`sky_texels`]) and the model's
-/// light per channel (0 without any), as Rgba16Float.
-pub fn ground_texels(sky: &GroundSky) -> Vec<half::f16> {
+/// The ground pass's two layers of a map, as Rgba16Float: the visibility per channel in 255ths
+/// ([`sky_texels`]; alpha 1), and the model's light per channel (0 without any; alpha 0).
+pub fn ground_texels(sky: &GroundSky) -> [Vec<half::f16>; 2] {
     let f = half::f16::from_f32;
-    (sky_texels(sky).iter().enumerate())
-        .flat_map(|(i, &v)| {
+    let visibility = sky_texels(sky).iter().flat_map(|v| [v[0], v[1], v[2], 255].map(|c| f(f32::from(c) / 255.0))).collect();
+    let bounce = (0..sky.visibility.len())
+        .flat_map(|i| {
             let b = sky.bounce.get(i).copied().unwrap_or([0.0; 3]);
-            [f(f32::from(v) / 255.0), f(b[0]), f(b[1]), f(b[2])]
+            [f(b[0]), f(b[1]), f(b[2]), half::f16::ZERO]
         })
-        .collect()
+        .collect();
+    [visibility, bounce]
 }
 
 /// The light the model reflects onto the ground, as the ground map takes it
@@ -279,11 +283,14 @@ impl GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
         let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
         let side = GROUND_TEXELS;
-        let sky = build::texture(device, "ground sky visibility", (side, side, 1), wgpu::TextureFormat::Rgba16Float, 1, usage);
+        let sky = build::texture(device, "ground sky visibility", (side, side, 2), wgpu::TextureFormat::Rgba16Float, 1, usage);
         // The whole sky and no bounce everywhere until a model is placed.
-        let open = [half::f16::ONE, half::f16::ZERO, half::f16::ZERO, half::f16::ZERO];
-        build::write_layer(queue, &sky, 0, bytemuck::cast_slice(&open.repeat((side * side) as usize)));
-        let sky_view = sky.create_view(&Default::default());
+        let (one, zero) = (half::f16::ONE, half::f16::ZERO);
+        for (layer, texel) in [[one; 4], [zero; 4]].iter().enumerate() {
+            build::write_layer(queue, &sky, layer as u32, bytemuck::cast_slice(&texel.repeat((side * side) as usize)));
+        }
+        let sky_view =
+            sky.create_view(&wgpu::TextureViewDescriptor { dimension: Some(wgpu::TextureViewDimension::D2Array), ..Default::default() });
         let bind_groups = shadow_maps
             .iter()
             .map(|map| {
@@ -324,7 +331,9 @@ impl GroundPass {
         if sky.size != GROUND_TEXELS || sky.visibility.len() != (sky.size * sky.size) as usize {
             bail!("a ground sky map of {} texels a side; the ground pass holds {GROUND_TEXELS}", sky.size);
         }
-        build::write_layer(queue, &self.sky, 0, bytemuck::cast_slice(&ground_texels(sky)));
+        for (layer, texels) in ground_texels(sky).iter().enumerate() {
+            build::write_layer(queue, &self.sky, layer as u32, bytemuck::cast_slice(texels));
+        }
         Ok(())
     }
 
@@ -460,13 +469,23 @@ mod tests {
             z: 0.0,
             size: 2,
             visibility: vec![1.0, 0.5, 0.0, 0.25],
+            visibility_rgb: Vec::new(),
             bounce: Vec::new(),
         };
-        let t: Vec<f32> = ground_texels(&sky).iter().map(|v| v.to_f32()).collect();
-        assert!((t[4] - 128.0 / 255.0).abs() < 1e-3 && t[5..8] == [0.0; 3] && t[0] == 1.0, "{t:?}");
+        let layers = |sky: &GroundSky| ground_texels(sky).map(|l| l.iter().map(|v| v.to_f32()).collect::<Vec<f32>>());
+        // Without colour, the visibility in every channel (0.5 → 128 of 255); no bounce.
+        let [v, b] = layers(&sky);
+        assert!(v[4..7].iter().all(|c| (c - 128.0 / 255.0).abs() < 1e-3) && v[7] == 1.0 && v[0] == 1.0, "{v:?}");
+        assert!(b.iter().all(|&c| c == 0.0), "{b:?}");
         sky.bounce = vec![[0.0; 3], [0.25, 0.5, 1.5], [0.0; 3], [0.0; 3]];
-        let t: Vec<f32> = ground_texels(&sky).iter().map(|v| v.to_f32()).collect();
-        assert_eq!(t[5..8], [0.25, 0.5, 1.5]);
+        sky.visibility_rgb = vec![[1.0; 3], [0.4, 0.5, 0.6], [0.0; 3], [0.2, 0.25, 0.3]];
+        let [v, b] = layers(&sky);
+        assert_eq!(b[4..8], [0.25, 0.5, 1.5, 0.0]);
+        // 0.4, 0.5, 0.6 → 102, 128, 153 (rounded) of 255, in half floats.
+        for (got, want) in v[4..7].iter().zip([102.0f32, 128.0, 153.0]) {
+            assert!((got - want / 255.0).abs() < 1e-3, "{v:?}");
+        }
+        assert_eq!(sky_texels(&sky)[3], [51, 64, 77]);
     }
 
     #[test]

@@ -43,7 +43,7 @@ struct Material {
 @group(1) @binding(2) var diffuse_smp: sampler;
 
 // The model's vertex (render::pipelines::Vertex; `ao` at render::pipelines::AO_LOCATION, `bent`
-// at BENT_LOCATION), and `sun` from a second buffer at SUN_LOCATION.
+// at BENT_LOCATION, `tint` at TINT_LOCATION), and `sun` from a second buffer at SUN_LOCATION.
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
@@ -58,6 +58,9 @@ struct VertexIn {
     // The fraction of sunlight reaching the vertex, looked up in the shadow map by the method's
     // own lookup each time the map is drawn (vertex_sun.wgsl); 1 until then.
     @location(5) sun: f32,
+    // The colour of the sky's light the vertex gets through its own rays and the model's
+    // bounces, per channel over its luminance (0 until computed: sh9-ggx then takes SH9's).
+    @location(6) tint: vec3<f32>,
 };
 
 struct VertexOut {
@@ -71,6 +74,7 @@ struct VertexOut {
     // the sun: x interpolates visibility * max(n.l, 0), y interpolates n.l (n: the vertex's
     // world normal as `normal` carries it, l: the sun). vertex_sun() divides them.
     @location(5) sun: vec2<f32>,
+    @location(6) tint: vec3<f32>,
 };
 
 @vertex
@@ -81,6 +85,7 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     out.normal = (instance.normal * vec4<f32>(vertex.normal, 0.0)).xyz;
     out.uv = vertex.uv;
     out.ao = vertex.ao;
+    out.tint = vertex.tint;
     out.bent = (instance.normal * vec4<f32>(vertex.bent, 0.0)).xyz;
     let n_dot_l = dot(out.normal, frame.sun_dir);
     out.sun = vec2<f32>(vertex.sun * max(n_dot_l, 0.0), n_dot_l);

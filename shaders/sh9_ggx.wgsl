@@ -57,7 +57,7 @@ fn sh9_eval(d: vec3<f32>) -> vec3<f32> {
 // reflect is not added: previz's ground term alone is 0.965 of the path tracer's whole ground-lit
 // light on the courtyard dragon, its interreflection included (docs/accuracy.md, "Twelfth session
 // — the model's sky and bounce from its own rays").
-fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, seen: f32) -> vec3<f32> {
+fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, seen: f32, tint: vec3<f32>) -> vec3<f32> {
     let sky = sh9_eval(env_map_dir(frame, bent));
     let lum = vec3<f32>(0.2126, 0.7152, 0.0722);
     let l = dot(sky, lum);
@@ -70,7 +70,7 @@ fn sky_and_ground(n: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, seen: f32) -> ve
     // samples on the full-detail bunny's edge. Below a tenth of the mean the colour fades to the
     // mean sky's.
     let trust = smoothstep(0.0, 0.1 * mean_l, l);
-    let colour = mix(mean / max(mean_l, 1e-8), sky / max(l, 1e-8), trust);
+    let colour = select(mix(mean / max(mean_l, 1e-8), sky / max(l, 1e-8), trust), tint, dot(tint, lum) > 0.0);
     let visible = colour * (seen * mean_l);
     let ground = light.ground.rgb * (0.5 * (1.0 - n.z));
     return visible + ground * mix(ao.y, ao.z, light.ground.w);
@@ -92,7 +92,7 @@ fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
     // The bent normal turns with the normal when the back face is seen.
     let b = normalize(in.bent) * select(1.0, -1.0, dot(in.normal, n) < 0.0);
     let seen = length(in.bent) / max(length(in.normal), 1e-8);
-    let sky = sky_and_ground(n, in.ao, b, seen) * (frame.daylight * material.terms.x);
+    let sky = sky_and_ground(n, in.ao, b, seen, in.tint) * (frame.daylight * material.terms.x);
     let l = frame.sun_dir;
     let n_dot_l = max(dot(n, l), 0.0);
     // Interpolated from the vertices (VERTEX_SUN, model.wgsl), or looked up per pixel.

@@ -135,11 +135,17 @@ use std::path::Path;
 /// GroundTransfer::map): ROI 0.04997, 0.03014, 0.06462, 0.04804, 0.05038 (mean 0.0486),
 /// luminance 0.979, 1.002, 0.978, 1.000, 0.975 (unchanged: the model is not drawn differently);
 /// bounds measured + 0.01 rounded up (quarry_bunny 0.060, blouberg_teapot 0.041,
-/// courtyard_dragon 0.075, city_spot 0.059, quarry_truck 0.061), luminance errors kept.
+/// courtyard_dragon 0.075, city_spot 0.059, quarry_truck 0.061), luminance errors kept. Then the
+/// model's sky in the colour of its own rays (pipelines::Vertex::tint, ModelRays::sky_channels;
+/// 15:20 UTC): ROI 0.04974, 0.02960, 0.05928, 0.04920, 0.05144 (mean 0.0479), luminance 0.979,
+/// 1.002, 0.978, 1.000, 0.975; blouberg_teapot's bound 0.041 -> 0.040 and courtyard_dragon's
+/// 0.075 -> 0.070 (measured + 0.01 rounded up); city_spot's 0.059 and quarry_truck's 0.061 are
+/// kept (measured + 0.0098 and + 0.0096: Spot 0.0012 and the truck 0.0011 worse than with the
+/// sky's SH9 colour).
 const BOUNDS: [(&str, f32, f32); 5] = [
     ("quarry_bunny", 0.060, 0.04),
-    ("blouberg_teapot", 0.041, 0.031),
-    ("courtyard_dragon", 0.075, 0.033),
+    ("blouberg_teapot", 0.040, 0.031),
+    ("courtyard_dragon", 0.070, 0.033),
     ("city_spot", 0.059, 0.032),
     ("quarry_truck", 0.061, 0.04),
 ];
@@ -164,9 +170,10 @@ const BOUNDS: [(&str, f32, f32); 5] = [
 /// to 0.027. Fourteenth session (a supersampled still): 0.0227, 0.0146, 0.0306, 0.0165, 0.0214;
 /// quarry_bunny's tightened to 0.033, quarry_truck's to 0.032, the others kept. Fifteenth session
 /// (the ground's sky lost per channel): 0.0212, 0.0134, 0.0268, 0.0164, 0.0203; each tightened to
-/// measured + 0.01 rounded up (Spot's 0.027 as it was).
+/// measured + 0.01 rounded up (Spot's 0.027 as it was). The model's sky in its rays' colour:
+/// 0.0212, 0.0134, 0.0260, 0.0165, 0.0205; the dragon's tightened to 0.036, the others kept.
 const FRAME_BOUNDS: [(&str, f32); 5] =
-    [("quarry_bunny", 0.032), ("blouberg_teapot", 0.024), ("courtyard_dragon", 0.037), ("city_spot", 0.027), ("quarry_truck", 0.031)];
+    [("quarry_bunny", 0.032), ("blouberg_teapot", 0.024), ("courtyard_dragon", 0.036), ("city_spot", 0.027), ("quarry_truck", 0.031)];
 
 #[test]
 fn default_method_against_path_traced_references() {
@@ -204,7 +211,7 @@ fn default_method_against_path_traced_references() {
 /// Thirteenth session (a still draws triangles down to a pixel): 0.08135, luminance 0.993;
 /// bound measured + 0.01 rounded up, 0.092. Fourteenth session (a supersampled still): 0.07312,
 /// luminance 0.995; bound 0.084. Fifteenth session (the ground's sky lost per channel): 0.06375,
-/// luminance 0.995; bound 0.074.
+/// luminance 0.995; bound 0.074. The model's sky in its rays' colour: 0.06364, luminance 0.995.
 #[test]
 fn a_clipped_map_lights_the_model_within_the_goal_of_the_full_maps_reference() {
     use previz::scene::environment::Equirect;

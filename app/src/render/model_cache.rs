@@ -225,7 +225,17 @@ impl PreparedModel {
         // Made without the lock held, so that a caller that does not wait
         // (vertices_under_without_waiting) gets the last set meanwhile.
         let frame = glam::Mat3::from_mat4(placement);
-        let sky = self.rays.sky(&self.model, &|d| radiance.radiance((frame * d).normalize_or_zero(), heading));
+        // The sky's luminance (what the vertex's share of it is: the bent normal's length) and
+        // its colour channels (the tint), through each vertex's rays in one walk.
+        let sky = self.rays.sky_channels(
+            &self.model,
+            &|d| {
+                let w = (frame * d).normalize_or_zero();
+                let [r, g, b] = radiance.at_rgb(w.x.atan2(w.y), w.z, heading);
+                [radiance.radiance(w, heading), r, g, b]
+            },
+            occlusion::BOUNCES,
+        );
         let vertices: Vec<Vec<Vertex>> = self
             .vertices
             .iter()
@@ -233,10 +243,13 @@ impl PreparedModel {
             .map(|(vs, s)| {
                 vs.iter()
                     .zip(s)
-                    .map(|(v, s)| {
+                    .map(|(v, [s, r, g, b])| {
                         let n = Vec3::from(v.normal);
-                        let b = Vec3::from(v.bent).normalize_or(n.normalize_or_zero()) * s.max(1e-4) * n.length();
-                        Vertex { bent: b.to_array(), ..*v }
+                        let bent = Vec3::from(v.bent).normalize_or(n.normalize_or_zero()) * s.max(1e-4) * n.length();
+                        let rgb = [r, g, b];
+                        let l = crate::colour::luminance_bt709(rgb);
+                        let tint = if l > 1e-6 { rgb.map(|c| c / l) } else { [0.0; 3] };
+                        Vertex { bent: bent.to_array(), tint, ..*v }
                     })
                     .collect()
             })
@@ -427,6 +440,7 @@ pub fn interleave(mesh: &Mesh) -> Result<Vec<Vertex>> {
             uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
             ao: [1.0, 1.0, 1.0, 0.0],
             bent: mesh.normals[i],
+            tint: [0.0; 3],
         })
         .collect())
 }

@@ -16,7 +16,8 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// the frame's [`super::Antialiasing`]); a supersampled still's layers take its own samples.
 pub const LAYER_SAMPLES: u32 = 4;
 
-/// Interleaved model vertex: position, normal, uv, ambient occlusion, bent normal (60 bytes).
+/// Interleaved model vertex: position, normal, uv, ambient occlusion, bent normal, the sky's
+/// colour (72 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vertex {
@@ -34,12 +35,19 @@ pub struct Vertex {
     /// Its length over the normal's is the sky's light the vertex gets under the frame's sky
     /// (render::model_cache::PreparedModel::vertices_under, written before sh9-ggx draws).
     pub bent: [f32; 3],
+    /// The colour of the sky's light the vertex gets through its own open rays and the model's
+    /// bounces, each channel over its BT.709 luminance (render::model_cache::PreparedModel::
+    /// vertices_under; shaders/model.wgsl `VertexIn.tint`, location [`TINT_LOCATION`]); 0 until
+    /// computed, when sh9-ggx takes the sky's SH9 colour along the bent normal instead.
+    pub tint: [f32; 3],
 }
 
 /// Shader location of [`Vertex::ao`].
 pub const AO_LOCATION: u32 = 3;
 /// Shader location of [`Vertex::bent`].
 pub const BENT_LOCATION: u32 = 4;
+/// Shader location of [`Vertex::tint`].
+pub const TINT_LOCATION: u32 = 6;
 /// Shader location of the sun's visibility per vertex (shaders/model.wgsl `VertexIn.sun`), a
 /// second vertex buffer written by render::passes::vertex_sun.
 pub const SUN_LOCATION: u32 = 5;

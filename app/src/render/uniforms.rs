@@ -79,8 +79,8 @@ mod tests {
         let module = crate::gpu::wgsl::validate(&source(Technique::Model)).unwrap();
         let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("VertexIn")).expect("struct VertexIn").1;
         let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("VertexIn is not a struct") };
-        use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, SUN_LOCATION};
-        for (name, at) in [("ao", AO_LOCATION), ("bent", BENT_LOCATION), ("sun", SUN_LOCATION)] {
+        use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, SUN_LOCATION, TINT_LOCATION};
+        for (name, at) in [("ao", AO_LOCATION), ("bent", BENT_LOCATION), ("sun", SUN_LOCATION), ("tint", TINT_LOCATION)] {
             let m = members.iter().find(|m| m.name.as_deref() == Some(name)).expect(name);
             assert!(matches!(m.binding, Some(naga::Binding::Location { location, .. }) if location == at), "{name}: {:?}", m.binding);
         }

@@ -833,33 +833,51 @@ impl ModelRays {
     /// [`ModelRays::sky`] with `bounces` bounces (0: the sky the vertices see through their own
     /// rays alone).
     pub fn sky_with(&self, model: &Model, radiance: &(dyn Fn(Vec3) -> f32 + Sync), bounces: usize) -> Vec<Vec<f32>> {
+        let per_vertex = self.sky_channels(model, &|d| [radiance(d)], bounces);
+        per_vertex.into_iter().map(|m| m.into_iter().map(|[v]| v).collect()).collect()
+    }
+
+    /// [`ModelRays::sky`] for `N` skies at once, `radiance(d)` giving each one's radiance (the
+    /// sky's luminance and its colour channels): the rays are walked once, and each sky's
+    /// bounces (a grey surface reflects each channel alike) follow its own light.
+    pub fn sky_channels<const N: usize>(
+        &self,
+        model: &Model,
+        radiance: &(dyn Fn(Vec3) -> [f32; N] + Sync),
+        bounces: usize,
+    ) -> Vec<Vec<[f32; N]>> {
         let n = self.rays.max(1);
-        let seen_at = |r: &SampleRays, seed: u32| -> f32 {
+        let seen_at = |r: &SampleRays, seed: u32| -> [f32; N] {
+            let mut sum = [0f32; N];
             if r.open_up == 0 {
-                return 0.0;
+                return sum;
             }
-            let sum: f32 = ray_directions(r.normal, n, seed)
-                .enumerate()
-                .filter(|(i, _)| *i < 64 && r.open_up & (1 << i) != 0)
-                .map(|(_, d)| radiance(d).max(0.0))
-                .sum();
-            sum / n as f32
+            for (_, d) in ray_directions(r.normal, n, seed).enumerate().filter(|(i, _)| *i < 64 && r.open_up & (1 << i) != 0) {
+                sum.iter_mut().zip(radiance(d)).for_each(|(s, l)| *s += l.max(0.0));
+            }
+            sum.map(|s| s / n as f32)
         };
         // Each sample's own sky, kept for the bounces (per mesh: vertices, then inner samples).
-        let seen: Vec<Vec<f32>> = self
+        let seen: Vec<Vec<[f32; N]>> = self
             .meshes
             .iter()
             .map(|m| {
                 let samples: Vec<&SampleRays> = m.at_vertices.iter().chain(&m.inner_rays).collect();
-                parallel_map(&samples, 0.0, |i, r| seen_at(r, i as u32))
+                parallel_map(&samples, [0.0; N], |i, r| seen_at(r, i as u32))
             })
             .collect();
-        let mut out = self.per_vertex(model, &|j, i, _| seen[j][i]);
-        for _ in 0..bounces {
-            let all = out.concat();
-            out = self.per_vertex(model, &|j, i, r| seen[j][i] + self.reflected(r, &|t| Self::corner_mean(&all, t)));
-        }
-        out
+        let channels: Vec<Vec<Vec<f32>>> = (0..N)
+            .map(|c| {
+                let mut out = self.per_vertex(model, &|j, i, _| seen[j][i][c]);
+                for _ in 0..bounces {
+                    let all = out.concat();
+                    out = self.per_vertex(model, &|j, i, r| seen[j][i][c] + self.reflected(r, &|t| Self::corner_mean(&all, t)));
+                }
+                out
+            })
+            .collect();
+        let meshes = channels.first().map_or(0, Vec::len);
+        (0..meshes).map(|j| (0..channels[0][j].len()).map(|i| std::array::from_fn(|c| channels[c][j][i])).collect()).collect()
     }
 
     /// Bytes held (the rays' masks and hits, the samples and the triangles' table).
@@ -1445,6 +1463,41 @@ mod tests {
                 let mean = sky[0].iter().sum::<f32>() / 4.0;
                 assert!((mean - 1.5).abs() < 0.05, "{mean}");
             }
+        }
+    }
+
+    #[test]
+    fn each_colour_channel_of_the_sky_goes_through_the_same_rays() {
+        // A level quad (facing the model's up, y) under a sky warm towards +x, R, G, B (2, 1,
+        // 0.5), and blue towards −x, (0.5, 1, 2): each channel's E / π is the mean of its two
+        // halves, (2 + 0.5) / 2 = 1.25 in red and blue, 1 in green, and each is what that
+        // channel's sky alone gives (ModelRays::sky_with, walked once per sky).
+        let mesh = Mesh {
+            positions: vec![[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]],
+            normals: vec![[0.0, 1.0, 0.0]; 4],
+            uvs: vec![],
+            indices: vec![0, 1, 2, 0, 2, 3],
+            material: 0,
+        };
+        let model = Model { meshes: vec![mesh], materials: vec![crate::scene::Material::default()] };
+        let (_, rays) = model_light(&model, &Occluders::of_model(&model));
+        let sky = |d: Vec3| {
+            if d.y <= 0.0 {
+                [0.0; 3]
+            } else if d.x > 0.0 {
+                [2.0, 1.0, 0.5]
+            } else {
+                [0.5, 1.0, 2.0]
+            }
+        };
+        let rgb = rays.sky_channels(&model, &sky, BOUNCES);
+        for c in 0..3 {
+            let alone = rays.sky(&model, &|d| sky(d)[c]);
+            let got: Vec<f32> = rgb[0].iter().map(|v| v[c]).collect();
+            assert_eq!(got, alone[0], "channel {c}");
+            let mean = got.iter().sum::<f32>() / 4.0;
+            let want = [1.25, 1.0, 1.25][c];
+            assert!((mean - want).abs() < 0.05, "channel {c}: {mean} against {want}");
         }
     }
 

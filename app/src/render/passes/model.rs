@@ -12,7 +12,7 @@ use crate::render::mip_chain;
 use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
 use crate::render::passes::vertex_sun;
-use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, SUN_LOCATION, Vertex, depth_state};
+use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, SUN_LOCATION, TINT_LOCATION, Vertex, depth_state};
 use crate::render::shaders::{Technique, source};
 use crate::render::uniforms::{MaterialUniforms, SplitLevelUniforms};
 use crate::scene::lod::IndexRange;
@@ -119,8 +119,9 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
-    const ATTRIBUTES: [wgpu::VertexAttribute; 5] =
-        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, AO_LOCATION => Float32x4, BENT_LOCATION => Float32x3];
+    const ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+        0 => Float32x3, 1 => Float32x3, 2 => Float32x2, AO_LOCATION => Float32x4, BENT_LOCATION => Float32x3, TINT_LOCATION => Float32x3
+    ];
     wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<Vertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,

@@ -752,7 +752,7 @@ impl Compositor {
             targets.copy_for_readback(&mut encoder);
             gpu.queue.submit([encoder.finish()]);
             let fine = targets.read(gpu, glam::Mat4::from_cols_array_2d(&data.frame.view_proj), Vec3::from(data.frame.camera_pos))?;
-            Ok(supersample::layers_mean(&fine, self.supersample))
+            Ok(supersample::layers_mean(fine, self.supersample))
         });
         self.forget_shadows_on_error(r)
     }

@@ -119,10 +119,10 @@ fn pixel_matte(beauty: [f32; 4], model: [f32; 4], background: [f32; 4], mean_mat
 /// beauty is then recomposed from the layers, so they still compose to it exactly; the depth is
 /// the nearest of the samples nearest the pixel's centre (the centre sample for an odd `k`, the
 /// middle four for an even one), so it stays the distance at the pixel's centre.
-pub fn layers_mean(fine: &LayerImages, k: u32) -> LayerImages {
+pub fn layers_mean(fine: LayerImages, k: u32) -> LayerImages {
     let k = k.max(1);
     if k == 1 {
-        return fine.clone();
+        return fine;
     }
     let size = (fine.width, fine.height);
     let (width, height) = (fine.width / k, fine.height / k);
@@ -218,7 +218,7 @@ mod tests {
             1 => ([0.0; 4], [0.5; 4], [0.2; 3], f32::INFINITY),
             _ => ([0.0; 4], [0.5; 4], [1.0; 3], f32::INFINITY),
         });
-        let px = layers_mean(&fine, 3);
+        let px = layers_mean(fine, 3);
         assert_eq!((px.width, px.height), (1, 1));
         let close = |a: f32, b: f32| (a - b).abs() < 1e-6;
         assert!(close(px.model[0][3], 1.0 / 3.0) && close(px.model[0][0], 0.3), "{:?}", px.model);
@@ -231,14 +231,14 @@ mod tests {
         let fine = layers(3, 3, |x, y| {
             if x == 1 { ([0.9, 0.9, 0.9, 1.0], [0.5; 4], [1.0; 3], 2.0 + y as f32) } else { ([0.0; 4], [0.5; 4], [1.0; 3], f32::INFINITY) }
         });
-        assert_eq!(layers_mean(&fine, 3).depth[0], 3.0);
+        assert_eq!(layers_mean(fine, 3).depth[0], 3.0);
     }
 
     #[test]
     fn a_pixel_the_model_covers_keeps_the_mean_matte() {
         // Fully covered: no background shows, so the matte is the samples' mean.
         let fine = layers(2, 2, |x, _| ([0.4, 0.4, 0.4, 1.0], [0.5; 4], [if x == 0 { 0.2 } else { 1.0 }; 3], 1.0));
-        let px = layers_mean(&fine, 2);
+        let px = layers_mean(fine, 2);
         assert!((px.matte[0][1] - 0.6).abs() < 1e-6, "{:?}", px.matte);
         assert_eq!(px.beauty[0], compose(px.model[0], px.background[0], px.matte[0]));
         assert_eq!(px.depth[0], 1.0);

@@ -14,6 +14,13 @@ override COLOUR_CORRECTION: bool = true;
 // up per pixel. A uniform branch on a material value instead saved nothing on lavapipe
 // (docs/PERFORMANCE.md, ninth session).
 override VERTEX_SUN: bool = false;
+// VERTEX_LIGHT (sh9-ggx, with VERTEX_SUN): the whole light is computed at the vertices and
+// interpolated (VertexOut.lit, .specular), the fragment multiplying its own albedo by it, for
+// meshes whose triangles are a few pixels on screen and whose normals turn little across them
+// (render::passes::model::MAX_LIGHT_EDGE_PX, light_turn_limit):
+// there a vertex is about a pixel apart, and lavapipe shades each small triangle's whole 4x4
+// blocks of pixels (docs/PERFORMANCE.md, eighth and sixteenth sessions).
+override VERTEX_LIGHT: bool = false;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -75,6 +82,10 @@ struct VertexOut {
     // world normal as `normal` carries it, l: the sun). vertex_sun() divides them.
     @location(5) sun: vec2<f32>,
     @location(6) tint: vec3<f32>,
+    // VERTEX_LIGHT: the light at the vertex that the albedo multiplies, and the light it adds
+    // (sh9_ggx.wgsl Sh9Light); 0 otherwise.
+    @location(7) lit: vec3<f32>,
+    @location(8) specular: vec3<f32>,
 };
 
 @vertex
@@ -90,6 +101,11 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     let n_dot_l = dot(out.normal, frame.sun_dir);
     out.sun = vec2<f32>(vertex.sun * max(n_dot_l, 0.0), n_dot_l);
     out.clip = frame.view_proj * world;
+    if (VERTEX_LIGHT) {
+        let shaded = sh9_ggx_light(out.world, out.normal, out.ao, out.bent, out.tint, vertex.sun);
+        out.lit = shaded.lit;
+        out.specular = shaded.specular;
+    }
     return out;
 }
 
@@ -170,6 +186,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let method = METHOD;
     if (method == METHOD_SH9_GGX) {
         // Turns every normal to the viewer, a double-sided material's back faces' too.
+        if (VERTEX_LIGHT) {
+            return vec4<f32>(surface_albedo(in.uv) * in.lit + in.specular, 1.0);
+        }
         return shade_sh9_ggx(in);
     }
     var n = normalize(in.normal);

@@ -81,31 +81,27 @@ fn roughness_from_exponent(exponent: f32) -> f32 {
     return sqrt(sqrt(2.0 / (max(exponent, 0.0) + 2.0)));
 }
 
-fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
-    var n = normalize(in.normal);
-    let v = normalize(frame.camera_pos - in.world);
-    if (dot(n, v) < 0.0) {
-        n = -n;
-    }
-    let albedo = surface_albedo(in.uv);
-    let ao = in.ao.x + in.ao.w;
-    // The bent normal turns with the normal when the back face is seen.
-    let b = normalize(in.bent) * select(1.0, -1.0, dot(in.normal, n) < 0.0);
-    let seen = length(in.bent) / max(length(in.normal), 1e-8);
-    let sky = sky_and_ground(n, in.ao, b, seen, in.tint) * (frame.daylight * material.terms.x);
-    let l = frame.sun_dir;
-    let n_dot_l = max(dot(n, l), 0.0);
-    // Interpolated from the vertices (VERTEX_SUN, model.wgsl), or looked up per pixel.
-    var visibility = vertex_sun(in);
-    if (!VERTEX_SUN) {
-        visibility = 0.0;
-        if (n_dot_l > 0.0) {
-            visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world + n * 0.002, light.sun.w);
-        }
-    }
-    let sun = light.sun.rgb * (frame.sunlight * n_dot_l * visibility * material.terms.y);
-    var colour = albedo * (sky + sun);
+// The light at a surface point: `lit` is what its albedo multiplies (the sky, the ground and
+// the sun), `specular` what is added (the environment's reflection).
+struct Sh9Light {
+    lit: vec3<f32>,
+    specular: vec3<f32>,
+};
 
+// The light at world point `p` of a surface with world normal `normal` (interpolated, not
+// normalised: its length divides the bent normal's), shares `ao`, bent normal `bent`, sky colour
+// `tint` (VertexIn) and the sun's visibility `visibility` there: at a vertex (VERTEX_LIGHT) or a
+// pixel.
+fn sh9_ggx_light(p: vec3<f32>, normal: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, tint: vec3<f32>, visibility: f32) -> Sh9Light {
+    let n = facing(p, normal);
+    let v = normalize(frame.camera_pos - p);
+    // The bent normal turns with the normal when the back face is seen.
+    let b = normalize(bent) * select(1.0, -1.0, dot(normal, n) < 0.0);
+    let seen = length(bent) / max(length(normal), 1e-8);
+    let sky = sky_and_ground(n, ao, b, seen, tint) * (frame.daylight * material.terms.x);
+    let n_dot_l = max(dot(n, frame.sun_dir), 0.0);
+    let sun = light.sun.rgb * (frame.sunlight * n_dot_l * visibility * material.terms.y);
+    var out = Sh9Light(sky + sun, vec3<f32>(0.0));
     let f0 = material.specular.rgb;
     if (max(f0.r, max(f0.g, f0.b)) * material.terms.z > 0.0) {
         let roughness = roughness_from_exponent(material.specular.a);
@@ -113,7 +109,27 @@ fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
         let r = reflect(-v, n);
         let prefiltered = textureSampleLevel(specular_env, env_smp, env_dir(frame, r), roughness * (PREFILTER_LEVELS - 1.0)).rgb;
         let ab = textureSampleLevel(brdf_lut, background_smp, vec2<f32>(n_dot_v, roughness), 0.0).xy;
-        colour += prefiltered * frame.env_exposure * (f0 * ab.x + ab.y) * (ao * material.terms.z);
+        out.specular = prefiltered * frame.env_exposure * (f0 * ab.x + ab.y) * ((ao.x + ao.w) * material.terms.z);
     }
-    return vec4<f32>(colour, 1.0);
+    return out;
+}
+
+// The unit normal at `p` turned to the viewer (a double-sided material's back faces' too).
+fn facing(p: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+    let n = normalize(normal);
+    return select(n, -n, dot(n, frame.camera_pos - p) < 0.0);
+}
+
+fn shade_sh9_ggx(in: VertexOut) -> vec4<f32> {
+    // Interpolated from the vertices (VERTEX_SUN, model.wgsl), or looked up per pixel.
+    var visibility = vertex_sun(in);
+    if (!VERTEX_SUN) {
+        visibility = 0.0;
+        let n = facing(in.world, in.normal);
+        if (dot(n, frame.sun_dir) > 0.0) {
+            visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world + n * 0.002, light.sun.w);
+        }
+    }
+    let shaded = sh9_ggx_light(in.world, in.normal, in.ao, in.bent, in.tint, visibility);
+    return vec4<f32>(surface_albedo(in.uv) * shaded.lit + shaded.specular, 1.0);
 }

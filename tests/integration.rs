@@ -37,5 +37,6 @@ mod self_shadow;
 mod sun_cli;
 mod sun_heading;
 mod sun_reference;
+mod vertex_light;
 mod vertex_sun;
 mod yuv;

@@ -563,9 +563,9 @@ fn bench_vertex_sun() {
 }
 
 /// What the vertex sun adds to start-up (docs/PERFORMANCE.md, tenth session): the model pass's
-/// pipelines as built (per-pixel culled and not, the `VERTEX_SUN` set, each with and without
-/// correction: 48 slots, 44 built: the refractions' `VERTEX_SUN` slots reuse their per-pixel
-/// pipelines), 16 more of the per-pixel culled kind built the same way (what a set of 16 such
+/// pipelines as built (per-pixel culled and not, the `VERTEX_SUN` set and the `VERTEX_LIGHT` set,
+/// each with and without correction: 64 slots, 46 built: the refractions' `VERTEX_SUN` slots reuse
+/// their per-pixel pipelines, and every `VERTEX_LIGHT` slot but sh9-ggx's its `VERTEX_SUN` one), 16 more of the per-pixel culled kind built the same way (what a set of 16 such
 /// pipelines costs; they differ only by override constants), and the
 /// vertex sun's three compute pipelines; `PREVIZ_ROUNDS` rounds (default 5) interleaved, the
 /// first round (a cold shader cache) and the minimum of each. Run:
@@ -593,7 +593,7 @@ fn bench_pipeline_start_up() {
         let t = Instant::now();
         let c = vertex_sun::pipelines(device);
         compute.push(ms(t));
-        assert_eq!((set.shading.len(), more.len()), (48, 16));
+        assert_eq!((set.shading.len(), more.len()), (64, 16));
         drop((set, more, c));
     }
     let show = |name: &str, v: &[f64]| {
@@ -601,7 +601,7 @@ fn bench_pipeline_start_up() {
         println!("{name}: first {:.1} ms, min {min:.1} ms over {} rounds", v[0], v.len());
     };
     println!("uptime {:?}", std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim());
-    show("model pipelines (48 slots, 44 built, 12 of them VERTEX_SUN)", &all);
+    show("model pipelines (64 slots, 46 built, 12 of them VERTEX_SUN, 2 VERTEX_LIGHT)", &all);
     show("16 culled per-pixel model pipelines", &sixteen);
     show("vertex sun compute pipelines (3)", &compute);
 }

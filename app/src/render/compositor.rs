@@ -422,6 +422,21 @@ impl Compositor {
         self.model_pass.sun_per_mesh()
     }
 
+    /// Let the model's meshes that take the sun from their vertices, whose triangles are at most
+    /// `px` pixels long on screen and whose normals turn by at most `turn_scale` times
+    /// `passes::model::light_turn_limit` across them take their whole sh9-ggx light from their
+    /// vertices (`passes::model::MAX_LIGHT_EDGE_PX` and 1, the defaults, are the limits
+    /// measured); `px` 0: every pixel shaded (docs/PERFORMANCE.md, sixteenth session).
+    pub fn set_light_limits(&mut self, px: f32, turn_scale: f32) {
+        self.model_pass.set_light_limits(px, turn_scale);
+    }
+
+    /// Per mesh of the loaded model, as the last frame drew it: how far its normal turns across
+    /// a triangle (degrees) and whether it took its whole light from its vertices.
+    pub fn light_per_mesh(&self) -> Vec<(f32, bool)> {
+        self.model_pass.light_per_mesh()
+    }
+
     /// Per mesh of the loaded model, the sun's visibility at each of its vertices as the last
     /// frame that looked it up left it (1 where none did): read back for the tests.
     pub fn vertex_sun_values(&self, gpu: &Gpu) -> Result<Vec<Vec<f32>>> {

@@ -35,6 +35,52 @@ pub const MAX_SUN_EDGE_PX: f32 = 20.0;
 /// The share of a mesh's area whose triangles' edges [`MAX_SUN_EDGE_PX`] bounds: a few long
 /// slivers (a simplified level has some) cover little and do not decide.
 pub const SUN_EDGE_AREA: f32 = 0.95;
+/// The longest triangle edge (pixels on screen, as [`MAX_SUN_EDGE_PX`] measures it) of a mesh
+/// drawn with sh9-ggx whose whole light is computed at its vertices and interpolated
+/// ([`Shading::LightFromVertices`]), the albedo still per pixel; its normal must not turn more
+/// than [`light_turn_limit`] across a triangle either. Lavapipe shades each small triangle's
+/// whole 4×4 pixel blocks, so on `bench frame`'s dragon the model pass takes 30 % less time
+/// (docs/PERFORMANCE.md, sixteenth session). Over 16 px the view's direction (for the
+/// reflection) and the sun's shadow (20 px, [`MAX_SUN_EDGE_PX`]) change across a triangle. The
+/// default of [`ModelPass::set_light_limits`].
+pub const MAX_LIGHT_EDGE_PX: f32 = 16.0;
+/// The largest mean turn of the normal across a triangle ([`mean_normal_turn`], radians) of a
+/// matte mesh lit from its vertices: the light is a curved function of the normal, and what its
+/// interpolation misses grows with that turn. The budget: mean FLIP 0.05 over the model against
+/// the per-pixel light, what the level of detail a frame draws already costs `bench frame`'s
+/// dragon (0.053 over its pixels against the full detail; the frame's goal, 0.01 over the frame,
+/// holds with both: 0.0027). Measured on UV spheres in the sunny quarry (tests/vertex_light.rs
+/// `bench_vertex_light`, 320×240): matte 0.0195 at 19.2°, 0.0217 at 23.0°; the dragon (23.0° at
+/// the level drawn, the default material) 0.025.
+pub const MAX_MATTE_LIGHT_TURN: f32 = 25.0 * std::f32::consts::PI / 180.0;
+/// For a material with a specular term of strength F0 · s_c and GGX roughness α, the largest
+/// mean turn of the normal is this times α / √(F0 · s_c) (radians; at most
+/// [`MAX_MATTE_LIGHT_TURN`]): a sharper or stronger reflection takes a smaller turn. The same
+/// budget on the same spheres: F0 · s_c 0.15, α 0.52 (Blinn-Phong 25) reaches 0.05 at about
+/// 18° (0.0345 at 14.4°, 0.0540 at 19.2°); 0.15, α 0.37 (Blinn-Phong 100) at about 15° (0.0453 at
+/// 14.4°, 0.0656 at 19.2°); 0.075, α 0.49 (the default material) at about 25° (0.0376 at 19.2°,
+/// 0.0452 at 23.0°): 13.4°, 15.7°, 14.0° times α / √(F0 · s_c), so the smallest, 13.4°.
+pub const LIGHT_TURN_PER_ROUGHNESS: f32 = 13.4 * std::f32::consts::PI / 180.0;
+
+/// Which of a method's shading pipelines draws a mesh (the shader's override constants).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// Every triangle (after the mesh's depth pre-pass), the sun looked up per pixel.
+    EveryTriangle,
+    /// Back faces culled, the sun looked up per pixel.
+    Culled,
+    /// Back faces culled, the sun's visibility interpolated from the vertices (`VERTEX_SUN`, no
+    /// shadow-map lookup: [`super::vertex_sun`]).
+    SunFromVertices,
+    /// Back faces culled, the whole light computed at the vertices from their sun's visibility
+    /// and interpolated, the albedo per pixel (`VERTEX_LIGHT`; sh9-ggx alone: the other methods'
+    /// slots hold their [`Shading::SunFromVertices`] pipelines).
+    LightFromVertices,
+}
+
+impl Shading {
+    pub const ALL: [Shading; 4] = [Shading::EveryTriangle, Shading::Culled, Shading::SunFromVertices, Shading::LightFromVertices];
+}
 
 /// What the model pass's pipelines share.
 pub struct ModelPipelines {
@@ -62,15 +108,15 @@ pub struct ModelPipelines {
 }
 
 /// The index in [`ModelPipelines::shading`] of `method`'s pipeline with or without colour
-/// correction, culling back faces or not, the sun per pixel or (culling only) per vertex.
-pub fn shading_index(method: LightingMethod, corrected: bool, (cull, vertex_sun): (bool, bool)) -> usize {
-    let set = if vertex_sun { 4 } else { usize::from(cull) * 2 };
-    (set + usize::from(corrected)) * LightingMethod::ALL.len() + method.shader_id() as usize
+/// correction, of the kind `shading`.
+pub fn shading_index(method: LightingMethod, corrected: bool, shading: Shading) -> usize {
+    (2 * shading as usize + usize::from(corrected)) * LightingMethod::ALL.len() + method.shader_id() as usize
 }
 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
 pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
+    // What sh9-ggx's light reads, which its vertex stage computes too (`VERTEX_LIGHT`).
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
         device,
@@ -79,36 +125,40 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
             build::uniform(0, vs_fs),
             build::uniform(1, vs_fs),
             build::texture_entry(2, fs, Cube, true),
-            build::sampler_entry(3, fs, Filtering),
+            build::sampler_entry(3, vs_fs, Filtering),
             build::texture_entry(4, fs, D2, true),
-            build::sampler_entry(5, fs, Filtering),
+            build::sampler_entry(5, vs_fs, Filtering),
             build::depth_texture_entry(6, fs),
             build::sampler_entry(7, fs, Comparison),
             build::uniform(8, fs),
-            build::uniform(9, fs),
-            build::texture_entry(10, fs, Cube, true),
-            build::texture_entry(11, fs, D2, true),
+            build::uniform(9, vs_fs),
+            build::texture_entry(10, vs_fs, Cube, true),
+            build::texture_entry(11, vs_fs, D2, true),
             build::sampler_entry(12, fs, NonFiltering),
         ],
     );
     let material_layout = build::layout(
         device,
         "material",
-        &[build::uniform(0, fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
+        &[build::uniform(0, vs_fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
     );
     let module = build::shader(device, "model", source(Technique::Model));
     let mut shading: Vec<wgpu::RenderPipeline> = Vec::new();
-    for (cull, vertex_sun) in [(false, false), (true, false), (true, true)] {
+    for kind in Shading::ALL {
         for corrected in [false, true] {
-            let variant = (corrected, cull, vertex_sun);
             for m in LightingMethod::ALL {
                 // A method without the sun's shadow (the refractions) never draws with the sun
-                // from the vertices: its slot holds its per-pixel pipeline, not another build
-                // (each costs start-up time, docs/PERFORMANCE.md, tenth session).
-                let pipeline = if vertex_sun && vertex_sun::SunLookup::of(m).is_none() {
-                    shading[shading_index(m, corrected, (true, false))].clone()
-                } else {
-                    method_pipeline(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), variant, m)
+                // from the vertices, nor any method but sh9-ggx with its light from them: their
+                // slots hold the pipeline they draw with instead, not another build (each costs
+                // start-up time, docs/PERFORMANCE.md, tenth session).
+                let instead = match kind {
+                    Shading::SunFromVertices if vertex_sun::SunLookup::of(m).is_none() => Some(Shading::Culled),
+                    Shading::LightFromVertices if m != LightingMethod::Sh9Ggx => Some(Shading::SunFromVertices),
+                    _ => None,
+                };
+                let pipeline = match instead {
+                    Some(other) => shading[shading_index(m, corrected, other)].clone(),
+                    None => method_pipeline(device, &module, (&layout, &material_layout), (COLOR_FORMAT, samples), (corrected, kind), m),
                 };
                 shading.push(pipeline);
             }
@@ -146,22 +196,8 @@ pub fn pipelines_for(
     (corrected, cull): (bool, bool),
 ) -> Vec<wgpu::RenderPipeline> {
     let module = build::shader(device, "model", source(Technique::Model));
-    method_pipelines(device, &module, layouts, target, (corrected, cull, false))
-}
-
-/// [`pipelines_for`] from the model shader's `module`, culling back faces or not, the sun's
-/// visibility from the vertices or per pixel (the shader's `VERTEX_SUN`).
-fn method_pipelines(
-    device: &wgpu::Device,
-    module: &wgpu::ShaderModule,
-    layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
-    (format, samples): (wgpu::TextureFormat, u32),
-    (corrected, cull, vertex_sun): (bool, bool, bool),
-) -> Vec<wgpu::RenderPipeline> {
-    LightingMethod::ALL
-        .iter()
-        .map(|&m| method_pipeline(device, module, layouts, (format, samples), (corrected, cull, vertex_sun), m))
-        .collect()
+    let kind = if cull { Shading::Culled } else { Shading::EveryTriangle };
+    LightingMethod::ALL.iter().map(|&m| method_pipeline(device, &module, layouts, target, (corrected, kind), m)).collect()
 }
 
 /// One pipeline of [`method_pipelines`]: method `m`'s.
@@ -170,14 +206,20 @@ fn method_pipeline(
     module: &wgpu::ShaderModule,
     layouts: (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     (format, samples): (wgpu::TextureFormat, u32),
-    (corrected, cull, vertex_sun): (bool, bool, bool),
+    (corrected, kind): (bool, Shading),
     m: LightingMethod,
 ) -> wgpu::RenderPipeline {
     let colour =
         wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
-    let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];
-    model_pipeline(device, (m.name(), module, Some(("fs_main", colour))), layouts, samples, (&constants, cull))
+    let vertex_sun = matches!(kind, Shading::SunFromVertices | Shading::LightFromVertices);
+    let constants = [
+        ("METHOD", f64::from(m.shader_id())),
+        ("COLOUR_CORRECTION", flag(corrected)),
+        ("VERTEX_SUN", flag(vertex_sun)),
+        ("VERTEX_LIGHT", flag(kind == Shading::LightFromVertices)),
+    ];
+    model_pipeline(device, (m.name(), module, Some(("fs_main", colour))), layouts, samples, (&constants, kind != Shading::EveryTriangle))
 }
 
 /// A model pipeline: the model shader's vertex stage with override `constants` and, when
@@ -291,6 +333,8 @@ struct MeshGpu {
     /// Per level, the longest edge of the triangles that cover [`SUN_EDGE_AREA`] of its area
     /// (model units; [`edge_over_area`]).
     longest_edge: Vec<f32>,
+    /// Per level, how far the normal turns across its triangles (radians; [`mean_normal_turn`]).
+    normal_turn: Vec<f32>,
 }
 
 /// Which back faces a frame may cull (`FrameData::cull`).
@@ -433,8 +477,18 @@ pub struct ModelPass {
     /// not measured) ...
     sun_edges: Vec<Option<f32>>,
     /// ... and whether it took the sun from its vertices (the choice [`ModelPass::write`] makes
-    /// once a frame; the vertex-sun pass runs for these meshes alone).
+    /// once a frame; the vertex-sun pass runs for these meshes alone) ...
     sun_chosen: Vec<bool>,
+    /// ... and, of those, whether it took its whole light from them ([`Shading::LightFromVertices`]).
+    light_chosen: Vec<bool>,
+    /// Per mesh, as the last frame written drew it: how far its normal turns across a triangle
+    /// (radians, [`mean_normal_turn`] at the level drawn).
+    light_turns: Vec<f32>,
+    /// The longest edge on screen (pixels) of a mesh that takes its whole light from its vertices
+    /// ([`ModelPass::set_light_limits`]; 0: none does).
+    light_edge_limit: f32,
+    /// What [`light_turn_limit`] is multiplied by ([`ModelPass::set_light_limits`]).
+    light_turn_scale: f32,
     material_layout: wgpu::BindGroupLayout,
     linear_sampler: wgpu::Sampler,
     repeat_sampler: wgpu::Sampler,
@@ -465,6 +519,10 @@ impl ModelPass {
             sun_mesh_layout: pipelines.vertex_sun.mesh_layout.clone(),
             sun_edges: Vec::new(),
             sun_chosen: Vec::new(),
+            light_chosen: Vec::new(),
+            light_turns: Vec::new(),
+            light_edge_limit: MAX_LIGHT_EDGE_PX,
+            light_turn_scale: 1.0,
             material_layout: pipelines.model.material_layout.clone(),
             linear_sampler: pipelines.linear_sampler.clone(),
             repeat_sampler: pipelines.repeat_sampler.clone(),
@@ -652,9 +710,10 @@ impl ModelPass {
                 })
                 .collect();
             let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
-            let longest_edge = (lods.levels.iter())
-                .map(|r| edge_over_area(&positions, &lods.indices[r.first as usize..][..r.count as usize], SUN_EDGE_AREA))
-                .collect();
+            let normals: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.normal)).collect();
+            let level = |r: &IndexRange| &lods.indices[r.first as usize..][..r.count as usize];
+            let longest_edge = lods.levels.iter().map(|r| edge_over_area(&positions, level(r), SUN_EDGE_AREA)).collect();
+            let normal_turn = lods.levels.iter().map(|r| mean_normal_turn(&positions, &normals, level(r))).collect();
             meshes.push(MeshGpu {
                 vertices: vertex_buf,
                 indices,
@@ -668,6 +727,7 @@ impl ModelPass {
                 second,
                 split_draws,
                 longest_edge,
+                normal_turn,
             });
             materials.push((material_buf, uniforms));
         }
@@ -682,7 +742,10 @@ impl ModelPass {
     /// within [`ModelPass::set_sun_edge_limit`]'s (over [`SUN_EDGE_AREA`] of its area)
     /// interpolates the sun's visibility from its vertices (the back
     /// faces' condition: the vertex's value is looked up on the side its normal faces, which a
-    /// visible back face turns away from). Returns whether any mesh does.
+    /// visible back face turns away from); one whose edges are within
+    /// [`ModelPass::set_light_limits`]'s too takes its whole light from its vertices
+    /// ([`Shading::LightFromVertices`], sh9-ggx). Returns whether any mesh takes the sun from its
+    /// vertices.
     pub fn write(
         &mut self,
         queue: &wgpu::Queue,
@@ -694,17 +757,25 @@ impl ModelPass {
         self.cull = if self.culling { cull } else { Culling::Nothing };
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
         self.corrected = colour.method != crate::colour::transfer::TransferMethod::None.shader_id();
+        let mut turn_limits = Vec::with_capacity(model.materials.len());
         for (buf, base) in &model.materials {
-            queue.write_buffer(buf, 0, bytemuck::bytes_of(&material_uniforms(base, terms)));
+            let uniforms = material_uniforms(base, terms);
+            queue.write_buffer(buf, 0, bytemuck::bytes_of(&uniforms));
+            turn_limits.push(light_turn_limit(&uniforms));
         }
         self.sun_edges.clear();
         self.sun_chosen.clear();
-        for mesh in &model.meshes {
+        self.light_chosen.clear();
+        self.light_turns.clear();
+        for (mesh, turn_limit) in model.meshes.iter().zip(turn_limits) {
             let edge_px = sun_px.map(|px| px * mesh.longest_edge[level.min(mesh.longest_edge.len() - 1)]);
-            let limit = self.sun_edge_limit;
-            let per_vertex = limit > 0.0 && self.culls(mesh, level) && edge_px.is_some_and(|e| e <= limit);
+            let within = |limit: f32| limit > 0.0 && edge_px.is_some_and(|e| e <= limit);
+            let per_vertex = self.culls(mesh, level) && within(self.sun_edge_limit);
             self.sun_edges.push(edge_px);
             self.sun_chosen.push(per_vertex);
+            let turn = mesh.normal_turn[level.min(mesh.normal_turn.len() - 1)];
+            self.light_turns.push(turn);
+            self.light_chosen.push(per_vertex && within(self.light_edge_limit) && turn <= turn_limit * self.light_turn_scale);
         }
         self.sun_chosen.contains(&true)
     }
@@ -715,6 +786,7 @@ impl ModelPass {
     pub fn vertex_sun_valid(&mut self, valid: bool) {
         if !valid {
             self.sun_chosen.fill(false);
+            self.light_chosen.fill(false);
         }
     }
 
@@ -729,6 +801,23 @@ impl ModelPass {
     /// from its vertices.
     pub fn sun_per_mesh(&self) -> Vec<(Option<f32>, bool)> {
         self.sun_edges.iter().copied().zip(self.sun_chosen.iter().copied()).collect()
+    }
+
+    /// Per mesh, as the last frame written drew it: how far its normal turns across a triangle
+    /// (degrees, [`mean_normal_turn`] at the level drawn) and whether it took its
+    /// whole light from its vertices ([`Shading::LightFromVertices`]; a method other than
+    /// sh9-ggx then draws it with the sun from them alone).
+    pub fn light_per_mesh(&self) -> Vec<(f32, bool)> {
+        self.light_turns.iter().map(|t| t.to_degrees()).zip(self.light_chosen.iter().copied()).collect()
+    }
+
+    /// Let the meshes whose edges on screen are at most `px` pixels long (over
+    /// [`SUN_EDGE_AREA`] of their area), whose normal turns by at most `turn_scale` times
+    /// [`light_turn_limit`] across a triangle, and whose sun comes from their vertices, take
+    /// their whole light from their vertices, from the next frame written ([`MAX_LIGHT_EDGE_PX`]
+    /// and 1 by default); `px` 0 shades every pixel.
+    pub fn set_light_limits(&mut self, px: f32, turn_scale: f32) {
+        (self.light_edge_limit, self.light_turn_scale) = (px, turn_scale);
     }
 
     /// Let the meshes whose edges on screen are at most `px` pixels long (over
@@ -763,10 +852,12 @@ impl ModelPass {
             mesh.draw(pass, Some(1), level);
         }
         for (k, mesh) in model.meshes.iter().enumerate() {
-            let cull = self.culls(mesh, level);
-            let per_pixel = &self.shading[shading_index(method, self.corrected, (cull, false))];
+            let per_pixel = if self.culls(mesh, level) { Shading::Culled } else { Shading::EveryTriangle };
+            let per_pixel = &self.shading[shading_index(method, self.corrected, per_pixel)];
             if self.sun_chosen.get(k).is_some_and(|&c| c) {
-                mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, (cull, true))], per_pixel));
+                let light = self.light_chosen.get(k).is_some_and(|&c| c);
+                let per_vertex = if light { Shading::LightFromVertices } else { Shading::SunFromVertices };
+                mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, per_vertex)], per_pixel));
             } else {
                 pass.set_pipeline(per_pixel);
                 mesh.draw(pass, Some(1), level);
@@ -830,6 +921,38 @@ fn edge_over_area(positions: &[Vec3], triangles: &[u32], share: f32) -> f32 {
     edges.last().map_or(0.0, |e| e.0)
 }
 
+/// How far the normal turns across `triangles` (indices into `positions` and `normals`, three a
+/// triangle): per triangle the largest angle between its vertex normals (radians), its mean
+/// over the triangles weighted by their area (0 for none).
+fn mean_normal_turn(positions: &[Vec3], normals: &[Vec3], triangles: &[u32]) -> f32 {
+    let at = |i: u32| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+    let normal = |i: u32| normals.get(i as usize).copied().unwrap_or(Vec3::Z).normalize_or_zero();
+    let (mut sum, mut total) = (0.0f64, 0.0f64);
+    for t in triangles.chunks_exact(3) {
+        let area = 0.5 * f64::from((at(t[1]) - at(t[0])).cross(at(t[2]) - at(t[0])).length());
+        let (a, b, c) = (normal(t[0]), normal(t[1]), normal(t[2]));
+        let cos = a.dot(b).min(b.dot(c)).min(c.dot(a)).clamp(-1.0, 1.0);
+        sum += area * f64::from(cos.acos());
+        total += area;
+    }
+    if total > 0.0 { (sum / total) as f32 } else { 0.0 }
+}
+
+/// The largest [`mean_normal_turn`] (radians) of a mesh of `material` (this frame's uniforms)
+/// whose whole light may come from its vertices: [`MAX_MATTE_LIGHT_TURN`], and for a material
+/// with a specular term (F0 · s_c > 0, as sh9_ggx.wgsl tests it) at most
+/// [`LIGHT_TURN_PER_ROUGHNESS`] · α / √(F0 · s_c) (α its GGX roughness): the sharper or stronger
+/// the reflection, the less of a turn its interpolation takes.
+pub fn light_turn_limit(material: &MaterialUniforms) -> f32 {
+    let [r, g, b, exponent] = material.specular;
+    let strength = r.max(g).max(b) * material.terms[2];
+    if strength > 0.0 {
+        MAX_MATTE_LIGHT_TURN.min(LIGHT_TURN_PER_ROUGHNESS * ggx::roughness_from_exponent(exponent) / strength.sqrt())
+    } else {
+        MAX_MATTE_LIGHT_TURN
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -844,6 +967,36 @@ mod tests {
         assert_eq!(edge_over_area(&p, &both, 0.15), 2f32.sqrt());
         assert_eq!(edge_over_area(&p, &both, 0.25), 17f32.sqrt());
         assert_eq!(edge_over_area(&p, &[], 0.95), 0.0);
+    }
+
+    #[test]
+    fn the_mean_turn_of_the_normal_weighs_triangles_by_area() {
+        // Two triangles: normals turning by 90° in one of area 0.5, by 0 in one of area 1.5.
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 4.0, 0.0), Vec3::new(0.0, 4.0, 0.0)];
+        let n = [Vec3::Z, Vec3::X, Vec3::Z, Vec3::Z, Vec3::Z];
+        let turn = mean_normal_turn(&p, &n, &[0, 1, 2, 2, 3, 4]);
+        assert!((turn - std::f32::consts::FRAC_PI_2 * 0.5 / 2.0).abs() < 1e-6, "{turn}");
+        // Opposite normals turn by 180°; no triangles, 0.
+        assert!((mean_normal_turn(&p, &[Vec3::Z, -Vec3::Z, Vec3::Z], &[0, 1, 2]) - std::f32::consts::PI).abs() < 1e-6);
+        assert_eq!(mean_normal_turn(&p, &n, &[]), 0.0);
+    }
+
+    #[test]
+    fn a_sharper_reflection_takes_a_smaller_turn() {
+        let material = |f0: f32, exponent: f32, s_c: f32| MaterialUniforms {
+            albedo: [0.5; 4],
+            specular: [f0, f0, f0, exponent],
+            terms: [1.0, 1.0, s_c, 0.0],
+        };
+        // Matte: no F0, or no specular term.
+        assert_eq!(light_turn_limit(&material(0.0, 25.0, 1.0)), MAX_MATTE_LIGHT_TURN);
+        assert_eq!(light_turn_limit(&material(0.5, 25.0, 0.0)), MAX_MATTE_LIGHT_TURN);
+        // Blinn-Phong 25: GGX roughness (2 / 27)^(1/4) = 0.52172; 100: (2 / 102)^(1/4) = 0.37420.
+        let k = LIGHT_TURN_PER_ROUGHNESS;
+        assert!((light_turn_limit(&material(0.5, 25.0, 0.3)) - k * 0.52172 / 0.15f32.sqrt()).abs() < 1e-4);
+        assert!((light_turn_limit(&material(0.5, 100.0, 1.0)) - k * 0.37420 / 0.5f32.sqrt()).abs() < 1e-4);
+        // A weak, rough one keeps the matte limit.
+        assert_eq!(light_turn_limit(&material(0.04, 0.0, 0.3)), MAX_MATTE_LIGHT_TURN);
     }
 
     #[test]

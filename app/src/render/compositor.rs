@@ -828,7 +828,9 @@ impl Compositor {
         self.ground.write(queue, &data.ground, &data.ground_mesh);
         // A full-shadow reference looks the sun up per pixel everywhere.
         let sun_px = data.px_per_unit.filter(|_| !self.full_shadow);
-        let per_vertex = self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull, (data.level, sun_px));
+        // A still (no frame budget, the accuracy benchmark's) lights every pixel.
+        let light = self.detail != Detail::Still;
+        let per_vertex = self.model_pass.write(queue, model, (&data.colour, &p.lighting.material), data.cull, (data.level, sun_px, light));
         // A map drawn this frame and by the last frame that sampled it too is moving: the
         // vertex sun's compute would be thrown away a frame later, and costs more than the
         // per-pixel lookup it saves in one frame (docs/PERFORMANCE.md, eleventh session), so

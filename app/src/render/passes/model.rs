@@ -744,7 +744,7 @@ impl ModelPass {
     /// faces' condition: the vertex's value is looked up on the side its normal faces, which a
     /// visible back face turns away from); one whose edges are within
     /// [`ModelPass::set_light_limits`]'s too takes its whole light from its vertices
-    /// ([`Shading::LightFromVertices`], sh9-ggx). Returns whether any mesh takes the sun from its
+    /// ([`Shading::LightFromVertices`], sh9-ggx) where `light` allows it (not in a still). Returns whether any mesh takes the sun from its
     /// vertices.
     pub fn write(
         &mut self,
@@ -752,7 +752,7 @@ impl ModelPass {
         model: &ModelGpu,
         (colour, terms): (&ColourCorrection, &MaterialTerms),
         cull: Culling,
-        (level, sun_px): (usize, Option<f32>),
+        (level, sun_px, light): (usize, Option<f32>, bool),
     ) -> bool {
         self.cull = if self.culling { cull } else { Culling::Nothing };
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
@@ -775,7 +775,7 @@ impl ModelPass {
             self.sun_chosen.push(per_vertex);
             let turn = mesh.normal_turn[level.min(mesh.normal_turn.len() - 1)];
             self.light_turns.push(turn);
-            self.light_chosen.push(per_vertex && within(self.light_edge_limit) && turn <= turn_limit * self.light_turn_scale);
+            self.light_chosen.push(light && per_vertex && within(self.light_edge_limit) && turn <= turn_limit * self.light_turn_scale);
         }
         self.sun_chosen.contains(&true)
     }

@@ -6,33 +6,9 @@
 use crate::common;
 
 use common::gpu;
-use glam::Vec3;
 use previz::render::passes::model::MAX_LIGHT_EDGE_PX;
 use previz::render::{Antialiasing, Compositor, Detail, FrameParams, Layer};
-use previz::scene::{Material, Mesh, Model, Sides};
-
-/// A closed UV sphere of radius 0.8, `rings` × 2·`rings` quads, single-sided, of `material`.
-fn sphere(rings: u32, material: Material) -> Model {
-    let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
-    let segments = 2 * rings;
-    for j in 0..=rings {
-        let theta = std::f32::consts::PI * j as f32 / rings as f32;
-        for i in 0..=segments {
-            let phi = std::f32::consts::TAU * i as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
-            mesh.positions.push((0.8 * n).to_array());
-            mesh.normals.push(n.to_array());
-            mesh.uvs.push([0.0, 0.0]);
-        }
-    }
-    let at = |i: u32, j: u32| j * (segments + 1) + i;
-    for j in 0..rings {
-        for i in 0..segments {
-            mesh.indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    Model { meshes: vec![mesh], materials: vec![Material { sides: Sides::Front, ..material }] }
-}
+use previz::scene::{Material, Model};
 
 /// A matte orange, a glossy blue (GGX roughness 0.52 from the Blinn-Phong exponent 25:
 /// light::ggx::roughness_from_exponent) and a shinier blue (exponent 100, roughness 0.37).
@@ -116,7 +92,7 @@ fn small_triangles_take_their_light_from_their_vertices() {
     let mut used = 0;
     for (name, material) in materials() {
         for rings in [10, 16, 48, 96] {
-            let (mut cs, p) = set_up(sphere(rings, material.clone()), 320, 0.5, true);
+            let (mut cs, p) = set_up(common::uv_sphere(rings, material.clone()), 320, 0.5, true);
             let c = compare(&mut cs, &p);
             println!(
                 "{name}, {rings} rings: edges {:.1} px, normal turn {:.1}°, from the vertices {}, mean FLIP {:.4}, {:.1} % of pixels differ by > 2 levels",
@@ -161,7 +137,7 @@ fn bench_vertex_light() {
     for width in [320, 960] {
         for (name, material) in materials() {
             for rings in [10, 12, 16, 24, 32, 48, 64, 96] {
-                let (mut cs, p) = set_up(sphere(rings, material.clone()), width, 0.5, false);
+                let (mut cs, p) = set_up(common::uv_sphere(rings, material.clone()), width, 0.5, false);
                 let c = compare(&mut cs, &p);
                 println!("| {width} | {name} | {rings} | {:.1} | {:.1} | {:.4} | {:.1} % |", c.edge_px, c.turn, c.flip, 100.0 * c.differ);
             }

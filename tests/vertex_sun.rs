@@ -7,7 +7,7 @@ use crate::common;
 use common::gpu;
 use glam::{Mat4, Quat, Vec3, Vec4};
 use previz::render::{Antialiasing, Compositor, FrameParams, Layer, LightingMethod};
-use previz::scene::{Material, Mesh, Model, Sides};
+use previz::scene::{Material, Mesh, Model};
 
 /// A single-sided square grid of `n`×`n` quads, 2 model units wide, in the model's base plane
 /// (y = 0, facing +y), grey; and a closed box 0.5 wide floating from y = 0.35 to 0.85 above its
@@ -188,31 +188,11 @@ fn triangles_a_shadow_edge_crosses_are_drawn_per_pixel() {
     }
 }
 
-/// A closed UV sphere of radius 0.8 around the model's origin, `rings` × 2·`rings` quads
-/// (for 32 rings, quads whose diagonals are about 16 pixels at [`set_up`]'s view), red (so its unlit side,
-/// black, and its sunlit side both differ from the grey environment behind it).
+/// [`common::uv_sphere`] (for 32 rings, quads whose diagonals are about 16 pixels at
+/// [`set_up`]'s view), red (so its unlit side, black, and its sunlit side both differ from the
+/// grey environment behind it).
 fn sphere(rings: u32) -> Model {
-    let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
-    let segments = 2 * rings;
-    for j in 0..=rings {
-        let theta = std::f32::consts::PI * j as f32 / rings as f32;
-        for i in 0..=segments {
-            let phi = std::f32::consts::TAU * i as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
-            mesh.positions.push((0.8 * n).to_array());
-            mesh.normals.push(n.to_array());
-            mesh.uvs.push([0.0, 0.0]);
-        }
-    }
-    let at = |i: u32, j: u32| j * (segments + 1) + i;
-    for j in 0..rings {
-        for i in 0..segments {
-            // Counter-clockwise seen from outside.
-            mesh.indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    let material = Material { diffuse: [0.8, 0.0, 0.0], specular: [0.0; 3], sides: Sides::Front, ..Material::default() };
-    Model { meshes: vec![mesh], materials: vec![material] }
+    common::uv_sphere(rings, Material { diffuse: [0.8, 0.0, 0.0], specular: [0.0; 3], ..Material::default() })
 }
 
 /// The terminator: a sphere lit by the sun alone has nothing but itself to shadow it, so the

@@ -185,6 +185,30 @@ pub fn east_red_west_blue(size: u32) -> previz::scene::CubeMap {
     previz::scene::CubeMap { size, faces }
 }
 
+/// A closed UV sphere of radius 0.8 around the model's origin, `rings` × 2·`rings` quads (two
+/// triangles each, counter-clockwise seen from outside), single-sided, of `material`.
+pub fn uv_sphere(rings: u32, material: Material) -> Model {
+    let mut mesh = Mesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), material: 0 };
+    let segments = 2 * rings;
+    for j in 0..=rings {
+        let theta = std::f32::consts::PI * j as f32 / rings as f32;
+        for i in 0..=segments {
+            let phi = std::f32::consts::TAU * i as f32 / segments as f32;
+            let n = glam::Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            mesh.positions.push((0.8 * n).to_array());
+            mesh.normals.push(n.to_array());
+            mesh.uvs.push([0.0, 0.0]);
+        }
+    }
+    let at = |i: u32, j: u32| j * (segments + 1) + i;
+    for j in 0..rings {
+        for i in 0..segments {
+            mesh.indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    Model { meshes: vec![mesh], materials: vec![Material { sides: previz::scene::Sides::Front, ..material }] }
+}
+
 /// A single-sided square grid of `n`×`n` quads, 2 model units wide, in the model's base plane
 /// (y = 0, facing +y), material 0.
 pub fn flat_grid(n: u32) -> Mesh {

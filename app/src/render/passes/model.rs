@@ -96,7 +96,8 @@ pub struct ModelPipelines {
     /// frames that ask for none), drawing every triangle or culling back faces (a single-sided
     /// material's, or a closed mesh's seen from outside, whose back faces are hidden); and those
     /// culling back faces again with the sun's visibility from the vertices (`VERTEX_SUN`: no
-    /// shadow-map lookup at all, [`super::vertex_sun`]).
+    /// shadow-map lookup at all, [`super::vertex_sun`]), and with sh9-ggx's whole light from them
+    /// (`VERTEX_LIGHT`): [`Shading`].
     pub shading: Vec<wgpu::RenderPipeline>,
     /// The depth pre-pass of a mesh drawn without culling: its depth alone, so that the
     /// shading pipelines (depth test less-or-equal) shade each pixel once, not every surface
@@ -200,7 +201,7 @@ pub fn pipelines_for(
     LightingMethod::ALL.iter().map(|&m| method_pipeline(device, &module, layouts, target, (corrected, kind), m)).collect()
 }
 
-/// One pipeline of [`method_pipelines`]: method `m`'s.
+/// The model pipeline of method `m` of `kind`, with or without colour correction (`corrected`).
 fn method_pipeline(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,

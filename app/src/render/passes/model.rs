@@ -758,17 +758,15 @@ impl ModelPass {
         self.cull = if self.culling { cull } else { Culling::Nothing };
         queue.write_buffer(&self.colour, 0, bytemuck::bytes_of(colour));
         self.corrected = colour.method != crate::colour::transfer::TransferMethod::None.shader_id();
-        let mut turn_limits = Vec::with_capacity(model.materials.len());
-        for (buf, base) in &model.materials {
-            let uniforms = material_uniforms(base, terms);
-            queue.write_buffer(buf, 0, bytemuck::bytes_of(&uniforms));
-            turn_limits.push(light_turn_limit(&uniforms));
-        }
         self.sun_edges.clear();
         self.sun_chosen.clear();
         self.light_chosen.clear();
         self.light_turns.clear();
-        for (mesh, turn_limit) in model.meshes.iter().zip(turn_limits) {
+        // One material buffer per mesh (ModelGpu::materials).
+        for (mesh, (buf, base)) in model.meshes.iter().zip(&model.materials) {
+            let uniforms = material_uniforms(base, terms);
+            queue.write_buffer(buf, 0, bytemuck::bytes_of(&uniforms));
+            let turn_limit = light_turn_limit(&uniforms);
             let edge_px = sun_px.map(|px| px * mesh.longest_edge[level.min(mesh.longest_edge.len() - 1)]);
             let within = |limit: f32| limit > 0.0 && edge_px.is_some_and(|e| e <= limit);
             let per_vertex = self.culls(mesh, level) && within(self.sun_edge_limit);

@@ -14,13 +14,12 @@ override COLOUR_CORRECTION: bool = true;
 // up per pixel. A uniform branch on a material value instead saved nothing on lavapipe
 // (docs/PERFORMANCE.md, ninth session).
 override VERTEX_SUN: bool = false;
-// VERTEX_LIGHT (sh9-ggx, with VERTEX_SUN): the whole light is computed at the vertices and
-// interpolated (VertexOut.lit, .specular), the fragment multiplying its own albedo by it, for
-// meshes whose triangles are a few pixels on screen and whose normals turn little across them
-// (render::passes::model::MAX_LIGHT_EDGE_PX, light_turn_limit):
-// there a vertex is about a pixel apart, and lavapipe shades each small triangle's whole 4x4
-// blocks of pixels (docs/PERFORMANCE.md, eighth and sixteenth sessions).
-override VERTEX_LIGHT: bool = false;
+// The light from the vertices (sh9-ggx, with VERTEX_SUN; entry points vs_light and fs_light):
+// the whole light is computed at the vertices and interpolated (LightOut), the fragment
+// multiplying its own albedo by it, for meshes whose triangles are a few pixels on screen and
+// whose normals turn little across them (render::passes::model::MAX_LIGHT_EDGE_PX,
+// light_turn_limit): there a vertex is about a pixel apart, and lavapipe shades each small
+// triangle's whole 4x4 blocks of pixels (docs/PERFORMANCE.md, eighth and sixteenth sessions).
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> instance: Instance;
@@ -82,14 +81,39 @@ struct VertexOut {
     // world normal as `normal` carries it, l: the sun). vertex_sun() divides them.
     @location(5) sun: vec2<f32>,
     @location(6) tint: vec3<f32>,
-    // VERTEX_LIGHT: the light at the vertex that the albedo multiplies, and the light it adds
-    // (sh9_ggx.wgsl Sh9Light); 0 otherwise.
-    @location(7) lit: vec3<f32>,
-    @location(8) specular: vec3<f32>,
+};
+
+// What the light from the vertices interpolates: the texture coordinates, the light at the
+// vertex that the albedo multiplies and the light it adds (sh9_ggx.wgsl Sh9Light). Only what its
+// fragment reads: lavapipe sets up and interpolates every varying of a triangle, and 8 floats
+// instead of VertexOut's 26 took 0.8 ms off the dragon's model pass (docs/PERFORMANCE.md,
+// seventeenth session).
+struct LightOut {
+    @invariant @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+    @location(1) lit: vec3<f32>,
+    @location(2) specular: vec3<f32>,
 };
 
 @vertex
 fn vs_main(vertex: VertexIn) -> VertexOut {
+    return vertex_out(vertex);
+}
+
+// The light from the vertices: sh9-ggx's light at the vertex, from its sun's visibility.
+@vertex
+fn vs_light(vertex: VertexIn) -> LightOut {
+    let v = vertex_out(vertex);
+    let shaded = sh9_ggx_light(v.world, v.normal, v.ao, v.bent, v.tint, vertex.sun);
+    return LightOut(v.clip, v.uv, shaded.lit, shaded.specular);
+}
+
+@fragment
+fn fs_light(in: LightOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(surface_albedo(in.uv) * in.lit + in.specular, 1.0);
+}
+
+fn vertex_out(vertex: VertexIn) -> VertexOut {
     var out: VertexOut;
     let world = instance.model * vec4<f32>(vertex.position, 1.0);
     out.world = world.xyz;
@@ -101,11 +125,6 @@ fn vs_main(vertex: VertexIn) -> VertexOut {
     let n_dot_l = dot(out.normal, frame.sun_dir);
     out.sun = vec2<f32>(vertex.sun * max(n_dot_l, 0.0), n_dot_l);
     out.clip = frame.view_proj * world;
-    if (VERTEX_LIGHT) {
-        let shaded = sh9_ggx_light(out.world, out.normal, out.ao, out.bent, out.tint, vertex.sun);
-        out.lit = shaded.lit;
-        out.specular = shaded.specular;
-    }
     return out;
 }
 
@@ -186,9 +205,6 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let method = METHOD;
     if (method == METHOD_SH9_GGX) {
         // Turns every normal to the viewer, a double-sided material's back faces' too.
-        if (VERTEX_LIGHT) {
-            return vec4<f32>(surface_albedo(in.uv) * in.lit + in.specular, 1.0);
-        }
         return shade_sh9_ggx(in);
     }
     var n = normalize(in.normal);

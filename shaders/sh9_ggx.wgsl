@@ -90,8 +90,8 @@ struct Sh9Light {
 
 // The light at world point `p` of a surface with world normal `normal` (interpolated, not
 // normalised: its length divides the bent normal's), shares `ao`, bent normal `bent`, sky colour
-// `tint` (VertexIn) and the sun's visibility `visibility` there: at a vertex (VERTEX_LIGHT) or a
-// pixel.
+// `tint` (VertexIn) and the sun's visibility `visibility` there: at a vertex (model.wgsl
+// vs_light) or a pixel.
 fn sh9_ggx_light(p: vec3<f32>, normal: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>, tint: vec3<f32>, visibility: f32) -> Sh9Light {
     let n = facing(p, normal);
     let v = normalize(frame.camera_pos - p);

@@ -543,9 +543,9 @@ fn bench_vertex_sun() {
 }
 
 /// What the vertex sun adds to start-up (docs/PERFORMANCE.md, tenth session): the model pass's
-/// pipelines as built (per-pixel culled and not, the `VERTEX_SUN` set and the `VERTEX_LIGHT` set,
+/// pipelines as built (per-pixel culled and not, the `VERTEX_SUN` set and the light-from-vertices set,
 /// each with and without correction: 64 slots, 46 built: the refractions' `VERTEX_SUN` slots reuse
-/// their per-pixel pipelines, and every `VERTEX_LIGHT` slot but sh9-ggx's its `VERTEX_SUN` one), 16 more of the per-pixel culled kind built the same way (what a set of 16 such
+/// their per-pixel pipelines, and every light-from-vertices slot but sh9-ggx's its `VERTEX_SUN` one), 16 more of the per-pixel culled kind built the same way (what a set of 16 such
 /// pipelines costs; they differ only by override constants), and the
 /// vertex sun's three compute pipelines; `PREVIZ_ROUNDS` rounds (default 5) interleaved, the
 /// first round (a cold shader cache) and the minimum of each. Run:
@@ -581,7 +581,7 @@ fn bench_pipeline_start_up() {
         println!("{name}: first {:.1} ms, min {min:.1} ms over {} rounds", v[0], v.len());
     };
     println!("uptime {:?}", std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim());
-    show("model pipelines (64 slots, 46 built, 12 of them VERTEX_SUN, 2 VERTEX_LIGHT)", &all);
+    show("model pipelines (64 slots, 46 built, 12 of them VERTEX_SUN, 2 light from vertices)", &all);
     show("16 culled per-pixel model pipelines", &sixteen);
     show("vertex sun compute pipelines (3)", &compute);
 }

@@ -73,7 +73,7 @@ pub enum Shading {
     /// shadow-map lookup: [`super::vertex_sun`]).
     SunFromVertices,
     /// Back faces culled, the whole light computed at the vertices from their sun's visibility
-    /// and interpolated, the albedo per pixel (`VERTEX_LIGHT`; sh9-ggx alone: the other methods'
+    /// and interpolated, the albedo per pixel (the shader's `vs_light` and `fs_light`; sh9-ggx alone: the other methods'
     /// slots hold their [`Shading::SunFromVertices`] pipelines).
     LightFromVertices,
 }
@@ -97,7 +97,7 @@ pub struct ModelPipelines {
     /// material's, or a closed mesh's seen from outside, whose back faces are hidden); and those
     /// culling back faces again with the sun's visibility from the vertices (`VERTEX_SUN`: no
     /// shadow-map lookup at all, [`super::vertex_sun`]), and with sh9-ggx's whole light from them
-    /// (`VERTEX_LIGHT`): [`Shading`].
+    /// (`vs_light`, `fs_light`): [`Shading`].
     pub shading: Vec<wgpu::RenderPipeline>,
     /// The depth pre-pass of a mesh drawn without culling: its depth alone, so that the
     /// shading pipelines (depth test less-or-equal) shade each pixel once, not every surface
@@ -117,7 +117,7 @@ pub fn shading_index(method: LightingMethod, corrected: bool, shading: Shading) 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
 pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
-    // What sh9-ggx's light reads, which its vertex stage computes too (`VERTEX_LIGHT`).
+    // What sh9-ggx's light reads, which its vertex stage computes too (`vs_light`).
     let vs_fs = ShaderStages::VERTEX | fs;
     let layout = build::layout(
         device,
@@ -218,18 +218,21 @@ fn method_pipeline(
         ("METHOD", f64::from(m.shader_id())),
         ("COLOUR_CORRECTION", flag(corrected)),
         ("VERTEX_SUN", flag(vertex_sun)),
-        ("VERTEX_LIGHT", flag(kind == Shading::LightFromVertices)),
     ];
-    model_pipeline(device, (m.name(), module, Some(("fs_main", colour))), layouts, samples, (&constants, kind != Shading::EveryTriangle))
+    // The light from the vertices has its own entry points, which interpolate only what its
+    // fragment reads (model.wgsl LightOut).
+    let (vs, fs) = if kind == Shading::LightFromVertices { ("vs_light", "fs_light") } else { ("vs_main", "fs_main") };
+    model_pipeline(device, (m.name(), module), (vs, Some((fs, colour))), layouts, samples, (&constants, kind != Shading::EveryTriangle))
 }
 
-/// A model pipeline: the model shader's vertex stage with override `constants` and, when
-/// `fragment` gives one, the fragment entry point drawing into its colour target (none: depth
-/// only), `samples` per pixel with depth written and tested, culling back faces
+/// A model pipeline: the model shader's vertex entry point `vs` with override `constants` and,
+/// when `fragment` gives one, the fragment entry point drawing into its colour target (none:
+/// depth only), `samples` per pixel with depth written and tested, culling back faces
 /// (counter-clockwise fronts) or not.
 fn model_pipeline(
     device: &wgpu::Device,
-    (label, module, fragment): (&str, &wgpu::ShaderModule, Option<(&str, wgpu::ColorTargetState)>),
+    (label, module): (&str, &wgpu::ShaderModule),
+    (vs, fragment): (&str, Option<(&str, wgpu::ColorTargetState)>),
     (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     samples: u32,
     (constants, cull): (&[(&str, f64)], bool),
@@ -246,7 +249,7 @@ fn model_pipeline(
         layout: Some(&layout),
         vertex: wgpu::VertexState {
             module,
-            entry_point: Some("vs_main"),
+            entry_point: Some(vs),
             compilation_options: options.clone(),
             buffers: &[Some(vertex_layout()), Some(sun_layout())],
         },
@@ -275,7 +278,7 @@ fn prepass_pipeline(
 ) -> wgpu::RenderPipeline {
     let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
     let colour = wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() };
-    model_pipeline(device, ("model depth pre-pass", module, Some(("fs_depth", colour))), layouts, samples, (&constants, false))
+    model_pipeline(device, ("model depth pre-pass", module), ("vs_main", Some(("fs_depth", colour))), layouts, samples, (&constants, false))
 }
 
 /// The model's depth seen by the camera, single-sampled and without colour: the model pass's
@@ -284,7 +287,7 @@ fn prepass_pipeline(
 pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines, cull: bool) -> wgpu::RenderPipeline {
     let module = build::shader(device, "model depth", source(Technique::Model));
     let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
-    model_pipeline(device, ("model depth", &module, None), (&pipelines.layout, &pipelines.material_layout), 1, (&constants, cull))
+    model_pipeline(device, ("model depth", &module), ("vs_main", None), (&pipelines.layout, &pipelines.material_layout), 1, (&constants, cull))
 }
 
 /// A material's uniform for this frame: its own colours and sides with the frame's Eq. 3 terms,

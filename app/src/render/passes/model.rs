@@ -214,11 +214,7 @@ fn method_pipeline(
         wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
     let vertex_sun = matches!(kind, Shading::SunFromVertices | Shading::LightFromVertices);
-    let constants = [
-        ("METHOD", f64::from(m.shader_id())),
-        ("COLOUR_CORRECTION", flag(corrected)),
-        ("VERTEX_SUN", flag(vertex_sun)),
-    ];
+    let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];
     // The light from the vertices has its own entry points, which interpolate only what its
     // fragment reads (model.wgsl LightOut).
     let (vs, fs) = if kind == Shading::LightFromVertices { ("vs_light", "fs_light") } else { ("vs_main", "fs_main") };
@@ -287,7 +283,14 @@ fn prepass_pipeline(
 pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines, cull: bool) -> wgpu::RenderPipeline {
     let module = build::shader(device, "model depth", source(Technique::Model));
     let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
-    model_pipeline(device, ("model depth", &module), ("vs_main", None), (&pipelines.layout, &pipelines.material_layout), 1, (&constants, cull))
+    model_pipeline(
+        device,
+        ("model depth", &module),
+        ("vs_main", None),
+        (&pipelines.layout, &pipelines.material_layout),
+        1,
+        (&constants, cull),
+    )
 }
 
 /// A material's uniform for this frame: its own colours and sides with the frame's Eq. 3 terms,

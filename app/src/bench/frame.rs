@@ -76,6 +76,8 @@ struct PathSpec {
 /// medians, ratios to the floor and FLIP. The camera turns slightly each frame, so no frame's
 /// image can be reused; the shadow map, which does not depend on the camera, is kept while the
 /// sun and model stay put (as in the product), and drawn every frame on the sun-turning path.
+/// Paths that would change what a compositor keeps for another path's frames (a moving sun,
+/// another placement, method or antialiasing) each have a compositor of their own.
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
@@ -104,14 +106,22 @@ pub fn run(
         path(REFERENCE, 0, Layer::Composite, base, true),
     ];
     paths[1].reference = Some(2);
+    // A path on a compositor of its own: a compositor keeps its shadow map (and the sun at the
+    // model's vertices looked up in it) while the sun and the model stay put, as the product
+    // does; a path whose sun moves, or that draws another map or level of detail, would
+    // otherwise redraw the default's every frame, or its own.
+    let own = |compositors: &mut Vec<Compositor>| -> Result<usize> {
+        compositors.push(prepare_antialiased(gpu, scene, inputs, default_aa)?.0);
+        Ok(compositors.len() - 1)
+    };
     // The default frame whose shadow map cannot be kept (a sun or a model that moves): the map
     // is drawn every frame.
-    paths.push(PathSpec { sun_turns: true, ..path(SUN_MOVING, 0, Layer::Composite, base, false) });
+    paths.push(PathSpec { sun_turns: true, ..path(SUN_MOVING, own(&mut compositors)?, Layer::Composite, base, false) });
     // Profiling: the default frame without its ground pass (what the shadow catcher costs).
     // (No sun shadow and no sky occlusion: with either the ground pass runs.)
     let mut no_ground = base;
     (no_ground.lighting.shadow_opacity, no_ground.lighting.sky_occlusion) = (0.0, 0.0);
-    paths.push(path(NO_GROUND, 0, Layer::Composite, no_ground, false));
+    paths.push(path(NO_GROUND, own(&mut compositors)?, Layer::Composite, no_ground, false));
     // The same model at a quarter of the fill (placed by the same rule, farther away).
     let quarter_scene = Scene {
         placement: crate::setup::scene_file::PlacementSection { fill: scene.placement.fill * 0.25, ..scene.placement.clone() },
@@ -119,10 +129,15 @@ pub fn run(
     };
     let bounds = compositors[0].model_bounds().ok_or_else(|| anyhow!("no model"))?;
     let quarter = FrameParams { placement: camera_and_placement(&quarter_scene, bounds).1, ..base };
-    paths.push(PathSpec { reference: Some(paths.len() + 1), ..path(QUARTER, 0, Layer::Composite, quarter, false) });
-    paths.push(path(QUARTER_REFERENCE, 0, Layer::Composite, quarter, true));
+    // Its own compositor, for the reference too: its placement's ground map and model sky.
+    let q = own(&mut compositors)?;
+    paths.push(PathSpec { reference: Some(paths.len() + 1), ..path(QUARTER, q, Layer::Composite, quarter, false) });
+    paths.push(path(QUARTER_REFERENCE, q, Layer::Composite, quarter, true));
+    // Each method on a compositor of its own, as a user of that method has it (the reflections
+    // and refractions draw the full mesh into their map).
     for m in LightingMethod::ALL {
-        paths.push(path(&format!("method {}", m.name()), 0, Layer::Composite, FrameParams { method: m, ..base }, false));
+        let name = format!("method {}", m.name());
+        paths.push(path(&name, own(&mut compositors)?, Layer::Composite, FrameParams { method: m, ..base }, false));
     }
     for c in TransferMethod::TRANSFERS {
         let colour = ColourSettings { method: c, strength: 1.0 };

@@ -490,3 +490,29 @@ fn bench_frame_json_carries_the_per_pass_profile() {
         assert!(default[pass].as_f64().is_some_and(|ms| ms > 0.0), "{pass}: {default}");
     }
 }
+
+/// `previz bench frame` measures each path as a user of it has it: a compositor keeps its shadow
+/// map while the sun and the model stay put, so after the warm-up no path draws it but the one
+/// whose sun turns. (Sharing one compositor, the paths that draw another level into it or move
+/// the sun redrew the next path's map every frame: "method sh9-ggx" cost 2.3× the default frame,
+/// the same method.)
+#[test]
+fn bench_frame_paths_keep_their_shadow_maps() {
+    use common::cli::{previz, tempdir};
+    let dir = tempdir("lod", "bench-frame-kept");
+    let (env, model) = (common::data("cubemaps/humus_Park2_512"), common::data("meshes/icosphere-320.obj"));
+    let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
+    let args =
+        ["bench", "frame", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "2", "--warmup", "1", "--json"];
+    let out = previz(&dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    let methods = rows.iter().filter(|r| r["path"].as_str().is_some_and(|p| p.starts_with(previz::bench::frame::METHOD_ROW))).count();
+    assert_eq!(methods, previz::render::LightingMethod::ALL.len(), "{v}");
+    for r in rows {
+        let drawn = r["shadow_drawn"].as_f64().unwrap();
+        let moving = r["path"] == previz::bench::frame::SUN_MOVING;
+        assert_eq!(drawn, if moving { 1.0 } else { 0.0 }, "{r}");
+    }
+}

@@ -19,7 +19,8 @@ override SUN_SHADOW: bool = true;
 // Layer 0, rgb: the share of each channel of the sky's (cosine-weighted) light the ground sees
 // past the model; layer 1, rgb: the light the model reflects onto it, a gain on the ground's
 // light per channel; over light.ground_square (written once per placement and light from
-// scene::occlusion::GroundTransfer::map, render::passes::ground::ground_texels).
+// scene::occlusion::GroundTransfer::map, render::passes::ground::ground_texels); layer 2, rgb:
+// 1 minus the factor they give with no sun lost (render::passes::ground::sky_only_texels).
 @group(0) @binding(5) var ground_sky: texture_2d_array<f32>;
 @group(0) @binding(6) var ground_sky_smp: sampler;
 // The shadow map's depths without comparison, nearest texel (the soft shadow's blocker search).
@@ -47,22 +48,30 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     if (frame.camera_pos.z <= plane.model[3].z) {
         return vec4<f32>(0.5);
     }
-    // The sun's shadow removes the sun's share of the ground's light: shadow_opacity is that
-    // share (measured from the environment by setup::light), none when there is no sunlight.
-    var sun_lost = 0.0;
-    if (SUN_SHADOW) {
-        if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
-            let visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
-            sun_lost = frame.shadow_opacity * (1.0 - visibility);
-        }
-    }
     // The model hides part of the sky: the sky's share of the ground's light times the share of
     // the (cosine-weighted) sky hidden here. Outside the square the sky is whole.
     let square = light.ground_square;
     let uv = (in.world.xy - square.xy) / max(square.zw - square.xy, vec2<f32>(1e-6));
+    let inside = all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0));
+    if (!SUN_SHADOW) {
+        // Where the sun's shadow is not looked up, the map's third layer holds 1 minus the
+        // factor below with no sun lost (render::passes::ground::sky_only_texels): one sample.
+        var lost = vec3<f32>(0.0);
+        if (inside) {
+            lost = textureSampleLevel(ground_sky, ground_sky_smp, uv, 2, 0.0).rgb;
+        }
+        return vec4<f32>(0.5 * (1.0 - lost), 0.0);
+    }
+    // The sun's shadow removes the sun's share of the ground's light: shadow_opacity is that
+    // share (measured from the environment by setup::light), none when there is no sunlight.
+    var sun_lost = 0.0;
+    if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
+        let visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
+        sun_lost = frame.shadow_opacity * (1.0 - visibility);
+    }
     var sky_seen = vec3<f32>(1.0);
     var bounce = vec3<f32>(0.0);
-    if (all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0))) {
+    if (inside) {
         sky_seen = textureSampleLevel(ground_sky, ground_sky_smp, uv, 0, 0.0).rgb;
         bounce = textureSampleLevel(ground_sky, ground_sky_smp, uv, 1, 0.0).rgb;
     }

@@ -826,6 +826,9 @@ impl Compositor {
         queue.write_buffer(&self.instance_buf, 0, bytemuck::bytes_of(&data.instance));
         queue.write_buffer(&self.light_buf, 0, bytemuck::bytes_of(&data.light));
         self.ground.write(queue, &data.ground, &data.ground_mesh);
+        if let Some(sky) = &self.ground_sky_uploaded {
+            self.ground.write_sky_only(queue, sky, &data.light, data.frame.shadow_opacity);
+        }
         // A full-shadow reference looks the sun up per pixel everywhere.
         let sun_px = data.px_per_unit.filter(|_| !self.full_shadow);
         // A still (no frame budget, the accuracy benchmark's) lights every pixel.

@@ -109,11 +109,15 @@ pub struct GroundPass {
     bind_groups: Vec<wgpu::BindGroup>,
     /// The plane's transform (`InstanceUniforms`).
     instance: wgpu::Buffer,
-    /// Two layers of Rgba16Float, [`GROUND_TEXELS`]², over the square in the `Light` uniform's
+    /// Three layers of Rgba16Float, [`GROUND_TEXELS`]², over the square in the `Light` uniform's
     /// `ground_square` ([`ground_texels`]): the ground's sky visibility under the model per
-    /// channel (rgb, 1 = whole sky, in 255ths: [`sky_texels`]) and the model's light on it (rgb:
-    /// the gain on the ground's light per channel).
+    /// channel (rgb, 1 = whole sky, in 255ths: [`sky_texels`]), the model's light on it (rgb:
+    /// the gain on the ground's light per channel), and what they take from it where the sun's
+    /// shadow is not looked up ([`sky_only_texels`]).
     sky: wgpu::Texture,
+    /// The map and the light (the `Light` uniform's sun colour and sky share and colour, the
+    /// frame's `shadow_opacity`, as bits) the third layer was computed for.
+    sky_only_for: Option<(Arc<GroundSky>, [u32; 8])>,
 }
 
 /// Texels per side of the ground pass's sky-visibility texture.
@@ -203,18 +207,42 @@ pub const INVISIBLE_LOSS: f32 = 1.0 / (255.0 * 1.055 / 2.4 + 1.0);
 /// model hides) where the sun's shadow is not looked up: shaders/ground.wgsl `ground_loss` with
 /// no sun lost, for the `light` uniform and the frame's `shadow_opacity` (the sun's share).
 pub fn sky_loss_per_occlusion(light: &LightUniforms, shadow_opacity: f32) -> f32 {
+    sky_loss_per_channel(light, shadow_opacity).into_iter().fold(0.0, f32::max)
+}
+
+/// Per colour channel, what the ground loses per unit of the sky's occlusion where the sun's
+/// shadow is not looked up (shaders/ground.wgsl `ground_loss` with no sun lost, before its clamp).
+pub fn sky_loss_per_channel(light: &LightUniforms, shadow_opacity: f32) -> [f32; 3] {
     let sky_share = light.ground_sky[0];
     let total = shadow_opacity + sky_share;
     if total <= 0.0 {
-        return 0.0;
+        return [0.0; 3];
     }
-    (0..3)
-        .map(|c| {
-            let (sun, sky) = (light.sun[c], light.ground_sky[c + 1]);
-            let light = (shadow_opacity * sun + sky_share * sky) / total;
-            sky_share * sky / light.max(1e-6)
+    std::array::from_fn(|c| {
+        let (sun, sky) = (light.sun[c], light.ground_sky[c + 1]);
+        let light = (shadow_opacity * sun + sky_share * sky) / total;
+        sky_share * sky / light.max(1e-6)
+    })
+}
+
+/// What the ground loses where the sun's shadow is not looked up, per texel of the map's two
+/// layers as the pass holds them ([`ground_texels`]): min(per_channel · (1 − visibility), 1) −
+/// bounce per channel, 1 minus the factor shaders/ground.wgsl `fs_main` gives with no sun lost,
+/// `per_channel` from [`sky_loss_per_channel`]. The map's third layer: the sky-only part of the
+/// ground samples it once instead of the two layers and the loss (docs/PERFORMANCE.md,
+/// seventeenth session). Held as 1 − the factor because half floats are finest near 0, where
+/// most of the ground is (as the factor, its rounding moved 8-bit values by a level in 0.1 % of
+/// tests/lod.rs's sky-only pixels). Linear in the texels but for the clamp, so its bilinear sample
+/// is the loss of the bilinear samples where no channel loses its whole light.
+pub fn sky_only_texels([visibility, bounce]: &[Vec<half::f16>; 2], per_channel: [f32; 3]) -> Vec<half::f16> {
+    visibility
+        .chunks_exact(4)
+        .zip(bounce.chunks_exact(4))
+        .flat_map(|(v, b)| {
+            let lost = |c: usize| (per_channel[c] * (1.0 - v[c].to_f32())).min(1.0) - b[c].to_f32();
+            [lost(0), lost(1), lost(2), 0.0].map(half::f16::from_f32)
         })
-        .fold(0.0, f32::max)
+        .collect()
 }
 
 /// The ground's regions (render::frame::GroundRegions) as last computed, and what for: the
@@ -283,10 +311,10 @@ impl GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
         let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
         let side = GROUND_TEXELS;
-        let sky = build::texture(device, "ground sky visibility", (side, side, 2), wgpu::TextureFormat::Rgba16Float, 1, usage);
-        // The whole sky and no bounce everywhere until a model is placed.
+        let sky = build::texture(device, "ground sky visibility", (side, side, 3), wgpu::TextureFormat::Rgba16Float, 1, usage);
+        // The whole sky and no bounce everywhere until a model is placed: nothing lost.
         let (one, zero) = (half::f16::ONE, half::f16::ZERO);
-        for (layer, texel) in [[one; 4], [zero; 4]].iter().enumerate() {
+        for (layer, texel) in [[one; 4], [zero; 4], [zero; 4]].iter().enumerate() {
             build::write_layer(queue, &sky, layer as u32, bytemuck::cast_slice(&texel.repeat((side * side) as usize)));
         }
         let sky_view =
@@ -322,6 +350,7 @@ impl GroundPass {
             bind_groups,
             instance,
             sky,
+            sky_only_for: None,
         }
     }
 
@@ -335,6 +364,21 @@ impl GroundPass {
             build::write_layer(queue, &self.sky, layer as u32, bytemuck::cast_slice(texels));
         }
         Ok(())
+    }
+
+    /// The map's third layer for the frame's light ([`sky_only_texels`]): written when the map
+    /// `sky` (as [`GroundPass::write_sky`] wrote it) or the light changed since the last.
+    pub fn write_sky_only(&mut self, queue: &wgpu::Queue, sky: &Arc<GroundSky>, light: &LightUniforms, shadow_opacity: f32) {
+        let mut key = [0u32; 8];
+        for (k, v) in key.iter_mut().zip(light.sun[..3].iter().chain(&light.ground_sky).chain([&shadow_opacity])) {
+            *k = v.to_bits();
+        }
+        if self.sky_only_for.as_ref().is_some_and(|(held, k)| Arc::ptr_eq(held, sky) && *k == key) {
+            return;
+        }
+        let texels = sky_only_texels(&ground_texels(sky), sky_loss_per_channel(light, shadow_opacity));
+        build::write_layer(queue, &self.sky, 2, bytemuck::cast_slice(&texels));
+        self.sky_only_for = Some((sky.clone(), key));
     }
 
     /// This frame's plane transform and triangles.
@@ -486,6 +530,23 @@ mod tests {
             assert!((got - want / 255.0).abs() < 1e-3, "{v:?}");
         }
         assert_eq!(sky_texels(&sky)[3], [51, 64, 77]);
+    }
+
+    #[test]
+    fn the_sky_only_factor_is_what_the_shader_gives_with_no_sun_lost() {
+        let f = half::f16::from_f32;
+        // One texel: visibility 0.4, 1, 0 per channel, bounce 0.1, 0, 0.25.
+        let layers = [vec![f(0.4), f(1.0), f(0.0), f(1.0)], vec![f(0.1), f(0.0), f(0.25), f(0.0)]];
+        let texels = sky_only_texels(&layers, [0.5, 0.5, 2.0]);
+        let got: Vec<f32> = texels.iter().map(|h| h.to_f32()).collect();
+        // R: 0.5 * 0.6 - 0.1 = 0.2 (the factor 0.8); G: nothing hidden, 0; B: 2 * 1 clamps to the
+        // whole light lost, 1 - 0.25. (f16 holds them to 2^-11 relative.)
+        for (g, want) in got.iter().zip([0.2, 0.0, 0.75, 0.0]) {
+            assert!((g - want).abs() < 5e-4, "{got:?}");
+        }
+        // Without a model's map (the whole sky, no bounce) nothing is lost whatever the light.
+        let whole = [vec![f(1.0); 4], vec![f(0.0); 4]];
+        assert!(sky_only_texels(&whole, [3.0, 0.2, 1.0]).iter().all(|h| h.to_f32() == 0.0));
     }
 
     #[test]

@@ -472,15 +472,7 @@ fn fxaa_brings_the_silhouette_towards_4x_msaa() {
 /// with its passes' GPU time by name (null where a pass did not run: the floor draws no model).
 #[test]
 fn bench_frame_json_carries_the_per_pass_profile() {
-    use common::cli::{previz, tempdir};
-    let dir = tempdir("lod", "bench-frame-json");
-    let (env, model) = (common::data("cubemaps/humus_Park2_512"), common::data("meshes/icosphere-320.obj"));
-    let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
-    let args =
-        ["bench", "frame", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "1", "--warmup", "0", "--json"];
-    let out = previz(&dir, &args);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = bench_frame_json("bench-frame-json", (1, 0));
     assert!(v["rows"].as_array().is_some_and(|r| r.len() > 5), "{v}");
     let profile = v["profile"].as_array().unwrap();
     let path = |name: &str| profile.iter().find(|r| r["path"] == name).unwrap_or_else(|| panic!("no {name} in {v}"));
@@ -498,15 +490,7 @@ fn bench_frame_json_carries_the_per_pass_profile() {
 /// the same method.)
 #[test]
 fn bench_frame_paths_keep_their_shadow_maps() {
-    use common::cli::{previz, tempdir};
-    let dir = tempdir("lod", "bench-frame-kept");
-    let (env, model) = (common::data("cubemaps/humus_Park2_512"), common::data("meshes/icosphere-320.obj"));
-    let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
-    let args =
-        ["bench", "frame", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", "2", "--warmup", "1", "--json"];
-    let out = previz(&dir, &args);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = bench_frame_json("bench-frame-kept", (2, 1));
     let rows = v["rows"].as_array().unwrap();
     let methods = rows.iter().filter(|r| r["path"].as_str().is_some_and(|p| p.starts_with(previz::bench::frame::METHOD_ROW))).count();
     assert_eq!(methods, previz::render::LightingMethod::ALL.len(), "{v}");
@@ -515,4 +499,21 @@ fn bench_frame_paths_keep_their_shadow_maps() {
         let moving = r["path"] == previz::bench::frame::SUN_MOVING;
         assert_eq!(drawn, if moving { 1.0 } else { 0.0 }, "{r}");
     }
+}
+
+/// `previz bench frame --json` on the icosphere in the park at 96×64, `frames` measured after
+/// `warmup` (in a temporary folder named `name`): its output, after asserting it succeeded.
+fn bench_frame_json(name: &str, (frames, warmup): (u32, u32)) -> serde_json::Value {
+    use common::cli::{previz, tempdir};
+    let dir = tempdir("lod", name);
+    let (env, model) = (common::data("cubemaps/humus_Park2_512"), common::data("meshes/icosphere-320.obj"));
+    let (env, model) = (env.to_str().unwrap(), model.to_str().unwrap());
+    let (frames, warmup) = (frames.to_string(), warmup.to_string());
+    let args = [
+        "bench", "frame", "--env", env, "--model", model, "--width", "96", "--height", "64", "--frames", &frames, "--warmup", &warmup,
+        "--json",
+    ];
+    let out = previz(&dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
 }

@@ -543,10 +543,12 @@ fn bench_vertex_sun() {
 }
 
 /// What the vertex sun adds to start-up (docs/PERFORMANCE.md, tenth session): the model pass's
-/// pipelines as built (per-pixel culled and not, the `VERTEX_SUN` set and the light-from-vertices set,
-/// each with and without correction: 64 slots, 46 built: the refractions' `VERTEX_SUN` slots reuse
-/// their per-pixel pipelines, and every light-from-vertices slot but sh9-ggx's its `VERTEX_SUN` one), 16 more of the per-pixel culled kind built the same way (what a set of 16 such
-/// pipelines costs; they differ only by override constants), and the
+/// pipelines as built (per-pixel culled and not, the `VERTEX_SUN` set and the
+/// light-from-vertices set, each with and without correction: 64 slots, 46 built: the
+/// refractions' `VERTEX_SUN` slots reuse their per-pixel pipelines, and every
+/// light-from-vertices slot but sh9-ggx's its `VERTEX_SUN` one), 16 more of the per-pixel culled
+/// kind built the same way (what a set of 16 such pipelines costs; they differ only by override
+/// constants), and the
 /// vertex sun's three compute pipelines; `PREVIZ_ROUNDS` rounds (default 5) interleaved, the
 /// first round (a cold shader cache) and the minimum of each. Run:
 /// `cargo test --release --test integration vertex_sun:: -- --ignored --nocapture bench_pipeline_start_up`.

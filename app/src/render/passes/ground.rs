@@ -533,7 +533,7 @@ mod tests {
     }
 
     #[test]
-    fn the_sky_only_factor_is_what_the_shader_gives_with_no_sun_lost() {
+    fn the_sky_only_loss_is_one_minus_what_the_shader_gives_with_no_sun_lost() {
         let f = half::f16::from_f32;
         // One texel: visibility 0.4, 1, 0 per channel, bounce 0.1, 0, 0.25.
         let layers = [vec![f(0.4), f(1.0), f(0.0), f(1.0)], vec![f(0.1), f(0.0), f(0.25), f(0.0)]];

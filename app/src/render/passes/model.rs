@@ -73,8 +73,8 @@ pub enum Shading {
     /// shadow-map lookup: [`super::vertex_sun`]).
     SunFromVertices,
     /// Back faces culled, the whole light computed at the vertices from their sun's visibility
-    /// and interpolated, the albedo per pixel (the shader's `vs_light` and `fs_light`; sh9-ggx alone: the other methods'
-    /// slots hold their [`Shading::SunFromVertices`] pipelines).
+    /// and interpolated, the albedo per pixel (the shader's `vs_light` and `fs_light`; sh9-ggx
+    /// alone: the other methods' slots hold their [`Shading::SunFromVertices`] pipelines).
     LightFromVertices,
 }
 

@@ -122,6 +122,16 @@ struct Light {
     ground: vec4<f32>,
 };
 
+// The ground's sun visibility drawn in ground space (shaders/ground_sun.wgsl,
+// render::passes::ground_sun): where and how densely the last bake drew it.
+struct GroundSun {
+    // World (min.x, min.y, max.x, max.y) of the baked rectangle; texel row 0 at min.y.
+    square: vec4<f32>,
+    // x, y: texels drawn across and along it (from the texture's corner); z: the ground plane's
+    // height; w: the texture's side.
+    texels: vec4<f32>,
+};
+
 // A world direction in the environment map's own ENU frame (frame.wgsl env_dir before the
 // cube-space swizzle).
 fn env_map_dir(frame: Frame, d: vec3<f32>) -> vec3<f32> {

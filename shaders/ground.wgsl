@@ -5,11 +5,14 @@
 // per channel; the pipeline multiplies the background by twice that (render::passes::ground
 // SCALE), so a shadow keeps the colour of the light left in it.
 //
-// SUN_SHADOW is a pipeline-override constant: the ground is drawn in two parts that do not
-// overlap (render::frame::ground_mesh), where the sun's shadow can fall with the shadow lookup
-// (true) and the rest without it (false: no lookup compiled in; lavapipe runs every branch of
-// a runtime test, so only leaving the code out saves its cost there).
-override SUN_SHADOW: bool = true;
+// SUN is a pipeline-override constant: the ground is drawn in two parts that do not overlap
+// (render::frame::ground_mesh), where the sun's shadow can fall with its visibility (SUN_LOOKUP:
+// looked up in the shadow map; SUN_BAKED: sampled from the ground-space texture the ground-sun
+// pass drew from the same map, render::passes::ground_sun) and the rest without it (SUN_NONE:
+// nothing of either compiled in; lavapipe runs every branch of a runtime test, so only leaving
+// the code out saves its cost there).
+// (SUN_NONE, SUN_LOOKUP, SUN_BAKED: prepended from render::passes::ground::SunOnGround.)
+override SUN: u32 = SUN_LOOKUP;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> plane: Instance;
@@ -25,6 +28,10 @@ override SUN_SHADOW: bool = true;
 @group(0) @binding(6) var ground_sky_smp: sampler;
 // The shadow map's depths without comparison, nearest texel (the soft shadow's blocker search).
 @group(0) @binding(7) var shadow_gather_smp: sampler;
+// The sun's visibility on the ground as the ground-sun pass last drew it (SUN_BAKED), over
+// ground_sun.square: texels (0, 0)..ground_sun.texels.xy of a ground_sun.texels.w² texture.
+@group(0) @binding(8) var<uniform> ground_sun: GroundSun;
+@group(0) @binding(9) var ground_sun_map: texture_2d<f32>;
 
 struct GroundOut {
     @builtin(position) clip: vec4<f32>,
@@ -53,7 +60,7 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     let square = light.ground_square;
     let uv = (in.world.xy - square.xy) / max(square.zw - square.xy, vec2<f32>(1e-6));
     let inside = all(uv >= vec2<f32>(0.0)) && all(uv <= vec2<f32>(1.0));
-    if (!SUN_SHADOW) {
+    if (SUN == SUN_NONE) {
         // Where the sun's shadow is not looked up, the map's third layer holds 1 minus the
         // factor below with no sun lost (render::passes::ground::sky_only_texels): one sample.
         var lost = vec3<f32>(0.0);
@@ -66,7 +73,12 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     // share (measured from the environment by setup::light), none when there is no sunlight.
     var sun_lost = 0.0;
     if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
-        let visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
+        var visibility: f32;
+        if (SUN == SUN_BAKED) {
+            visibility = baked_sun(in.world.xy);
+        } else {
+            visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
+        }
         sun_lost = frame.shadow_opacity * (1.0 - visibility);
     }
     var sky_seen = vec3<f32>(1.0);
@@ -77,6 +89,15 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     }
     let sky_lost = light.ground_sky.x * (vec3<f32>(1.0) - sky_seen);
     return vec4<f32>(0.5 * (1.0 - ground_loss(sun_lost, sky_lost) + bounce), 0.0);
+}
+
+// The baked visibility at world xy: a bilinear sample between the centres of the texels drawn
+// (clamped to them: the texture beyond holds an older bake).
+fn baked_sun(xy: vec2<f32>) -> f32 {
+    let size = max(ground_sun.square.zw - ground_sun.square.xy, vec2<f32>(1e-6));
+    let drawn = ground_sun.texels.xy;
+    let t = clamp((xy - ground_sun.square.xy) / size * drawn, vec2<f32>(0.5), drawn - vec2<f32>(0.5));
+    return textureSampleLevel(ground_sun_map, ground_sky_smp, t / ground_sun.texels.w, 0.0).r;
 }
 
 // What the ground loses per channel when it loses `sun_lost` of its light's luminance to the

@@ -99,7 +99,8 @@ fn antialiased_frames_allocate_nothing() {
 }
 
 /// Called from the one test: a model moving away switches level of detail and shadow-map size
-/// frame by frame (every level and every map was allocated up front) without allocating.
+/// frame by frame, and draws the ground's sun into its texture, without allocating (every level,
+/// every map and the ground-sun texture were allocated up front).
 fn lod_switches_allocate_nothing() {
     let s = scene(
         "width = 320
@@ -116,6 +117,9 @@ fill = 0.8
         background: None,
     };
     let (mut compositor, params) = prepare(gpu(), &s, &inputs).unwrap();
+    // Frames drawn one after another: the levels the screen allows, and the ground's sun drawn
+    // into its texture (render::passes::ground_sun) whenever the map holds still.
+    compositor.set_detail(previz::render::Detail::Frame);
     // The sun per vertex wherever a mesh may take it (the default limit would let the sphere
     // take it only at some distances), with its split and indirect draws.
     compositor.set_sun_edge_limit(f32::INFINITY);
@@ -171,13 +175,15 @@ fill = 0.8
     assert!(levels.len() >= 3, "the level did not follow the distance: {levels:?}");
     // The model's sun per vertex was looked up into the buffers made at upload.
     assert!(vertex_suns >= 2, "the sun per vertex was looked up in {vertex_suns} frames");
+    let (bakes, _) = compositor.ground_sun_bakes();
+    assert!(bakes >= 2, "the ground's sun was drawn into its texture {bakes} times");
     assert!(maps.len() >= 2, "the shadow map did not follow the footprint: {maps:?}");
     assert!(grounds.len() >= 2 && grounds.iter().any(|g| g.0 == 0), "the ground's split did not follow the sun: {grounds:?}");
     assert_unchanged(
         &before,
         &after,
         &FRAME_RESOURCES,
-        "level, shadow-map, ground-split, colour-correction, pass-timing, culling and sun-per-vertex switches",
+        "level, shadow-map, ground-split, ground-sun, colour-correction, pass-timing, culling and sun-per-vertex switches",
     );
 }
 

@@ -146,7 +146,7 @@ fn shadow_and_ground_passes_run_only_when_needed() {
         c.render(gpu(), p, Layer::Composite).unwrap();
         c.passes_run()
     };
-    let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, vertex_sun: false, ground };
+    let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, vertex_sun: false, ground, ground_sun: false };
     let mut up = p;
     up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
     up.lighting.sunlight = 1.0;
@@ -273,13 +273,17 @@ fn a_small_shadow_from_a_small_map_matches_the_full_map() {
 /// (shadow_fit::sky_region), nothing elsewhere. The frame is within a mean FLIP of 1e-4
 /// of the same frame with the lookup over the whole ground quad, with the same 2048² map (a
 /// footprint wider than 1024 px), for a cube and a sphere (whose silhouette is not its box), a
-/// low sun whose long shadow crosses the sky's square and a high one inside it. Not vacuous:
-/// the shadow and the sky's occlusion themselves differ from no ground pass by far more.
+/// low sun whose long shadow crosses the sky's square and a high one inside it; where the
+/// shadow's region fits the ground-sun texture at a texel per pixel (the high sun), the split's
+/// shadowed part samples the sun from it (render::passes::ground_sun) rather than looking it up.
+/// Not vacuous: the shadow and the sky's occlusion themselves differ from no ground pass by far
+/// more.
 #[test]
 fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
     let (w, h) = (1280, 720);
     let s = scene(&format!("width = {w}\nheight = {h}\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.8\n"));
     let sphere = previz::scene::model::load_model(&common::data("meshes/icosphere-320.obj")).unwrap();
+    let mut baked_any = false;
     for (name, model) in [("cube", cube()), ("sphere", sphere)] {
         let i = Inputs { model, env: inputs(&s).env, env_equirect: None, background: None };
         // Frames (one sample a pixel; a still's supersampling changes the per-vertex sun's
@@ -299,7 +303,14 @@ fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
             c.set_full_shadow(false);
             let split = frame(&mut c, &p);
             let (shadowed, sky_only) = c.ground_vertices();
-            eprintln!("{name}, sun {:.0}°: {}² map, {shadowed} + {sky_only} ground vertices", el.to_degrees(), c.shadow_map_size());
+            let (_, baked) = c.ground_sun_bakes();
+            eprintln!(
+                "{name}, sun {:.0}°: {}² map, {shadowed} + {sky_only} ground vertices, sun {}",
+                el.to_degrees(),
+                c.shadow_map_size(),
+                if baked { "baked" } else { "looked up" }
+            );
+            baked_any |= baked;
             assert_eq!(c.shadow_map_size(), 2048, "the test needs the same map both ways");
             assert!(shadowed > 0 && sky_only > 0, "the ground is split: {shadowed} + {sky_only} vertices");
             // ... and draws less than its quad (the unit square, area 4, in the mesh's units; main
@@ -334,6 +345,66 @@ fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
             assert!(ground_flip > 1e-3, "the ground's darkening itself: {ground_flip}");
         }
     }
+    assert!(baked_any, "no case sampled the ground-sun texture");
+}
+
+/// The ground's sun visibility in ground space (render::passes::ground_sun) is drawn once per
+/// shadow map, region and view's need of texels, and sampled while they stay: the same frame,
+/// a sun turned by 1/1000° (the map kept) and a camera 2 % nearer draw no new bake and the
+/// first two the same image; the camera at half the distance needs twice the texels and draws
+/// one; a sun turned by 2° draws the map and a bake, and turned again the frame after (the map
+/// moving, redrawn frame after frame) looks the sun up without one, until a frame keeps the map.
+/// A still looks the sun up.
+#[test]
+fn the_ground_sun_is_drawn_once_per_map_and_view() {
+    let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.5\n");
+    let i = Inputs { model: cube(), env: inputs(&s).env, env_equirect: None, background: None };
+    let (mut c, mut p) = prepare_antialiased(gpu(), &s, &i, Antialiasing::STILL).unwrap();
+    let sun = |az: f32| {
+        let (el, az) = (35f32.to_radians(), az.to_radians());
+        glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
+    };
+    p.lighting.sun_dir = sun(225.0);
+    p.lighting.sunlight = 1.0;
+    p.lighting.shadow_opacity = 0.8;
+    p.lighting.sky_occlusion = 0.4;
+    let frame =
+        |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| rgb(&c.render(gpu(), p, Layer::Composite).unwrap().rgba);
+    let first = frame(&mut c, &p);
+    assert_eq!(c.ground_sun_bakes(), (1, true), "{:?}", c.passes_run());
+    assert!(c.passes_run().ground_sun);
+    assert_eq!(frame(&mut c, &p), first, "the same frame with the kept bake");
+    assert_eq!(c.ground_sun_bakes(), (1, true));
+    assert!(!c.passes_run().ground_sun);
+    let mut nudged = p;
+    nudged.lighting.sun_dir = sun(225.001);
+    frame(&mut c, &nudged);
+    assert!(!c.passes_run().shadow_drawn, "1/1000 of a degree keeps the map");
+    assert_eq!(c.ground_sun_bakes(), (1, true), "and the bake");
+    let toward = |p: &previz::render::FrameParams, share: f32| {
+        let mut q = *p;
+        q.camera.position = q.placement.position + share * (q.camera.position - q.placement.position);
+        q
+    };
+    frame(&mut c, &toward(&p, 0.98));
+    assert_eq!(c.ground_sun_bakes(), (1, true), "2 % nearer keeps the bake");
+    frame(&mut c, &toward(&p, 0.5));
+    assert_eq!(c.ground_sun_bakes(), (2, true), "twice as near draws it again");
+    let mut turned = p;
+    turned.lighting.sun_dir = sun(227.0);
+    frame(&mut c, &turned);
+    assert!(c.passes_run().shadow_drawn);
+    assert_eq!(c.ground_sun_bakes(), (3, true), "a map drawn after a kept one is baked");
+    turned.lighting.sun_dir = sun(229.0);
+    frame(&mut c, &turned);
+    assert!(c.passes_run().shadow_drawn);
+    assert_eq!(c.ground_sun_bakes(), (3, false), "a moving map is looked up");
+    frame(&mut c, &turned);
+    assert!(!c.passes_run().shadow_drawn);
+    assert_eq!(c.ground_sun_bakes(), (4, true), "the first frame that keeps it bakes");
+    c.set_detail(Detail::Still);
+    frame(&mut c, &turned);
+    assert_eq!(c.ground_sun_bakes(), (4, false), "a still looks it up");
 }
 
 /// The back faces of a closed mesh seen from outside are culled (and it is drawn without a

@@ -15,6 +15,7 @@ use super::model_cache::{ModelCache, PreparedModel};
 use super::params::{FrameParams, HemispherePriors, Layer};
 use super::passes::background::BackgroundPass;
 use super::passes::ground::{GroundPass, INVISIBLE_LOSS, RegionCache, sky_loss_per_occlusion};
+use super::passes::ground_sun::{self, GroundSunPass};
 use super::passes::model::{Culling, ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::passes::vertex_sun::{SunLookup, VertexSunPass};
@@ -42,7 +43,8 @@ const GROUND_SLOT: u32 = 4;
 const FXAA_SLOT: u32 = 5;
 const SUN_LOOKUP_SLOT: u32 = 6;
 const SUN_SPLIT_SLOT: u32 = 7;
-const TIMER_SLOTS: u32 = 8;
+const GROUND_SUN_SLOT: u32 = 8;
+const TIMER_SLOTS: u32 = 9;
 
 /// Milliseconds spent in each stage of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -75,6 +77,7 @@ pub struct PassTimes {
     /// The camera image (or the environment seen by the camera) filling the target.
     pub background: Option<f64>,
     pub model: Option<f64>,
+    /// The ground pass, with the ground-sun pass when it drew.
     pub ground: Option<f64>,
     pub fxaa: Option<f64>,
 }
@@ -127,6 +130,8 @@ pub struct Compositor {
     vertex_sun_run: Option<SunLookup>,
     background: BackgroundPass,
     ground: GroundPass,
+    /// The ground's sun visibility in ground space, drawn from the shadow map when it changes.
+    ground_sun: GroundSunPass,
     model_pass: ModelPass,
     env: Option<Environment>,
     /// The environment's textures (made for the first map of a face size, refreshed in place).
@@ -201,6 +206,10 @@ pub struct PassesRun {
     /// are not the frame's; never while they hold what the frame needs.
     pub vertex_sun: bool,
     pub ground: bool,
+    /// The ground-sun pass drew the ground's sun visibility this frame (render::passes::
+    /// ground_sun): the map, the sun's size, the ground's region or the view's need of texels
+    /// changed while the map was not moving.
+    pub ground_sun: bool,
 }
 
 impl Compositor {
@@ -246,7 +255,14 @@ impl Compositor {
         let shadow = ShadowPass::new(device, &pipelines, &frame_buf, &instance_buf);
         shadow.clear_all(device, &gpu.queue);
         let background = BackgroundPass::new(device, &pipelines, (out_width, out_height), supersample);
-        let ground = GroundPass::new((device, &gpu.queue), &pipelines, (&frame_buf, &light_buf), shadow.maps());
+        let ground_sun = GroundSunPass::new(device, &pipelines, (&frame_buf, &light_buf), shadow.maps());
+        let ground = GroundPass::new(
+            (device, &gpu.queue),
+            &pipelines,
+            (&frame_buf, &light_buf),
+            shadow.maps(),
+            (ground_sun.uniform(), ground_sun.view()),
+        );
         let model_pass = ModelPass::new(gpu, &pipelines);
         let vertex_sun = VertexSunPass::new(device, &pipelines, (&frame_buf, &instance_buf, &light_buf), shadow.maps());
         let shadow_held = vec![None; shadow.sizes().len()];
@@ -268,6 +284,7 @@ impl Compositor {
             vertex_sun_run: None,
             background,
             ground,
+            ground_sun,
             model_pass,
             env: None,
             env_textures: None,
@@ -391,6 +408,7 @@ impl Compositor {
         self.shadow_held.fill(None);
         self.shadow_redrawn.fill(false);
         self.vertex_sun_held = None;
+        self.ground_sun.forget();
         Ok(())
     }
 
@@ -512,6 +530,13 @@ impl Compositor {
     /// model cache computes each once per device: `PreparedModel::ground_sky_computed`).
     pub fn ground_sky_updates(&self) -> usize {
         self.ground_sky_updates
+    }
+
+    /// How many times the ground's sun visibility was drawn into its ground-space texture
+    /// (render::passes::ground_sun: once per shadow map kept, region and view's need of texels),
+    /// and whether the last frame's ground sampled it (false: looked the sun up, or no sun).
+    pub fn ground_sun_bakes(&self) -> (usize, bool) {
+        (self.ground_sun.bakes, self.ground.is_sun_baked())
     }
 
     /// How many times the ground's regions were computed: the shadow's outline (once per
@@ -664,6 +689,7 @@ impl Compositor {
             self.shadow_held.fill(None);
             self.shadow_redrawn.fill(false);
             self.vertex_sun_held = None;
+            self.ground_sun.forget();
         }
         r
     }
@@ -732,7 +758,7 @@ impl Compositor {
                         vertex_sun,
                         background: ran(steps[0], BACKGROUND_SLOT),
                         model: ran(steps[1], MODEL_SLOT),
-                        ground: ran(steps[2], GROUND_SLOT),
+                        ground: ran(steps[2], GROUND_SLOT).map(|g| g + ran(run.ground_sun, GROUND_SUN_SLOT).unwrap_or(0.0)),
                         fxaa: ran(self.fxaa.is_some(), FXAA_SLOT),
                     };
                     (Some(passes.total()), shadow, Some(passes))
@@ -868,13 +894,35 @@ impl Compositor {
         // the map moves).
         let held = wanted.is_some() && self.vertex_sun_held == wanted && self.vertex_sun_meshes == self.model_pass.vertex_sun_meshes();
         self.model_pass.vertex_sun_valid(held);
+        // The ground's sun from the ground-sun texture (render::passes::ground_sun) for frames
+        // drawn one after another, while the map is not moving (as the vertex sun above); drawn
+        // again when the map, the sun's size, the region or the view's need of texels changed.
+        // A still and the full-shadow reference look it up per pixel.
+        let ground = composite && data.ground_pass && data.shadow_pass;
+        let bakes = ground && data.ground_mesh.shadowed > 0 && self.detail == Detail::Frame && !self.full_shadow && !moving;
+        let plane = glam::Mat4::from_cols_array_2d(&data.ground.model);
+        let need = bakes.then(|| {
+            let shadowed = &data.ground_mesh.vertices[..data.ground_mesh.shadowed as usize];
+            let region: Vec<glam::Vec2> = shadowed.iter().map(|&[x, y]| plane.transform_point3(Vec3::new(x, y, 0.0)).truncate()).collect();
+            let view_proj = glam::Mat4::from_cols_array_2d(&data.frame.view_proj);
+            ground_sun::need(&region, plane.w_axis.z, view_proj, (self.width, self.height))
+        });
+        let baked = match self.shadow_held[shadow_index] {
+            Some(map) => self.ground_sun.prepare(queue, need.flatten().as_ref(), (shadow_index, &map, data.light.sun[3])),
+            None => {
+                self.ground_sun.forget();
+                false
+            }
+        };
+        self.ground.sun_baked(baked);
         self.level = data.level;
         self.shadow_index = shadow_index;
         self.passes_run = PassesRun {
             shadow,
             shadow_drawn: drawn,
             vertex_sun: self.vertex_sun_run.is_some(),
-            ground: composite && data.ground_pass && data.shadow_pass,
+            ground,
+            ground_sun: self.ground_sun.pending(),
         };
         Ok(data)
     }
@@ -932,7 +980,7 @@ impl Compositor {
         // so the order changes no pixel, only the work: drawn first, its depth keeps the
         // background (at the far plane) and the ground (depth-tested, no depth write) from
         // shading the pixels it covers.
-        let first = !self.background.from_env();
+        let first = !self.background.from_env() && !self.passes_run.ground_sun;
         let clear = if layer == Layer::Model { wgpu::Color::TRANSPARENT } else { wgpu::Color::BLACK };
         let steps = self.composite_steps(layer);
         let draw_step = |pass: &mut wgpu::RenderPass<'_>, step: usize| -> Result<()> {
@@ -984,9 +1032,11 @@ impl Compositor {
 
     /// Step 2, the shadow pass: the model's depth seen from the sun (not needed for the
     /// background alone); 2b: the sun's visibility at the model's vertices from that map, when
-    /// the buffers do not hold it yet; step 3a: the environment seen by the camera becomes the
-    /// background when there is no image. `timed`: the shadow pass and 2b are timed together,
-    /// and the environment view pass starts the rest of the frame.
+    /// the buffers do not hold it yet; 2c: the sun's visibility on the ground in ground space
+    /// (render::passes::ground_sun), when the texture does not hold what the frame needs; step
+    /// 3a: the environment seen by the camera becomes the background when there is no image.
+    /// `timed`: the shadow pass and 2b are timed together, and 2c or the environment view pass
+    /// starts the rest of the frame (with pass timing, 2c is timed with the ground).
     fn encode_shadow_and_env_view(&self, encoder: &mut wgpu::CommandEncoder, model: &ModelGpu, timed: bool) -> Result<()> {
         let shadows = self.passes_run.shadow_drawn;
         let timer = self.timer.as_ref().filter(|_| timed);
@@ -1012,10 +1062,18 @@ impl Compositor {
             let chosen = self.model_pass.vertex_sun_meshes();
             self.vertex_sun.encode(encoder, (model, chosen), (self.level, self.shadow_index, lookup), timestamps);
         }
+        // 2c. The ground's sun visibility from the map, when this frame draws it: timed with the
+        // ground (pass timing) or starting the rest of the frame.
+        let ground_sun = self.passes_run.ground_sun;
+        if ground_sun {
+            let slot = if self.pass_timing { GROUND_SUN_SLOT } else { REST_SLOT };
+            self.ground_sun.encode(encoder, timer.and_then(|t| t.render_pass(slot, true, self.pass_timing)));
+        }
         if self.background.from_env() {
             // With pass timing the environment view is not timed (the background step is).
             let timed = timed && !self.pass_timing;
-            let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, true, end)) } else { None };
+            let begin = !ground_sun;
+            let stamp = |slot: u32, end: bool| if timed { self.timer.as_ref().and_then(|t| t.render_pass(slot, begin, end)) } else { None };
             let mut pass = self.background.begin_env_view(encoder, stamp(REST_SLOT, false));
             in_group(&mut pass, "environment view pass", |pass| self.background.draw_env_view(pass))?;
         }

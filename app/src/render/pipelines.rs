@@ -2,7 +2,7 @@
 //! `passes/`) and the samplers they share: created once per device, then reused by every frame
 //! and every composite in the process.
 
-use super::passes::{background, ground, model, shadow, vertex_sun};
+use super::passes::{background, ground, ground_sun, model, shadow, vertex_sun};
 use super::shaders::{Technique, source};
 use crate::gpu::Gpu;
 use crate::gpu::build;
@@ -129,6 +129,8 @@ pub struct Pipelines {
     pub background: PassPipeline,
     pub shadow: PassPipeline,
     pub ground: ground::GroundPipelines,
+    /// The ground's sun visibility in ground space (render::passes::ground_sun).
+    pub ground_sun: PassPipeline,
     pub model: model::ModelPipelines,
     /// The model's sun per vertex (compute).
     pub vertex_sun: vertex_sun::VertexSunPipelines,
@@ -161,6 +163,7 @@ impl Pipelines {
             background: background::pipeline(device, samples),
             shadow: shadow::pipeline(device),
             ground: ground::pipeline(device, samples),
+            ground_sun: ground_sun::pipeline(device),
             model: model::pipelines(device, samples),
             vertex_sun: vertex_sun::pipelines(device),
             fxaa: super::antialiasing::fxaa_pipeline(device),

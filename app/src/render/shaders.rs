@@ -9,6 +9,8 @@ pub enum Technique {
     EnvViewEquirect,
     Shadow,
     Ground,
+    /// The ground's sun visibility in ground space (render::passes::ground_sun).
+    GroundSun,
     Model,
     /// The model's sun per vertex (a compute shader).
     VertexSun,
@@ -16,12 +18,13 @@ pub enum Technique {
 }
 
 impl Technique {
-    pub const ALL: [Technique; 8] = [
+    pub const ALL: [Technique; 9] = [
         Technique::Background,
         Technique::EnvView,
         Technique::EnvViewEquirect,
         Technique::Shadow,
         Technique::Ground,
+        Technique::GroundSun,
         Technique::Model,
         Technique::VertexSun,
         Technique::Fxaa,
@@ -34,6 +37,7 @@ impl Technique {
             Technique::EnvViewEquirect => include_str!("../../../shaders/env_view_equirect.wgsl"),
             Technique::Shadow => include_str!("../../../shaders/shadow.wgsl"),
             Technique::Ground => include_str!("../../../shaders/ground.wgsl"),
+            Technique::GroundSun => include_str!("../../../shaders/ground_sun.wgsl"),
             Technique::Model => include_str!("../../../shaders/model.wgsl"),
             Technique::VertexSun => include_str!("../../../shaders/vertex_sun.wgsl"),
             Technique::Fxaa => include_str!("../../../shaders/fxaa.wgsl"),
@@ -70,6 +74,7 @@ pub fn source(t: Technique) -> String {
                 t.file()
             )
         }
+        Technique::Ground => format!("{FRAME_WGSL}\n{}{}", super::passes::ground::SunOnGround::wgsl_consts(), t.file()),
         Technique::EnvViewEquirect => {
             format!("{FRAME_WGSL}\nconst ENV_VIEW_TAPS: u32 = {}u;\n{}", super::passes::background::ENV_VIEW_TAPS, t.file())
         }

@@ -49,6 +49,15 @@ pub struct LightUniforms {
     pub ground: [f32; 4],
 }
 
+/// Mirrors `struct GroundSun` in shaders/frame.wgsl: the rectangle and texels of the ground's
+/// sun visibility as last drawn (render::passes::ground_sun).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GroundSunUniforms {
+    pub square: [f32; 4],
+    pub texels: [f32; 4],
+}
+
 /// Mirrors `struct Material` in shaders/model.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -120,6 +129,8 @@ mod tests {
         crate::assert_wgsl_layout!(module, InstanceUniforms, "Instance", [model, normal]);
         crate::assert_wgsl_layout!(module, LightUniforms, "Light", [sh, sun, ground_square, ground_sky, ground]);
         crate::assert_wgsl_layout!(module, MaterialUniforms, "Material", [albedo, specular, terms]);
+        let module = crate::gpu::wgsl::validate(&source(Technique::GroundSun)).unwrap();
+        crate::assert_wgsl_layout!(module, GroundSunUniforms, "GroundSun", [square, texels]);
         let module = crate::gpu::wgsl::validate(&source(Technique::VertexSun)).unwrap();
         crate::assert_wgsl_layout!(module, SplitLevelUniforms, "SplitLevel", [first, count, second, unused]);
     }

@@ -18,11 +18,34 @@ use anyhow::{Result, bail};
 use std::sync::Arc;
 use wgpu::ShaderStages;
 
-/// The ground's pipelines: with the sun's shadow lookup (where the shadow can fall) and without
-/// (the rest of the ground), one bind-group layout.
+/// How a part of the ground gets the sun's visibility (shaders/ground.wgsl's `SUN`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SunOnGround {
+    /// None: the part where the sun's shadow cannot fall (the sky's occlusion alone).
+    SkyOnly = 0,
+    /// Looked up in the shadow map per pixel (frame.wgsl `sun_visibility_soft`).
+    Lookup = 1,
+    /// Sampled from the ground-space texture the ground-sun pass drew from the same map
+    /// (render::passes::ground_sun).
+    Baked = 2,
+}
+
+impl SunOnGround {
+    /// The WGSL constants naming each value of `SUN` (prepended to shaders/ground.wgsl).
+    pub fn wgsl_consts() -> String {
+        [("SUN_NONE", SunOnGround::SkyOnly), ("SUN_LOOKUP", SunOnGround::Lookup), ("SUN_BAKED", SunOnGround::Baked)]
+            .iter()
+            .map(|(name, v)| format!("const {name}: u32 = {}u;\n", *v as u32))
+            .collect()
+    }
+}
+
+/// The ground's pipelines: with the sun's shadow looked up or baked (where the shadow can fall)
+/// and without (the rest of the ground), one bind-group layout.
 pub struct GroundPipelines {
     pub layout: wgpu::BindGroupLayout,
     pub shadowed: wgpu::RenderPipeline,
+    pub baked: wgpu::RenderPipeline,
     pub sky_only: wgpu::RenderPipeline,
 }
 
@@ -43,20 +66,24 @@ pub fn pipeline(device: &wgpu::Device, samples: u32) -> GroundPipelines {
             build::texture_entry(5, fs, wgpu::TextureViewDimension::D2Array, true),
             build::sampler_entry(6, fs, wgpu::SamplerBindingType::Filtering),
             build::sampler_entry(7, fs, wgpu::SamplerBindingType::NonFiltering),
+            build::uniform(8, fs),
+            build::texture_entry(9, fs, wgpu::TextureViewDimension::D2, true),
         ],
     );
-    let shadowed = pipeline_for(device, &layout, (COLOR_FORMAT, samples), true);
-    let sky_only = pipeline_for(device, &layout, (COLOR_FORMAT, samples), false);
-    GroundPipelines { layout, shadowed, sky_only }
+    let target = (COLOR_FORMAT, samples);
+    let shadowed = pipeline_for(device, &layout, target, SunOnGround::Lookup);
+    let baked = pipeline_for(device, &layout, target, SunOnGround::Baked);
+    let sky_only = pipeline_for(device, &layout, target, SunOnGround::SkyOnly);
+    GroundPipelines { layout, shadowed, baked, sky_only }
 }
 
 /// The ground pipeline with bind-group `layout`, drawing into `format` targets of `samples` per
-/// pixel, with the sun's shadow lookup or without (`sun_shadow`, the shader's `SUN_SHADOW`).
+/// pixel, getting the sun's visibility as `sun` says (the shader's `SUN`).
 pub fn pipeline_for(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
     (format, samples): (wgpu::TextureFormat, u32),
-    sun_shadow: bool,
+    sun: SunOnGround,
 ) -> wgpu::RenderPipeline {
     let module = build::shader(device, "ground", source(Technique::Ground));
     const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x2];
@@ -68,14 +95,18 @@ pub fn pipeline_for(
     build::render_pipeline(
         device,
         build::PipelineSpec {
-            label: if sun_shadow { "ground" } else { "ground, sky only" },
+            label: match sun {
+                SunOnGround::SkyOnly => "ground, sky only",
+                SunOnGround::Lookup => "ground",
+                SunOnGround::Baked => "ground, sun baked",
+            },
             module: &module,
             layouts: &[layout],
             vertex_buffers: &[Some(vertices)],
             colour: Some(wgpu::ColorTargetState { format, blend: Some(SCALE), write_mask: wgpu::ColorWrites::ALL }),
             depth: depth_state(false, wgpu::DepthBiasState::default()),
             samples,
-            constants: &[("SUN_SHADOW", if sun_shadow { 1.0 } else { 0.0 })],
+            constants: &[("SUN", f64::from(sun as u32))],
         },
     )
 }
@@ -100,7 +131,11 @@ pub const SCALE: wgpu::BlendState = wgpu::BlendState {
 
 pub struct GroundPass {
     pipeline: wgpu::RenderPipeline,
+    baked: wgpu::RenderPipeline,
     sky_only: wgpu::RenderPipeline,
+    /// The part where the sun's shadow can fall samples the ground-sun texture this frame
+    /// instead of looking the map up ([`GroundPass::sun_baked`]).
+    sun_baked: bool,
     /// The frame's [`GroundMesh`] corners ([`GROUND_VERTICES`], written each frame).
     vertices: wgpu::Buffer,
     /// Of them, drawn with the shadow lookup, then without.
@@ -300,13 +335,14 @@ impl RegionCache {
 }
 
 impl GroundPass {
-    /// Reads the Frame and Light uniform buffers, one of the sun's `shadow_maps` per frame and the
-    /// ground's sky visibility.
+    /// Reads the Frame and Light uniform buffers, one of the sun's `shadow_maps` per frame, the
+    /// ground's sky visibility and the ground-sun pass's uniform and texture (`ground_sun`).
     pub fn new(
         (device, queue): (&wgpu::Device, &wgpu::Queue),
         pipelines: &Pipelines,
         (frame, light): (&wgpu::Buffer, &wgpu::Buffer),
         shadow_maps: &[wgpu::TextureView],
+        ground_sun: (&wgpu::Buffer, &wgpu::TextureView),
     ) -> GroundPass {
         let instance = build::uniform_buffer::<InstanceUniforms>(device, "ground plane");
         let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
@@ -335,6 +371,8 @@ impl GroundPass {
                         wgpu::BindingResource::TextureView(&sky_view),
                         wgpu::BindingResource::Sampler(&pipelines.linear_sampler),
                         wgpu::BindingResource::Sampler(&pipelines.shadow_gather_sampler),
+                        ground_sun.0.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(ground_sun.1),
                     ],
                 )
             })
@@ -344,7 +382,9 @@ impl GroundPass {
         let vertices = build::buffer(device, "ground triangles", size, usage);
         GroundPass {
             pipeline: pipelines.ground.shadowed.clone(),
+            baked: pipelines.ground.baked.clone(),
             sky_only: pipelines.ground.sky_only.clone(),
+            sun_baked: false,
             vertices,
             counts: (0, 0),
             bind_groups,
@@ -391,19 +431,31 @@ impl GroundPass {
         self.counts = (mesh.shadowed, mesh.sky_only);
     }
 
+    /// Whether this frame's part where the sun's shadow can fall samples the ground-sun texture
+    /// (render::passes::ground_sun) instead of looking the map up.
+    pub fn sun_baked(&mut self, on: bool) {
+        self.sun_baked = on;
+    }
+
+    /// Whether the part where the sun's shadow can fall samples the ground-sun texture.
+    pub fn is_sun_baked(&self) -> bool {
+        self.sun_baked && self.counts.0 > 0
+    }
+
     /// The vertices drawn with the shadow lookup and without.
     pub fn counts(&self) -> (u32, u32) {
         self.counts
     }
 
     /// Draw the ground, sampling shadow map `shadow_index`: the part where the sun's shadow can
-    /// fall with the shadow lookup, the rest without.
+    /// fall with the sun's visibility (looked up, or baked: [`GroundPass::sun_baked`]), the rest
+    /// without.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, shadow_index: usize) {
         let (shadowed, sky_only) = self.counts;
         pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         if shadowed > 0 {
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(if self.sun_baked { &self.baked } else { &self.pipeline });
             pass.draw(0..shadowed, 0..1);
         }
         if sky_only > 0 {

@@ -4,6 +4,7 @@
 
 pub mod background;
 pub mod ground;
+pub mod ground_sun;
 pub mod model;
 pub mod shadow;
 pub mod vertex_sun;

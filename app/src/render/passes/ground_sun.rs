@@ -6,7 +6,8 @@
 //! when the map, the sun's size, the region or the view's need of texels changes
 //! ([`keeps`]), so a kept map keeps it too; while the map moves (redrawn frame after frame) the
 //! ground looks the sun up instead, as the model's sun per vertex does. One texture of
-//! [`BAKE_SIDE`]² allocated once: a bake draws into its corner.
+//! [`BAKE_SIDE`]² (or the device's largest 2D texture, if smaller) allocated once: a bake draws
+//! into its corner.
 
 use crate::gpu::build;
 use crate::render::pipelines::{PipelineSpec, Pipelines, pipeline_into};
@@ -54,6 +55,8 @@ pub struct Bake {
     pub max: Vec2,
     pub z: f32,
     pub texels: [u32; 2],
+    /// Side of the texture it is drawn into.
+    pub side: u32,
 }
 
 impl Bake {
@@ -66,7 +69,7 @@ impl Bake {
     pub fn uniforms(&self) -> GroundSunUniforms {
         GroundSunUniforms {
             square: [self.min.x, self.min.y, self.max.x, self.max.y],
-            texels: [self.texels[0] as f32, self.texels[1] as f32, self.z, BAKE_SIDE as f32],
+            texels: [self.texels[0] as f32, self.texels[1] as f32, self.z, self.side as f32],
         }
     }
 }
@@ -154,17 +157,17 @@ pub fn keeps(held: &Bake, need: &Need, (map, drawn, tan_radius): (usize, &Shadow
         && density.cmple(need.per_metre * BAKE_EXCESS).all()
 }
 
-/// The bake to draw for `need` from map `map` holding `drawn`: [`BAKE_MARGIN`] times the texels
-/// per metre it needs, or just what it needs where that would pass [`BAKE_SIDE`]; None where
-/// even that would (the ground then looks the sun up per pixel).
-pub fn plan(need: &Need, (map, drawn, tan_radius): (usize, &ShadowDrawn, f32)) -> Option<Bake> {
+/// The bake to draw for `need` from map `map` holding `drawn` into a `side`² texture:
+/// [`BAKE_MARGIN`] times the texels per metre it needs, or just what it needs where that would
+/// pass `side`; None where even that would (the ground then looks the sun up per pixel).
+pub fn plan(need: &Need, (map, drawn, tan_radius): (usize, &ShadowDrawn, f32), side: u32) -> Option<Bake> {
     let extent = need.max - need.min;
     let texels = |scale: f32| {
         let t = (extent * need.per_metre * scale).ceil().max(Vec2::ONE);
-        (t.max_element() <= BAKE_SIDE as f32).then_some([t.x as u32, t.y as u32])
+        (t.max_element() <= side as f32).then_some([t.x as u32, t.y as u32])
     };
     let texels = texels(BAKE_MARGIN).or_else(|| texels(1.0))?;
-    Some(Bake { map, drawn: *drawn, tan_radius, min: need.min, max: need.max, z: need.z, texels })
+    Some(Bake { map, drawn: *drawn, tan_radius, min: need.min, max: need.max, z: need.z, texels, side })
 }
 
 /// The ground-sun pipeline and the layout of its bind group: frame, light, a shadow map with its
@@ -199,8 +202,10 @@ pub struct GroundSunPass {
     pipeline: wgpu::RenderPipeline,
     /// One per shadow map (in the order of `ShadowPass::maps`).
     bind_groups: Vec<wgpu::BindGroup>,
-    /// The visibility, [`BAKE_SIDE`]², [`BAKE_FORMAT`].
+    /// The visibility, `side`², [`BAKE_FORMAT`].
     view: wgpu::TextureView,
+    /// [`BAKE_SIDE`], or the device's largest 2D texture if smaller.
+    side: u32,
     /// The `GroundSun` uniform: the held bake's rectangle and texels (read by the ground pass).
     uniform: wgpu::Buffer,
     /// What the texture holds (None: nothing yet, or not known after a failed frame).
@@ -220,7 +225,8 @@ impl GroundSunPass {
         shadow_maps: &[wgpu::TextureView],
     ) -> Self {
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-        let texture = build::texture(device, "ground sun", (BAKE_SIDE, BAKE_SIDE, 1), BAKE_FORMAT, 1, usage);
+        let side = BAKE_SIDE.min(device.limits().max_texture_dimension_2d);
+        let texture = build::texture(device, "ground sun", (side, side, 1), BAKE_FORMAT, 1, usage);
         let view = texture.create_view(&Default::default());
         let uniform = build::uniform_buffer::<GroundSunUniforms>(device, "ground sun");
         let bind_groups = shadow_maps
@@ -241,7 +247,16 @@ impl GroundSunPass {
                 )
             })
             .collect();
-        GroundSunPass { pipeline: pipelines.ground_sun.pipeline.clone(), bind_groups, view, uniform, held: None, pending: None, bakes: 0 }
+        GroundSunPass {
+            pipeline: pipelines.ground_sun.pipeline.clone(),
+            bind_groups,
+            view,
+            side,
+            uniform,
+            held: None,
+            pending: None,
+            bakes: 0,
+        }
     }
 
     /// The texture the ground pass samples.
@@ -264,7 +279,7 @@ impl GroundSunPass {
         if self.held.as_ref().is_some_and(|held| keeps(held, need, source)) {
             return true;
         }
-        let Some(bake) = plan(need, source) else { return false };
+        let Some(bake) = plan(need, source, self.side) else { return false };
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&bake.uniforms()));
         self.pending = Some(bake);
         self.held = Some(bake);
@@ -371,7 +386,7 @@ mod tests {
     fn a_bake_is_kept_while_it_holds_the_region_densely_enough() {
         let need = Need { min: Vec2::ZERO, max: Vec2::new(2.0, 1.0), z: 0.0, per_metre: Vec2::new(100.0, 50.0) };
         let source = (1, &drawn(), 0.005);
-        let bake = plan(&need, source).unwrap();
+        let bake = plan(&need, source, BAKE_SIDE).unwrap();
         // 1.25 × (200, 50) texels.
         assert_eq!(bake.texels, [250, 63]);
         assert!(keeps(&bake, &need, source));
@@ -388,8 +403,10 @@ mod tests {
         assert!(!keeps(&bake, &need, (1, &drawn(), 0.006)));
         // Past the texture's side at 1.25 × the density but not at 1×: just the need.
         let tight = Need { per_metre: Vec2::new(1000.0, 50.0), ..need };
-        assert_eq!(plan(&tight, source).unwrap().texels, [2000, 50]);
+        assert_eq!(plan(&tight, source, BAKE_SIDE).unwrap().texels, [2000, 50]);
+        // A device whose textures stop at 1024 texels: that region is looked up.
+        assert!(plan(&tight, source, 1024).is_none());
         // Past it even at 1×: no bake (the ground looks the sun up).
-        assert!(plan(&Need { per_metre: Vec2::new(1100.0, 50.0), ..need }, source).is_none());
+        assert!(plan(&Need { per_metre: Vec2::new(1100.0, 50.0), ..need }, source, BAKE_SIDE).is_none());
     }
 }

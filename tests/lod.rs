@@ -186,10 +186,7 @@ fn a_kept_shadow_map_gives_the_frame_a_fresh_one_gives() {
     let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.5\n");
     let i = Inputs { model: cube(), env: inputs(&s).env, env_equirect: None, background: None };
     let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
-    let sun = |az: f32| {
-        let (el, az) = (35f32.to_radians(), az.to_radians());
-        glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
-    };
+    let sun = |az: f32| sun_at(35.0, az);
     p.lighting.sun_dir = sun(225.0);
     p.lighting.sunlight = 1.0;
     p.lighting.shadow_opacity = 0.8;
@@ -216,6 +213,12 @@ fn a_kept_shadow_map_gives_the_frame_a_fresh_one_gives() {
     assert!(previz::capture::replay::mean_flip(&moved, &first, 320, 240).unwrap() > 10.0 * flip.max(1e-6));
 }
 
+/// The direction (ENU) to a sun `el` degrees above the horizon at azimuth `az` degrees,
+/// clockwise from north.
+fn sun_at(el: f32, az: f32) -> glam::Vec3 {
+    previz::sun::direction_enu(f64::from(90.0 - el).to_radians(), f64::from(az).to_radians())
+}
+
 /// A unit cube standing on its base (y up in model space), flat-shaded: 12 triangles, below the
 /// simplifier's floor, so every render draws the same triangles and only the shadow map differs.
 fn cube() -> previz::scene::Model {
@@ -236,8 +239,7 @@ fn a_small_shadow_from_a_small_map_matches_the_full_map() {
     let (mut c, mut p) = prepare(gpu(), &s, &i).unwrap();
     assert_eq!(c.lod_triangles().unwrap(), &[12], "the cube must have one level");
     // Sun 35° up in the south-west: the shadow falls north-east, beside the cube.
-    let (el, az) = (35f32.to_radians(), 225f32.to_radians());
-    p.lighting.sun_dir = glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+    p.lighting.sun_dir = sun_at(35.0, 225.0);
     p.lighting.sunlight = 1.0;
     p.lighting.shadow_opacity = 0.8;
     let frame =
@@ -298,15 +300,14 @@ fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
             |c: &mut previz::render::Compositor, p: &previz::render::FrameParams| rgb(&c.render(gpu(), p, Layer::Composite).unwrap().rgba);
         let flip = |a: &[u8], b: &[u8]| previz::capture::replay::mean_flip(a, b, w, h).unwrap();
         for (el, az) in [(15f32, 225f32), (60.0, 135.0)] {
-            let (el, az) = (el.to_radians(), az.to_radians());
-            p.lighting.sun_dir = glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
+            p.lighting.sun_dir = sun_at(el, az);
             c.set_full_shadow(false);
             let split = frame(&mut c, &p);
             let (shadowed, sky_only) = c.ground_vertices();
             let (_, baked) = c.ground_sun_bakes();
             eprintln!(
                 "{name}, sun {:.0}°: {}² map, {shadowed} + {sky_only} ground vertices, sun {}",
-                el.to_degrees(),
+                el,
                 c.shadow_map_size(),
                 if baked { "baked" } else { "looked up" }
             );
@@ -321,11 +322,11 @@ fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
                     0.5 * (glam::Vec2::from(t[1]) - glam::Vec2::from(t[0])).perp_dot(glam::Vec2::from(t[2]) - glam::Vec2::from(t[0])).abs()
                 })
                 .sum();
-            eprintln!("{name}, sun {:.0}°: the ground draws {:.0} % of its quad", el.to_degrees(), 25.0 * drawn);
+            eprintln!("{name}, sun {:.0}°: the ground draws {:.0} % of its quad", el, 25.0 * drawn);
             // At the high sun the cube's sky region can reach the whole square (98 % on the
             // branch that added this, 100 % with the merged light: a region that covers its
             // square is a correct answer there), so the cut is required at the low sun.
-            if el < 30f32.to_radians() {
+            if el < 30.0 {
                 assert!(drawn < 0.99 * 4.0, "{name}: the ground draws {:.0} % of its quad", 25.0 * drawn);
             }
             c.set_full_shadow(true);
@@ -339,9 +340,9 @@ fn the_ground_is_drawn_only_where_it_can_darken_or_brighten() {
             let most = split.iter().zip(&everywhere).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(0);
             eprintln!(
                 "{name}, sun {:.0}°: split vs everywhere mean FLIP {split_flip} ({differing} bytes differ, by at most {most}); the ground itself {ground_flip}",
-                el.to_degrees()
+                el
             );
-            assert!(split_flip <= 1e-4, "{name}, sun {el}: the split ground vs the lookup everywhere: mean FLIP {split_flip}");
+            assert!(split_flip <= 1e-4, "{name}, sun {el}°: the split ground vs the lookup everywhere: mean FLIP {split_flip}");
             assert!(ground_flip > 1e-3, "the ground's darkening itself: {ground_flip}");
         }
     }
@@ -360,10 +361,7 @@ fn the_ground_sun_is_drawn_once_per_map_and_view() {
     let s = scene("width = 320\nheight = 240\nenvironment = \"cubemaps/humus_Park2_512\"\n[placement]\nfill = 0.5\n");
     let i = Inputs { model: cube(), env: inputs(&s).env, env_equirect: None, background: None };
     let (mut c, mut p) = prepare_antialiased(gpu(), &s, &i, Antialiasing::STILL).unwrap();
-    let sun = |az: f32| {
-        let (el, az) = (35f32.to_radians(), az.to_radians());
-        glam::Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
-    };
+    let sun = |az: f32| sun_at(35.0, az);
     p.lighting.sun_dir = sun(225.0);
     p.lighting.sunlight = 1.0;
     p.lighting.shadow_opacity = 0.8;

@@ -900,8 +900,8 @@ impl Compositor {
         // A still and the full-shadow reference look it up per pixel.
         let ground = composite && data.ground_pass && data.shadow_pass;
         let bakes = ground && data.ground_mesh.shadowed > 0 && self.detail == Detail::Frame && !self.full_shadow && !moving;
-        let plane = glam::Mat4::from_cols_array_2d(&data.ground.model);
         let need = bakes.then(|| {
+            let plane = glam::Mat4::from_cols_array_2d(&data.ground.model);
             let shadowed = &data.ground_mesh.vertices[..data.ground_mesh.shadowed as usize];
             let region: Vec<glam::Vec2> = shadowed.iter().map(|&[x, y]| plane.transform_point3(Vec3::new(x, y, 0.0)).truncate()).collect();
             let view_proj = glam::Mat4::from_cols_array_2d(&data.frame.view_proj);

@@ -68,7 +68,12 @@ impl LayerPipelines {
             let device = &gpu.device;
             Ok(LayerPipelines {
                 background: background::pipeline_for(device, &pipelines.background.layout, LAYER_FORMAT, samples),
-                ground: ground::pipeline_for(device, &pipelines.ground.layout, (LAYER_FORMAT, samples), ground::SunOnGround::Lookup),
+                ground: ground::pipeline_for(
+                    device,
+                    (&pipelines.ground.layout, &ground::shader(device)),
+                    (LAYER_FORMAT, samples),
+                    ground::SunOnGround::Lookup,
+                ),
                 model: [false, true].map(|cull| {
                     let layouts = (&pipelines.model.layout, &pipelines.model.material_layout);
                     model::pipelines_for(device, layouts, (LAYER_FORMAT, samples), (true, cull))

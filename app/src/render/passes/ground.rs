@@ -70,22 +70,27 @@ pub fn pipeline(device: &wgpu::Device, samples: u32) -> GroundPipelines {
             build::texture_entry(9, fs, wgpu::TextureViewDimension::D2, true),
         ],
     );
-    let target = (COLOR_FORMAT, samples);
-    let shadowed = pipeline_for(device, &layout, target, SunOnGround::Lookup);
-    let baked = pipeline_for(device, &layout, target, SunOnGround::Baked);
-    let sky_only = pipeline_for(device, &layout, target, SunOnGround::SkyOnly);
+    // One module for the three (each pipeline sets its own `SUN`).
+    let module = shader(device);
+    let with = |sun| pipeline_for(device, (&layout, &module), (COLOR_FORMAT, samples), sun);
+    let (shadowed, baked, sky_only) = (with(SunOnGround::Lookup), with(SunOnGround::Baked), with(SunOnGround::SkyOnly));
     GroundPipelines { layout, shadowed, baked, sky_only }
 }
 
-/// The ground pipeline with bind-group `layout`, drawing into `format` targets of `samples` per
-/// pixel, getting the sun's visibility as `sun` says (the shader's `SUN`).
+/// The ground's shader module (shaders/ground.wgsl).
+pub fn shader(device: &wgpu::Device) -> wgpu::ShaderModule {
+    build::shader(device, "ground", source(Technique::Ground))
+}
+
+/// The ground pipeline with bind-group `layout` and the ground's shader `module`, drawing into
+/// `format` targets of `samples` per pixel, getting the sun's visibility as `sun` says (the
+/// shader's `SUN`).
 pub fn pipeline_for(
     device: &wgpu::Device,
-    layout: &wgpu::BindGroupLayout,
+    (layout, module): (&wgpu::BindGroupLayout, &wgpu::ShaderModule),
     (format, samples): (wgpu::TextureFormat, u32),
     sun: SunOnGround,
 ) -> wgpu::RenderPipeline {
-    let module = build::shader(device, "ground", source(Technique::Ground));
     const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x2];
     let vertices = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<[f32; 2]>() as u64,
@@ -100,7 +105,7 @@ pub fn pipeline_for(
                 SunOnGround::Lookup => "ground",
                 SunOnGround::Baked => "ground, sun baked",
             },
-            module: &module,
+            module,
             layouts: &[layout],
             vertex_buffers: &[Some(vertices)],
             colour: Some(wgpu::ColorTargetState { format, blend: Some(SCALE), write_mask: wgpu::ColorWrites::ALL }),

@@ -210,8 +210,8 @@ fn method_pipeline(
     (corrected, kind): (bool, Shading),
     m: LightingMethod,
 ) -> wgpu::RenderPipeline {
-    let colour =
-        wgpu::ColorTargetState { format, blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING), write_mask: wgpu::ColorWrites::ALL };
+    // Every fragment of the model is opaque (alpha 1): written, not blended over what is behind.
+    let colour = wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL };
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
     let vertex_sun = matches!(kind, Shading::SunFromVertices | Shading::LightFromVertices);
     let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];

@@ -6,7 +6,8 @@ use crate::common;
 
 use common::gpu;
 use glam::{Mat4, Quat, Vec3, Vec4};
-use previz::render::{Antialiasing, Compositor, FrameParams, Layer, LightingMethod};
+use previz::render::passes::vertex_sun::SPLIT_CULL_MARGIN;
+use previz::render::{Antialiasing, Compositor, FrameData, FrameParams, Layer, LightingMethod};
 use previz::scene::{Material, Mesh, Model};
 
 /// A single-sided square grid of `n`×`n` quads, 2 model units wide, in the model's base plane
@@ -29,6 +30,33 @@ fn set_up(model: Model, method: LightingMethod) -> (Compositor, FrameParams) {
     p.lighting.sun_dir = Vec3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin());
     p.lighting.sunlight = 1.0;
     (c, p)
+}
+
+/// Per triangle of `mesh` (in the frame whose uniforms are `data`), whether the split keeps it by
+/// its rule (shaders/vertex_sun.wgsl `may_face_camera`), computed here in f64: its plane does not
+/// have the camera behind it by more than [`SPLIT_CULL_MARGIN`] times the camera's distance to
+/// the model's origin, counter-clockwise seen from the front; with the margin scaled by `scale`
+/// (a triangle that near the bound may fall either way in the shader's f32).
+fn kept_by_the_split(mesh: &Mesh, data: &FrameData, scale: f64) -> Vec<bool> {
+    let model = Mat4::from_cols_array_2d(&data.instance.model).as_dmat4();
+    let camera = Vec3::from(data.frame.camera_pos).as_dvec3();
+    let margin = f64::from(SPLIT_CULL_MARGIN) * scale * camera.distance(model.w_axis.truncate());
+    let world = |v: u32| model.transform_point3(Vec3::from(mesh.positions[v as usize]).as_dvec3());
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let a = world(t[0]);
+            let n = (world(t[1]) - a).cross(world(t[2]) - a);
+            n.dot(camera - a) >= -margin * n.length()
+        })
+        .collect()
+}
+
+/// How many triangles of `mesh` the split keeps: the fewest and the most it may keep
+/// ([`kept_by_the_split`] with the margin a ten-thousandth smaller and larger).
+fn kept_count(mesh: &Mesh, data: &FrameData) -> (u32, u32) {
+    let count = |scale: f64| kept_by_the_split(mesh, data, scale).iter().filter(|&&k| k).count() as u32;
+    (count(0.9999), count(1.0001))
 }
 
 fn linear(srgb: u8) -> f64 {
@@ -164,9 +192,14 @@ fn triangles_a_shadow_edge_crosses_are_drawn_per_pixel() {
                 continue;
             }
             let facing = |v: u32| (normal_matrix * Vec4::from((Vec3::from(mesh.normals[v as usize]), 0.0))).truncate().dot(sun) > 0.0;
+            let kept = kept_by_the_split(mesh, &data, 1.0);
+            let (fewest, most) = kept_count(mesh, &data);
             let disagree = mesh
                 .indices
                 .chunks_exact(3)
+                .zip(&kept)
+                .filter(|(_, k)| **k)
+                .map(|(t, _)| t)
                 .filter(|t| {
                     let lit: Vec<f32> = t.iter().filter(|&&v| facing(v)).map(|&v| values[k][v as usize]).collect();
                     let (lo, hi) = lit.iter().fold((1.0f32, 0.0f32), |(lo, hi), &x| (lo.min(x), hi.max(x)));
@@ -178,6 +211,8 @@ fn triangles_a_shadow_edge_crosses_are_drawn_per_pixel() {
                 "{name}, mesh {k}: {} of {triangles} triangles per vertex, {} per pixel ({disagree} disagree)",
                 split[k].0, split[k].1
             );
+            // The grid faces the camera above it: the split keeps every triangle, once.
+            assert_eq!((fewest, most), (triangles, triangles), "{name}, mesh {k}: the camera sees the grid's back");
             assert_eq!(split[k].0 + split[k].1, triangles, "{name}, mesh {k}: every triangle once");
             assert_eq!(split[k].1, disagree, "{name}, mesh {k}: the triangles drawn per pixel");
         }
@@ -276,6 +311,42 @@ fn a_kept_shadow_map_does_not_run_the_vertex_sun_again() {
     assert!(drawn && computed, "the sun moved: shadow drawn {drawn}, vertex sun {computed}");
 }
 
+/// The split leaves out the triangles whose backs the camera sees, and holds while the camera
+/// stays within [`SPLIT_CULL_MARGIN`] of its distance to the model's origin (3 m above it here:
+/// 0.15 m). Moved 0.1 m, the frame keeps the map, the values and the split, and every sphere
+/// triangle the moved camera sees the front of is among those the split kept; moved 0.2 m, the
+/// split runs again (with the lookup, on the kept map) and keeps what the new camera may see.
+#[test]
+fn the_split_runs_again_when_the_camera_moves_past_its_margin() {
+    let (mut c, p) = set_up(coarse_grid_and_fine_sphere(), LightingMethod::Sh9Ggx);
+    c.set_sun_edge_limit(previz::render::passes::model::MAX_SUN_EDGE_PX);
+    c.render(gpu(), &p, Layer::Composite).unwrap();
+    assert!(c.passes_run().vertex_sun, "{:?}", c.passes_run());
+    let sphere = &coarse_grid_and_fine_sphere().meshes[1];
+    let kept_first = kept_by_the_split(sphere, &c.frame_uniforms(&p).unwrap(), 1.0);
+    let split_first = c.vertex_sun_split(gpu()).unwrap()[1];
+    for (shift, again) in [(0.1, false), (0.2, true)] {
+        let mut moved = p;
+        moved.camera.position += Vec3::new(shift, 0.0, 0.0);
+        c.render(gpu(), &moved, Layer::Composite).unwrap();
+        let run = c.passes_run();
+        assert!(!run.shadow_drawn && run.vertex_sun == again, "moved {shift} m: {run:?}");
+        let data = c.frame_uniforms(&moved).unwrap();
+        let kept = c.vertex_sun_split(gpu()).unwrap()[1];
+        let kept = kept.0 + kept.1;
+        if again {
+            let (fewest, most) = kept_count(sphere, &data);
+            assert!((fewest..=most).contains(&kept), "moved {shift} m: the split keeps {kept}, not {fewest}..={most}");
+        } else {
+            // Seen from the front by the moved camera (no margin): kept by the first split.
+            let seen = kept_by_the_split(sphere, &data, 0.0);
+            let lost = seen.iter().zip(&kept_first).filter(|(s, k)| **s && !**k).count();
+            assert_eq!(lost, 0, "moved {shift} m: {lost} triangles the camera sees the front of were left out");
+            assert_eq!(kept, split_first.0 + split_first.1, "moved {shift} m: the lists changed");
+        }
+    }
+}
+
 /// A mesh whose triangles are large on screen keeps the per-pixel lookup: the same grid in 4×4
 /// quads (edges of ~70 pixels) runs no compute pass, and its frame is the per-pixel one byte for
 /// byte.
@@ -307,8 +378,8 @@ fn coarse_grid_and_fine_sphere() -> Model {
 /// The vertex sun runs for the meshes the model pass draws per vertex and no other: of a
 /// coarse grid (per pixel) under a fine sphere (per vertex), only the sphere's triangles are
 /// split (the grid's indirect draws stay at zero, its visibility buffer at the 1 it was made
-/// with, though the sphere's shadow covers some of its vertices); every sphere triangle is in
-/// one of its two lists. With every mesh allowed per vertex on the same kept map, the grid is
+/// with, though the sphere's shadow covers some of its vertices); every sphere triangle the
+/// camera above may see the front of is in one of its two lists, those of its lower half not. With every mesh allowed per vertex on the same kept map, the grid is
 /// looked up and split too (the buffers held another set of meshes). A model whose meshes are
 /// all per pixel runs no vertex sun at all: [`large_triangles_keep_the_per_pixel_lookup`].
 #[test]
@@ -326,7 +397,12 @@ fn only_the_meshes_drawn_per_vertex_are_looked_up() {
     println!("split per mesh (per vertex, per pixel): {split:?} of {triangles:?} triangles");
     assert_eq!(split[0], (0, 0), "the grid, drawn per pixel, was split");
     assert!(values[0].iter().all(|&v| v == 1.0), "the grid's visibility was looked up: {:?}", values[0]);
-    assert_eq!(split[1].0 + split[1].1, triangles[1], "the sphere's split");
+    let data = c.frame_uniforms(&p).unwrap();
+    let model = coarse_grid_and_fine_sphere();
+    let (fewest, most) = kept_count(&model.meshes[1], &data);
+    let kept = split[1].0 + split[1].1;
+    assert!((fewest..=most).contains(&kept), "the sphere's split keeps {kept} triangles, not {fewest}..={most}");
+    assert!(kept < triangles[1] * 3 / 5, "the sphere's split keeps {kept} of {} triangles", triangles[1]);
     assert!(values[1].iter().any(|&v| v < 0.5), "the sphere's own shadow was not looked up");
     // Every mesh allowed per vertex: the map is kept, and the grid is looked up and split on it.
     c.set_sun_edge_limit(f32::INFINITY);
@@ -335,6 +411,7 @@ fn only_the_meshes_drawn_per_vertex_are_looked_up() {
     let split = c.vertex_sun_split(gpu()).unwrap();
     let values = c.vertex_sun_values(gpu()).unwrap();
     assert_eq!(split[0].0 + split[0].1, triangles[0], "the grid's split, every mesh per vertex");
+    assert!((fewest..=most).contains(&(split[1].0 + split[1].1)), "the sphere's split, every mesh per vertex: {:?}", split[1]);
     assert!(values[0].iter().any(|&v| v < 0.5), "no grid vertex in the sphere's shadow: {:?}", values[0]);
 }
 

@@ -18,7 +18,7 @@ use super::passes::ground::{GroundPass, INVISIBLE_LOSS, RegionCache, sky_loss_pe
 use super::passes::ground_sun::{self, GroundSunPass};
 use super::passes::model::{Culling, ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
-use super::passes::vertex_sun::{SunLookup, VertexSunPass};
+use super::passes::vertex_sun::{self, SunLookup, VertexSunPass};
 use super::pipelines::{LAYER_SAMPLES, Pipelines};
 use super::shadow_fit::{self, ShadowDrawn};
 use super::supersample;
@@ -128,6 +128,9 @@ pub struct Compositor {
     vertex_sun_meshes: Vec<bool>,
     /// The lookup the last prepared frame runs per vertex (None: the pass does not run).
     vertex_sun_run: Option<SunLookup>,
+    /// The camera (world) and the model's matrix when the split last ran: it leaves out the
+    /// triangles no camera near that one sees the front of (`vertex_sun::split_holds`).
+    split_view: Option<(glam::Vec3, glam::Mat4)>,
     background: BackgroundPass,
     ground: GroundPass,
     /// The ground's sun visibility in ground space, drawn from the shadow map when it changes.
@@ -282,6 +285,7 @@ impl Compositor {
             vertex_sun_held: None,
             vertex_sun_meshes: Vec::new(),
             vertex_sun_run: None,
+            split_view: None,
             background,
             ground,
             ground_sun,
@@ -879,8 +883,14 @@ impl Compositor {
             _ => None,
         };
         let same_meshes = self.vertex_sun_meshes == self.model_pass.vertex_sun_meshes();
-        self.vertex_sun_run = wanted.filter(|w| drawn || !same_meshes || self.vertex_sun_held != Some(*w)).map(|w| w.lookup);
+        // The split leaves out the triangles whose backs the camera sees from near where it is:
+        // it runs again (with the lookup) when the camera has moved too far or the model moved.
+        let view = (glam::Vec3::from(data.frame.camera_pos), glam::Mat4::from_cols_array_2d(&data.instance.model));
+        let view_holds =
+            self.split_view.is_some_and(|(camera, m)| m == view.1 && vertex_sun::split_holds(camera, m.w_axis.truncate(), view.0));
+        self.vertex_sun_run = wanted.filter(|w| drawn || !same_meshes || !view_holds || self.vertex_sun_held != Some(*w)).map(|w| w.lookup);
         if self.vertex_sun_run.is_some() {
+            self.split_view = Some(view);
             model.reset_split_draws(queue);
             self.vertex_sun_held = wanted;
             self.vertex_sun_meshes.clear();

@@ -68,9 +68,11 @@ pub fn source(t: Technique) -> String {
             use super::pipelines::Vertex;
             let floats = |bytes: usize| bytes / std::mem::size_of::<f32>();
             format!(
-                "{FRAME_WGSL}\nconst VERTEX_FLOATS: u32 = {}u;\nconst VERTEX_NORMAL: u32 = {}u;\n{}",
+                "{FRAME_WGSL}\nconst VERTEX_FLOATS: u32 = {}u;\nconst VERTEX_POSITION: u32 = {}u;\nconst VERTEX_NORMAL: u32 = {}u;\nconst SPLIT_CULL_MARGIN: f32 = {:?};\n{}",
                 floats(std::mem::size_of::<Vertex>()),
+                floats(std::mem::offset_of!(Vertex, position)),
                 floats(std::mem::offset_of!(Vertex, normal)),
+                super::passes::vertex_sun::SPLIT_CULL_MARGIN,
                 t.file()
             )
         }

@@ -23,6 +23,25 @@ use wgpu::ShaderStages;
 /// Invocations per workgroup (shaders/vertex_sun.wgsl `@workgroup_size`).
 const WORKGROUP: u32 = 64;
 
+/// How far the camera may move (times its distance to the model's origin when the split ran)
+/// before the split must run again: the split leaves out the triangles whose plane has the
+/// camera behind it by more than this much (shaders/vertex_sun.wgsl `may_face_camera`), which
+/// no camera within that distance sees from the front. The model pass culls their back faces
+/// anyway; left out of the lists they cost neither the vertex stage nor the raster's set-up.
+/// Over the triangles whose back the camera sees, 5 % keeps those within about 3° of edge-on
+/// from where the camera is (where it is far from the model), and the split runs again once the
+/// camera has moved 5 % of its distance: a hand-held phone's shake does not move it, walking
+/// around the model does every few steps.
+pub const SPLIT_CULL_MARGIN: f32 = 0.05;
+
+/// Whether the split run with the camera at `split_camera` holds for the camera at `camera`,
+/// the model's origin at `origin` (world; the model not moved since): the camera moved less
+/// than [`SPLIT_CULL_MARGIN`] times its distance to the origin then, with a thousandth of that
+/// spared for the shader's rounding.
+pub fn split_holds(split_camera: glam::Vec3, origin: glam::Vec3, camera: glam::Vec3) -> bool {
+    camera.distance(split_camera) < 0.999 * SPLIT_CULL_MARGIN * split_camera.distance(origin)
+}
+
 /// How a method looks the sun up (the override `SOFT` of the compute shader).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SunLookup {
@@ -225,6 +244,24 @@ impl VertexSunPass {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_split_holds_while_the_camera_stays_within_its_margin() {
+        use glam::Vec3;
+        let origin = Vec3::new(8.5, -3.0, 0.0);
+        // 10 m from the model's origin: the split holds within 0.5 m (less the thousandth).
+        let at = origin + Vec3::new(-10.0, 0.0, 0.0);
+        assert!(split_holds(at, origin, at));
+        assert!(split_holds(at, origin, at + Vec3::new(0.0, 0.49, 0.0)));
+        assert!(!split_holds(at, origin, at + Vec3::new(0.0, 0.0, 0.5)));
+        // 0.485 m and 0.502 m along a diagonal.
+        assert!(split_holds(at, origin, at + Vec3::splat(0.28)));
+        assert!(!split_holds(at, origin, at + Vec3::splat(0.29)));
+        // Twice as far, twice the room; at the origin itself, none.
+        let far = origin + Vec3::new(-20.0, 0.0, 0.0);
+        assert!(split_holds(far, origin, far + Vec3::new(0.0, 0.9, 0.0)));
+        assert!(!split_holds(origin, origin, origin));
+    }
 
     #[test]
     fn each_level_lists_its_vertices_once_at_aligned_offsets() {

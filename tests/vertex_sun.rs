@@ -379,9 +379,10 @@ fn coarse_grid_and_fine_sphere() -> Model {
 /// coarse grid (per pixel) under a fine sphere (per vertex), only the sphere's triangles are
 /// split (the grid's indirect draws stay at zero, its visibility buffer at the 1 it was made
 /// with, though the sphere's shadow covers some of its vertices); every sphere triangle the
-/// camera above may see the front of is in one of its two lists, those of its lower half not. With every mesh allowed per vertex on the same kept map, the grid is
-/// looked up and split too (the buffers held another set of meshes). A model whose meshes are
-/// all per pixel runs no vertex sun at all: [`large_triangles_keep_the_per_pixel_lookup`].
+/// camera above may see the front of is in one of its two lists, those of its lower half not.
+/// With every mesh allowed per vertex on the same kept map, the grid is looked up and split too
+/// (the buffers held another set of meshes). A model whose meshes are all per pixel runs no
+/// vertex sun at all: [`large_triangles_keep_the_per_pixel_lookup`].
 #[test]
 fn only_the_meshes_drawn_per_vertex_are_looked_up() {
     let model = coarse_grid_and_fine_sphere();

@@ -121,7 +121,8 @@ pub struct Compositor {
     /// The model's sun per vertex, looked up after the shadow pass draws.
     vertex_sun: VertexSunPass,
     /// What the model's visibility-per-vertex buffers hold (None: nothing known): a frame
-    /// whose map, level and lookup are the same does not run the pass again.
+    /// whose map, level and lookup are the same, and whose camera the split still holds for
+    /// (`split_view`), does not run the pass again.
     vertex_sun_held: Option<VertexSunHeld>,
     /// Per mesh, whether the buffers of `vertex_sun_held` were computed for it (the meshes the
     /// model pass chose to draw per vertex then; the others' buffers hold nothing of use).

@@ -9,7 +9,8 @@
 //! ([`crate::render::passes::model::MAX_SUN_EDGE_PX`]), and it runs for those meshes alone. A second entry point in the same pass
 //! (`split`) sorts the level's triangles into those whose sunlit vertices agree, drawn with the
 //! sun interpolated, and those a shadow's edge crosses, drawn with the per-pixel lookup (two
-//! indexed indirect draws per mesh).
+//! indexed indirect draws per mesh), leaving out those whose backs the camera sees
+//! ([`SPLIT_CULL_MARGIN`]); so the pass also runs again when the camera moves past that margin.
 
 use super::model::ModelGpu;
 use crate::gpu::build;

@@ -31,6 +31,10 @@ pub struct FrameRow {
     /// Share of the measured frames whose shadow pass drew the map (the others kept the map an
     /// earlier frame drew: same model and level, the sun moved less than an eighth of a texel).
     pub shadow_drawn: f64,
+    /// Share of the measured frames that looked the model's sun up at its vertices and split its
+    /// triangles again (render::passes::vertex_sun: a new map, or the camera moved past the
+    /// split's margin).
+    pub vertex_sun_ran: f64,
     /// Wall time of the whole frame including submit, GPU and readback, ms.
     pub wall_ms: f64,
     /// gpu_ms / floor gpu_ms.
@@ -55,6 +59,47 @@ pub const NO_GROUND: &str = "default without the ground pass";
 pub const QUARTER: &str = "quarter fill";
 pub const QUARTER_REFERENCE: &str = "quarter fill, full detail + full shadow";
 pub const SUN_MOVING: &str = "default, sun turning 0.5° a frame";
+pub const CAMERA_WALKING: &str = "default, camera walking 2 % of its distance a frame";
+
+/// How a path's frames change from one to the next. Every path's camera also turns by 1e-4 rad
+/// a frame, so no frame's image can be reused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    /// Nothing else moves: the shadow map and the split are kept.
+    Still,
+    /// The sun turns 0.5° about the vertical a frame: the shadow map is drawn every frame.
+    SunTurning,
+    /// The camera walks round the model's base, 2 % of its distance to it a frame ([`WALK_STEP`],
+    /// a user 3 m away walking 1.8 m/s at 30 frames a second), still looking the same way at
+    /// it: the shadow map is kept and the vertex-sun split runs again each time the camera has
+    /// moved past its margin (render::passes::vertex_sun::SPLIT_CULL_MARGIN).
+    CameraWalking,
+}
+
+/// How far the walking camera moves a frame, as a share of its distance to the model's base.
+pub const WALK_STEP: f32 = 0.02;
+
+impl Motion {
+    /// Frame `i` of a path whose first frame is `p`.
+    pub fn frame(self, p: &FrameParams, i: usize) -> FrameParams {
+        let mut p = *p;
+        p.camera.pose *= glam::Quat::from_rotation_y(1e-4 * i as f32);
+        match self {
+            Motion::Still => {}
+            Motion::SunTurning => p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir,
+            Motion::CameraWalking => {
+                let base = p.placement.position;
+                let from = p.camera.position - base;
+                let radius = from.truncate().length();
+                let angle = if radius > 0.0 { WALK_STEP * from.length() / radius * i as f32 } else { 0.0 };
+                let turn = glam::Quat::from_rotation_z(angle);
+                p.camera.position = base + turn * from;
+                p.camera.pose = turn * p.camera.pose;
+            }
+        }
+        p
+    }
+}
 
 /// One path: which compositor draws which layer with which parameters.
 struct PathSpec {
@@ -68,8 +113,7 @@ struct PathSpec {
     reference: Option<usize>,
     /// Score the silhouette against the supersampled render.
     edges: bool,
-    /// Turn the sun 0.5° about the vertical each frame, so the shadow map is drawn every frame.
-    sun_turns: bool,
+    motion: Motion,
 }
 
 /// Render `warmup` + `frames` frames of each path, interleaved frame by frame, and report
@@ -98,7 +142,7 @@ pub fn run(
         full,
         reference: None,
         edges: false,
-        sun_turns: false,
+        motion: Motion::Still,
     };
     let mut paths = vec![
         path(FLOOR, 0, Layer::Background, base, false),
@@ -116,7 +160,9 @@ pub fn run(
     };
     // The default frame whose shadow map cannot be kept (a sun or a model that moves): the map
     // is drawn every frame.
-    paths.push(PathSpec { sun_turns: true, ..path(SUN_MOVING, own(&mut compositors)?, Layer::Composite, base, false) });
+    paths.push(PathSpec { motion: Motion::SunTurning, ..path(SUN_MOVING, own(&mut compositors)?, Layer::Composite, base, false) });
+    // The default frame seen by a walking user: the map kept, the split run again now and then.
+    paths.push(PathSpec { motion: Motion::CameraWalking, ..path(CAMERA_WALKING, own(&mut compositors)?, Layer::Composite, base, false) });
     // Profiling: the default frame without its ground pass (what the shadow catcher costs).
     // (No sun shadow and no sky occlusion: with either the ground pass runs.)
     let mut no_ground = base;
@@ -165,16 +211,11 @@ pub fn run(
     // change) lands on every path alike instead of on whichever path was running.
     let mut samples = vec![(Vec::new(), Vec::new(), Vec::new(), Vec::new()); paths.len()];
     let mut last: Vec<Vec<u8>> = vec![Vec::new(); paths.len()];
-    let mut drawn = vec![0usize; paths.len()];
-    let turn = |i: usize| glam::Quat::from_rotation_y(1e-4 * i as f32);
+    let mut drawn = vec![(0usize, 0usize); paths.len()];
     for i in 0..frames + warmup {
         progress.set_message(if i < warmup { "warm-up" } else { "measuring" });
         for (k, spec) in paths.iter().enumerate() {
-            let mut p = spec.params;
-            p.camera.pose *= turn(i);
-            if spec.sun_turns {
-                p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir;
-            }
+            let p = spec.motion.frame(&spec.params, i);
             let c = &mut compositors[spec.compositor];
             c.set_detail(if spec.full { Detail::Full } else { Detail::Frame });
             c.set_full_shadow(spec.full);
@@ -186,7 +227,9 @@ pub fn run(
                 samples[k].1.push(r.timings.gpu_ms.unwrap_or(f64::NAN));
                 samples[k].2.push(total);
                 samples[k].3.push(r.timings.shadow_gpu_ms.unwrap_or(f64::NAN));
-                drawn[k] += usize::from(c.passes_run().shadow_drawn);
+                let run = c.passes_run();
+                drawn[k].0 += usize::from(run.shadow_drawn);
+                drawn[k].1 += usize::from(run.vertex_sun);
             }
             last[k] = rgb(&r.rgba);
             progress.inc(1);
@@ -198,8 +241,7 @@ pub fn run(
     }
 
     let (w, h) = (scene.width, scene.height);
-    let mut turned = base;
-    turned.camera.pose *= turn(frames + warmup - 1);
+    let turned = Motion::Still.frame(&base, frames + warmup - 1);
     let (supersampled, silhouette) = supersampled(gpu, scene, inputs, &turned)?;
     let flip = |a: &[u8], b: &[u8], mask: Option<&[bool]>| -> Result<f64> {
         let map = super::accuracy::flip_map(a, b, w, h).ok_or_else(|| anyhow!("FLIP is not available on this platform"))?;
@@ -224,7 +266,8 @@ pub fn run(
                 let ran: Vec<f64> = shadow.into_iter().filter(|v| !v.is_nan()).collect();
                 if ran.is_empty() { f64::NAN } else { median(&ran) }
             },
-            shadow_drawn: drawn as f64 / frames.max(1) as f64,
+            shadow_drawn: drawn.0 as f64 / frames.max(1) as f64,
+            vertex_sun_ran: drawn.1 as f64 / frames.max(1) as f64,
             wall_ms: median(&wall),
             gpu_ratio: 0.0,
             wall_ratio: 0.0,
@@ -250,6 +293,9 @@ pub struct PassRow {
     pub total_ms: f64,
     /// Over the frames that drew the map.
     pub shadow_ms: f64,
+    /// Of those, the model's sun looked up at its vertices and its triangles split (render::
+    /// passes::vertex_sun), over the frames that ran them.
+    pub vertex_sun_ms: f64,
     pub background_ms: f64,
     pub model_ms: f64,
     pub ground_ms: f64,
@@ -276,13 +322,14 @@ pub fn profile(
     };
     let bounds = c.model_bounds().ok_or_else(|| anyhow!("no model"))?;
     let quarter = FrameParams { placement: camera_and_placement(&quarter_scene, bounds).1, ..base };
-    // (name, layer, params, full detail and shadow, sun turning)
+    // (name, layer, params, full detail and shadow, motion)
     let paths = [
-        (FLOOR, Layer::Background, base, false, false),
-        (DEFAULT, Layer::Composite, base, false, false),
-        (SUN_MOVING, Layer::Composite, base, false, true),
-        (REFERENCE, Layer::Composite, base, true, false),
-        (QUARTER, Layer::Composite, quarter, false, false),
+        (FLOOR, Layer::Background, base, false, Motion::Still),
+        (DEFAULT, Layer::Composite, base, false, Motion::Still),
+        (SUN_MOVING, Layer::Composite, base, false, Motion::SunTurning),
+        (CAMERA_WALKING, Layer::Composite, base, false, Motion::CameraWalking),
+        (REFERENCE, Layer::Composite, base, true, Motion::Still),
+        (QUARTER, Layer::Composite, quarter, false, Motion::Still),
     ];
     let mut compositors = vec![c];
     for _ in 1..paths.len() {
@@ -292,14 +339,10 @@ pub fn profile(
     progress.set_position(0);
     let mut samples = vec![Vec::new(); paths.len()];
     for i in 0..frames + warmup {
-        for (k, &(_, layer, params, full, sun_turns)) in paths.iter().enumerate() {
+        for (k, &(_, layer, params, full, motion)) in paths.iter().enumerate() {
             let c = &mut compositors[k];
             c.set_pass_timing(true);
-            let mut p = params;
-            p.camera.pose *= glam::Quat::from_rotation_y(1e-4 * i as f32);
-            if sun_turns {
-                p.lighting.sun_dir = glam::Quat::from_rotation_z((0.5 * i as f32).to_radians()) * p.lighting.sun_dir;
-            }
+            let p = motion.frame(&params, i);
             c.set_detail(if full { Detail::Full } else { Detail::Frame });
             c.set_full_shadow(full);
             let r = c.render(gpu, &p, layer)?;
@@ -322,6 +365,7 @@ pub fn profile(
                 frames,
                 total_ms: median(&s.iter().map(|p| p.total()).collect::<Vec<_>>()),
                 shadow_ms: of(|p| p.shadow),
+                vertex_sun_ms: of(|p| p.vertex_sun.map(|[lookup, split]| lookup + split)),
                 background_ms: of(|p| p.background),
                 model_ms: of(|p| p.model),
                 ground_ms: of(|p| p.ground),
@@ -334,15 +378,16 @@ pub fn profile(
 /// The profile as a markdown table.
 pub fn profile_markdown(rows: &[PassRow]) -> String {
     let mut s = String::from(
-        "| path (each pass timed alone) | sum GPU ms | shadow | background | model | ground | FXAA |\n|---|---:|---:|---:|---:|---:|---:|\n",
+        "| path (each pass timed alone) | sum GPU ms | shadow | of which vertex sun | background | model | ground | FXAA |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let num = |v: f64| if v.is_nan() { "–".to_string() } else { format!("{v:.3}") };
     for r in rows {
         s += &format!(
-            "| {} | {:.3} | {} | {} | {} | {} | {} |\n",
+            "| {} | {:.3} | {} | {} | {} | {} | {} | {} |\n",
             r.path,
             r.total_ms,
             num(r.shadow_ms),
+            num(r.vertex_sun_ms),
             num(r.background_ms),
             num(r.model_ms),
             num(r.ground_ms),
@@ -433,7 +478,8 @@ pub fn method_costs(rows: &[FrameRow]) -> Vec<MethodCost> {
 }
 
 /// The CSV columns of [`csv`], in order.
-const CSV_HEADER: &str = "path,frames,cpu_encode_ms,gpu_ms,shadow_gpu_ms,shadow_drawn,wall_ms,gpu_ratio,wall_ratio,flip,edge_flip";
+const CSV_HEADER: &str =
+    "path,frames,cpu_encode_ms,gpu_ms,shadow_gpu_ms,shadow_drawn,vertex_sun_ran,wall_ms,gpu_ratio,wall_ratio,flip,edge_flip";
 
 /// The rows as CSV (`previz bench frame --csv`; docs/bench_frame_goals.csv). The path is
 /// quoted (some hold commas).
@@ -441,13 +487,14 @@ pub fn csv(rows: &[FrameRow]) -> String {
     let mut s = format!("{CSV_HEADER}\n");
     for r in rows {
         s += &format!(
-            "\"{}\",{},{},{},{},{},{},{},{},{},{}\n",
+            "\"{}\",{},{},{},{},{},{},{},{},{},{},{}\n",
             r.path.replace('"', "'"),
             r.frames,
             r.cpu_encode_ms,
             r.gpu_ms,
             r.shadow_gpu_ms,
             r.shadow_drawn,
+            r.vertex_sun_ran,
             r.wall_ms,
             r.gpu_ratio,
             r.wall_ratio,
@@ -476,8 +523,8 @@ pub fn read_csv(text: &str) -> Result<Vec<FrameRow>> {
                 .and_then(|l| l.split_once("\","))
                 .ok_or_else(|| anyhow!("bench frame CSV line {}: no quoted path first", i + 2))?;
             let f: Vec<&str> = std::iter::once(path).chain(rest.split(',')).collect();
-            if f.len() != 11 {
-                return Err(anyhow!("bench frame CSV line {}: {} fields, expected 11", i + 2, f.len()));
+            if f.len() != 12 {
+                return Err(anyhow!("bench frame CSV line {}: {} fields, expected 12", i + 2, f.len()));
             }
             let num = |k: usize| f[k].trim().parse::<f64>().map_err(|e| anyhow!("bench frame CSV line {}, field {}: {e}", i + 2, k + 1));
             Ok(FrameRow {
@@ -487,11 +534,12 @@ pub fn read_csv(text: &str) -> Result<Vec<FrameRow>> {
                 gpu_ms: num(3)?,
                 shadow_gpu_ms: num(4)?,
                 shadow_drawn: num(5)?,
-                wall_ms: num(6)?,
-                gpu_ratio: num(7)?,
-                wall_ratio: num(8)?,
-                flip: num(9)?,
-                edge_flip: num(10)?,
+                vertex_sun_ran: num(6)?,
+                wall_ms: num(7)?,
+                gpu_ratio: num(8)?,
+                wall_ratio: num(9)?,
+                flip: num(10)?,
+                edge_flip: num(11)?,
             })
         })
         .collect()
@@ -500,17 +548,18 @@ pub fn read_csv(text: &str) -> Result<Vec<FrameRow>> {
 /// The rows as a markdown table, then the goals.
 pub fn markdown(rows: &[FrameRow]) -> String {
     let mut s = String::from(
-        "| path | CPU encode ms | GPU ms | shadow map drawn | of which shadow pass | × floor (GPU) | wall ms | × floor (wall) | mean FLIP vs reference | edge FLIP vs 16 spp |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| path | CPU encode ms | GPU ms | shadow map drawn | of which shadow pass | vertex sun run | × floor (GPU) | wall ms | × floor (wall) | mean FLIP vs reference | edge FLIP vs 16 spp |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let num = |v: f64| if v.is_nan() { String::new() } else { format!("{v:.4}") };
     for r in rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {:.0} % | {} | {:.2} | {:.2} | {:.2} | {} | {} |\n",
+            "| {} | {:.3} | {:.3} | {:.0} % | {} | {:.0} % | {:.2} | {:.2} | {:.2} | {} | {} |\n",
             r.path,
             r.cpu_encode_ms,
             r.gpu_ms,
             100.0 * r.shadow_drawn,
             num(r.shadow_gpu_ms),
+            100.0 * r.vertex_sun_ran,
             r.gpu_ratio,
             r.wall_ms,
             r.wall_ratio,
@@ -553,6 +602,7 @@ mod tests {
             gpu_ms,
             shadow_gpu_ms: f64::NAN,
             shadow_drawn: 0.5,
+            vertex_sun_ran: 0.25,
             wall_ms: gpu_ms + 1.0,
             gpu_ratio: gpu_ms / 8.0,
             wall_ratio: 1.0,
@@ -563,7 +613,7 @@ mod tests {
         let back = read_csv(&csv(&rows)).unwrap();
         assert_eq!(back.len(), 4);
         assert_eq!(back[1].path, QUARTER_REFERENCE, "a path with a comma");
-        assert!(back[0].shadow_gpu_ms.is_nan() && back[3].shadow_drawn == 0.5);
+        assert!(back[0].shadow_gpu_ms.is_nan() && back[3].shadow_drawn == 0.5 && back[3].vertex_sun_ran == 0.25);
         // Floor 8 ms: hemisphere 24 ms is 3x, sh9-ggx 32 ms 4x; other rows are not methods.
         let costs = method_costs(&back);
         let expect = |m: &str, ms: f64, ratio: f64| MethodCost { method: m.into(), gpu_ms: ms, floor_ratio: ratio };
@@ -576,6 +626,55 @@ mod tests {
         assert!(err.contains("line 4"), "{err}");
     }
 
+    /// The walking camera keeps its distance to the model's base and its view of it (the base in
+    /// the same place in the camera's frame), and moves 2 % of that distance a frame (the chord
+    /// of the turn: 2 r sin(θ/2) for the turn θ about the vertical at horizontal radius r); the
+    /// other motions leave the camera's position alone.
+    #[test]
+    fn the_walking_camera_circles_the_model_at_its_distance() {
+        use crate::render::{Camera, Lighting, Placement};
+        use glam::{Quat, Vec3};
+        let p = FrameParams {
+            // 5 m from the base, 4 m out from the vertical through it.
+            camera: Camera { pose: Quat::from_rotation_x(0.9), position: Vec3::new(1.0, -2.0, 3.0), vfov: 1.0 },
+            method: LightingMethod::Sh9Ggx,
+            lighting: Lighting {
+                sun_dir: Vec3::new(0.6, 0.0, 0.8),
+                sunlight: 1.0,
+                daylight: 0.3,
+                material: crate::render::MaterialTerms { ambient: 1.0, diffuse: 1.0, specular: 0.0, gloss: None },
+                reflection: 0.0,
+                ior: 1.5,
+                shadow_opacity: 1.0,
+                sky_occlusion: 1.0,
+                live_depth: 2.0,
+                sky_sh: [[0.0; 3]; 9],
+                sky_radiance: crate::light::sh9::SkyRadiance::UNIFORM,
+                ground_radiance: [0.2; 3],
+                sun_colour: [1.0; 3],
+                sun_angular_radius: 0.005,
+            },
+            placement: Placement { position: Vec3::new(1.0, 2.0, 0.0), rotation: Vec3::ZERO, scale: 1.0 },
+            colour: ColourSettings::NONE,
+        };
+        let seen = |q: &FrameParams| q.camera.pose.inverse() * (q.placement.position - q.camera.position);
+        for i in [1usize, 2, 7] {
+            let q = Motion::CameraWalking.frame(&p, i);
+            assert!(((q.camera.position - q.placement.position).length() - 5.0).abs() < 1e-5);
+            assert!((seen(&q) - seen(&Motion::Still.frame(&p, i))).length() < 1e-5, "frame {i}");
+            let theta = 0.02 * 5.0 / 4.0 * i as f32;
+            let chord = 2.0 * 4.0 * (theta / 2.0).sin();
+            assert!(((q.camera.position - p.camera.position).length() - chord).abs() < 1e-5, "frame {i}");
+        }
+        // One frame: 0.02 of 5 m, to a tenth of a millimetre (the chord is a hair short of the arc).
+        let step = (Motion::CameraWalking.frame(&p, 1).camera.position - Motion::CameraWalking.frame(&p, 0).camera.position).length();
+        assert!((step - 0.1).abs() < 1e-4, "{step}");
+        for m in [Motion::Still, Motion::SunTurning] {
+            assert_eq!(m.frame(&p, 5).camera.position, p.camera.position);
+        }
+        assert_ne!(Motion::SunTurning.frame(&p, 5).lighting.sun_dir, p.lighting.sun_dir);
+    }
+
     #[test]
     fn goals_are_ratios_to_the_floor() {
         let row = |path: &str, gpu_ms: f64, flip: f64| FrameRow {
@@ -585,6 +684,7 @@ mod tests {
             gpu_ms,
             shadow_gpu_ms: f64::NAN,
             shadow_drawn: 0.0,
+            vertex_sun_ran: 0.0,
             wall_ms: gpu_ms,
             gpu_ratio: gpu_ms / 10.0,
             wall_ratio: gpu_ms / 10.0,

@@ -18,7 +18,9 @@ pub struct Args {
 pub enum What {
     /// Per-frame CPU and GPU time, medians after warm-up and ratios to the background-only floor,
     /// all in one run: the scene as drawn by default against its full-detail, full-shadow
-    /// reference (mean FLIP), the same at a quarter of the fill, every lighting method, each
+    /// reference (mean FLIP), the same with the sun turning 0.5° a frame and with the camera
+    /// walking round the model (2 % of its distance a frame: how often the vertex sun runs
+    /// again), the same at a quarter of the fill, every lighting method, each
     /// colour correction, and 1x/2x/4x MSAA and FXAA (FLIP of the model's edges against a
     /// 16-sample render); then issue 11's goals, met or not; then where the main paths' time
     /// goes (the same frames with each pass timed alone; in --json too, not in --csv).

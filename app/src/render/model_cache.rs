@@ -15,7 +15,7 @@ use crate::colour::stats::ColourStats;
 use crate::gpu::Gpu;
 use crate::light::sh9::SkyRadiance;
 use crate::scene::lod::LodChain;
-use crate::scene::occlusion::{self, BounceLight, GroundSky, GroundTransfer, ModelRays, Occluders};
+use crate::scene::occlusion::{self, BounceLight, BounceReach, GroundSky, GroundTransfer, ModelRays, Occluders};
 use crate::scene::{Mesh, Model};
 use anyhow::{Result, anyhow, bail};
 use glam::{Mat4, Vec3};
@@ -93,27 +93,56 @@ impl ModelSkyKey {
     }
 }
 
-/// The last placement's ground: the model matrix's bits, its transfer, and the last light with
-/// its map.
+/// How many lights' ground maps a placement's ground keeps: two compositors drawing the model
+/// under two lights (`bench frame`'s moving sun beside its other paths, each frame) each find
+/// their own instead of recombining it every frame (45 ms of the dragon's CPU frame).
+const GROUND_LIGHTS_KEPT: usize = 2;
+
+/// How far the model's light on the ground (a gain on the ground's light) may differ from a kept
+/// map's before the map is made again: half an 8-bit level (a gain g brightens an sRGB value by
+/// at most 255 · 1.055/2.4 · g levels, render::passes::ground::INVISIBLE_LOSS's rule). The sun
+/// SPA gives for the clock moves every frame (0.25° a minute): the map follows it about every
+/// half a minute instead of being made again each frame.
+pub const GROUND_BOUNCE_KEPT: f32 = 0.5 / (255.0 * 1.055 / 2.4);
+
+/// The last placement's ground: the model matrix's bits, its transfer and the reach of its
+/// bounce sums, and the lights last asked for with their maps (the latest first).
 struct Ground {
     bits: PlacementKey,
     transfer: GroundTransfer,
-    map: Option<(GroundLight, Arc<GroundSky>)>,
+    reach: BounceReach,
+    maps: Vec<(GroundLight, Arc<GroundSky>)>,
 }
 
 impl Ground {
-    /// The map under `light`: the last one when the light is the same, else recombined from the
-    /// transfer (counted in `computed`).
+    fn new(bits: PlacementKey, transfer: GroundTransfer) -> Ground {
+        let reach = BounceReach::of(&transfer.texels);
+        Ground { bits, transfer, reach, maps: Vec::with_capacity(GROUND_LIGHTS_KEPT) }
+    }
+
+    /// Whether the map kept for `held` serves `light`: the same sky, and the model's light on
+    /// every texel within [`GROUND_BOUNCE_KEPT`] of `light`'s ([`BounceReach::bound`]).
+    fn serves(&self, held: &GroundLight, light: &GroundLight) -> bool {
+        held.radiance == light.radiance
+            && held.heading == light.heading
+            && self.reach.bound(&held.bounce, &light.bounce) <= GROUND_BOUNCE_KEPT
+    }
+
+    /// The map under `light`: a kept one that serves it ([`Ground::serves`]), else recombined
+    /// from the transfer (counted in `computed`), replacing the one asked for least recently.
     fn map(&mut self, light: GroundLight, computed: &AtomicUsize) -> Arc<GroundSky> {
-        if let Some((held, sky)) = &self.map
-            && *held == light
-        {
-            return sky.clone();
-        }
-        let sky = Arc::new(self.transfer.map(&|azimuth, z| light.radiance.at_rgb(azimuth, z, light.heading), &light.bounce));
-        computed.fetch_add(1, Relaxed);
-        self.map = Some((light, sky.clone()));
-        sky
+        let at = match self.maps.iter().position(|(held, _)| self.serves(held, &light)) {
+            Some(at) => at,
+            None => {
+                let sky = Arc::new(self.transfer.map(&|azimuth, z| light.radiance.at_rgb(azimuth, z, light.heading), &light.bounce));
+                computed.fetch_add(1, Relaxed);
+                self.maps.truncate(GROUND_LIGHTS_KEPT - 1);
+                self.maps.push((light, sky));
+                self.maps.len() - 1
+            }
+        };
+        self.maps[..=at].rotate_right(1);
+        self.maps[0].1.clone()
     }
 }
 
@@ -396,7 +425,7 @@ impl PreparedModel {
     /// Keep a newly cast transfer as the last placement's.
     fn keep(&self, state: &mut GroundState, bits: PlacementKey, transfer: GroundTransfer) {
         self.ground_cast.fetch_add(1, Relaxed);
-        state.last = Some(Ground { bits, transfer, map: None });
+        state.last = Some(Ground::new(bits, transfer));
     }
 
     fn lock_ground(&self) -> MutexGuard<'_, GroundState> {
@@ -745,11 +774,50 @@ mod tests {
         // Each placement cast its rays once; the sky's change recombined them without a ray.
         assert_eq!(prepared.ground_rays_cast(), 3);
         assert_ne!(e.visibility, d.visibility);
-        // The same sky turned, and the first one again: two more maps, no more rays.
+        // The same sky turned, and the first one again (two lights are kept: the uniform sky's
+        // map went when the turned sky's came): two more maps, no more rays.
         let turned = GroundLight { heading: 1.0, ..east };
-        assert_ne!(prepared.ground_sky(here, turned).visibility, e.visibility);
+        let f = prepared.ground_sky(here, turned);
+        assert_ne!(f.visibility, e.visibility);
         assert_eq!(*prepared.ground_sky(here, uniform), *a);
         assert_eq!((prepared.ground_sky_computed(), prepared.ground_rays_cast()), (6, 3));
+        // The turned sky is kept beside the uniform one: two lights alternating frame by frame
+        // (two compositors of one model) make nothing more; the East sky went, so it is made again.
+        for _ in 0..3 {
+            assert!(Arc::ptr_eq(&prepared.ground_sky(here, turned), &f));
+            assert_eq!(*prepared.ground_sky(here, uniform), *a);
+        }
+        assert_eq!(prepared.ground_sky_computed(), 6);
+        assert_eq!(*prepared.ground_sky(here, east), *e);
+        assert_eq!(prepared.ground_sky_computed(), 7);
+    }
+
+    /// The sun SPA gives for the clock moves a little every frame: the map made for it is kept
+    /// while the model's light on the ground stays within GROUND_BOUNCE_KEPT of it, and made
+    /// again once the sun has moved so far that some texel's light moved by more.
+    #[test]
+    fn the_ground_map_follows_a_moving_sun_only_when_its_light_moves_visibly() {
+        let prepared = PreparedModel::new(&tetrahedron()).unwrap();
+        let here = Mat4::from_scale(Vec3::splat(2.0));
+        let s = Vec3::new(0.6, 0.0, 0.8);
+        let sunlit = |a: f32| GroundLight {
+            bounce: BounceLight { sun: [2.0; 3], sun_dir: (glam::Quat::from_rotation_z(a) * s).to_array(), ..BounceLight::NONE },
+            ..GroundLight::from(SkyRadiance::UNIFORM)
+        };
+        let first = prepared.ground_sky(here, sunlit(0.0));
+        // 30 frames at 30 a second of the sun's 0.25° a minute: 2.2e-5 rad.
+        for frame in 1..=30 {
+            let sky = prepared.ground_sky(here, sunlit(frame as f32 * 7.3e-7));
+            assert!(Arc::ptr_eq(&sky, &first), "frame {frame}");
+        }
+        assert_eq!(prepared.ground_sky_computed(), 1);
+        // A quarter turn round the vertical: made again, and some texel's light moved by more
+        // than the map may be off.
+        let moved = prepared.ground_sky(here, sunlit(std::f32::consts::FRAC_PI_2));
+        assert_eq!(prepared.ground_sky_computed(), 2);
+        let most =
+            moved.bounce.iter().zip(&first.bounce).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0.0f32, f32::max);
+        assert!(most > GROUND_BOUNCE_KEPT, "{most}");
     }
 
     #[test]

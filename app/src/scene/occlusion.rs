@@ -432,6 +432,52 @@ impl BounceLight {
     pub const NONE: BounceLight = BounceLight { sky: [[0.0; 3]; TERMS], sun: [0.0; 3], sun_dir: [0.0, 0.0, 1.0], ground: [[0.0; 3]; 2] };
 }
 
+/// The largest magnitude, over a ground map's texels, of each sum [`Transfer::reflected`]
+/// recombines ([`Bounce`]): what bounds how far two [`BounceLight`]s' maps can differ
+/// ([`BounceReach::bound`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BounceReach {
+    /// max |Σ ρ (a_sky + a_bounce) basis_k(n)| per term k.
+    pub sky: [f32; TERMS],
+    /// max Σ |ρ / rays| over the hits (the sun's weights).
+    pub sun: f32,
+    /// max |Bounce::ground[j]|.
+    pub ground: [f32; 2],
+}
+
+impl BounceReach {
+    /// The reach of `texels`' bounces.
+    pub fn of(texels: &[Transfer]) -> BounceReach {
+        let mut r = BounceReach::default();
+        for b in texels.iter().map(|t| &t.bounce) {
+            for (m, v) in r.sky.iter_mut().zip(b.sky) {
+                *m = m.max(v.abs());
+            }
+            r.sun = r.sun.max(b.sun.iter().map(|h| h[3].abs()).sum());
+            for (m, v) in r.ground.iter_mut().zip(b.ground) {
+                *m = m.max(v.abs());
+            }
+        }
+        r
+    }
+
+    /// A bound on |reflected(a) − reflected(b)| ([`Transfer::reflected`]) over every texel and
+    /// channel: reflected is a clamp at 0 (1-Lipschitz) of sums linear in the light's sky and
+    /// ground terms, and of the sun's Σ w max(n·s, 0) L over unit normals n, which moves by at
+    /// most Σ|w| (|ΔL| + |L| |Δs|) (max(n·s, 0) moves by at most |n·Δs| ≤ |Δs|).
+    pub fn bound(&self, a: &BounceLight, b: &BounceLight) -> f32 {
+        let ds = (Vec3::from(a.sun_dir) - Vec3::from(b.sun_dir)).length();
+        (0..3)
+            .map(|c| {
+                let sky: f32 = self.sky.iter().zip(a.sky.iter().zip(&b.sky)).map(|(m, (x, y))| m * (x[c] - y[c]).abs()).sum();
+                let ground: f32 = self.ground.iter().zip(a.ground.iter().zip(&b.ground)).map(|(m, (x, y))| m * (x[c] - y[c]).abs()).sum();
+                let sun = self.sun * ((a.sun[c] - b.sun[c]).abs() + a.sun[c].abs().min(b.sun[c].abs()) * ds);
+                sky + ground + sun
+            })
+            .fold(0.0, f32::max)
+    }
+}
+
 impl Transfer {
     /// The visibility under a sky of radiance `radiance(azimuth, z)` ≥ 0 (a world direction's,
     /// [`SkyRay::direction`]): Σ V(d) L(d) s(d) / Σ L(d) s(d) over the rays, s being each ray's
@@ -2168,6 +2214,55 @@ mod tests {
         let map = transfer.map(&sky, &BounceLight::NONE);
         assert_eq!(map.channels(0), got);
         assert!(got[0] < map.visibility[0] && map.visibility[0] < got[2], "{got:?} {:?}", map.visibility);
+    }
+
+    /// BounceReach::bound bounds the largest change of the model's light on any texel and channel
+    /// (Transfer::reflected, computed for both lights) when the sun turns, brightens or goes,
+    /// and when the sky's or the ground's terms change; nothing changed, it is 0.
+    #[test]
+    fn the_bounce_reach_bounds_how_far_two_lights_maps_differ() {
+        let (occ, bounds, model) = sphere_beside_a_wall();
+        let transfer = ground_transfer(&occ, bounds, model, 17, 64, &polynomials);
+        let reach = BounceReach::of(&transfer.texels);
+        assert!(reach.sun > 0.0 && reach.sky.iter().all(|&m| m > 0.0) && reach.ground.iter().all(|&m| m > 0.0), "{reach:?}");
+        let s = Vec3::new(0.5, -0.3, 0.8).normalize();
+        let base = BounceLight {
+            sky: std::array::from_fn(|k| [0.3, 0.25, 0.2].map(|v| v / (k + 1) as f32)),
+            sun: [1.1, 1.0, 0.8],
+            sun_dir: s.to_array(),
+            ground: [[0.2, 0.2, 0.25], [0.1, 0.12, 0.1]],
+        };
+        let turned = |a: f32| {
+            let mut l = base;
+            l.sun_dir = (glam::Quat::from_rotation_z(a) * s).to_array();
+            l
+        };
+        let changes = [
+            turned(1e-4),
+            turned(0.05),
+            turned(1.5),
+            BounceLight { sun: [1.3, 1.0, 0.6], ..base },
+            BounceLight { sky: std::array::from_fn(|k| [0.3, 0.2, 0.1].map(|v| v / (k + 2) as f32)), ..base },
+            BounceLight { ground: [[0.25, 0.2, 0.2], [0.0, 0.12, 0.3]], ..base },
+            BounceLight::NONE,
+        ];
+        for other in changes {
+            let moved = transfer
+                .texels
+                .iter()
+                .flat_map(|t| {
+                    let (x, y) = (t.reflected(&base), t.reflected(&other));
+                    (0..3).map(move |c| (x[c] - y[c]).abs())
+                })
+                .fold(0.0f32, f32::max);
+            let bound = reach.bound(&base, &other);
+            assert!(moved > 0.0 && moved <= bound * (1.0 + 1e-5), "{other:?}: moved {moved}, bound {bound}");
+        }
+        assert_eq!(reach.bound(&base, &base), 0.0);
+        // A turn of 1e-4 rad (the sun's motion over 24 s) moves it by at most the sun's weights
+        // times its brightest channel times the turn.
+        let tiny = reach.bound(&base, &turned(1e-4));
+        assert!(tiny <= reach.sun * 1.1 * 1e-4 * 1.001, "{tiny} {reach:?}");
     }
 
     #[test]

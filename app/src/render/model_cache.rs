@@ -101,8 +101,9 @@ const GROUND_LIGHTS_KEPT: usize = 2;
 /// How far the model's light on the ground (a gain on the ground's light) may differ from a kept
 /// map's before the map is made again: half an 8-bit level (a gain g brightens an sRGB value by
 /// at most 255 · 1.055/2.4 · g levels, render::passes::ground::INVISIBLE_LOSS's rule). The sun
-/// SPA gives for the clock moves every frame (0.25° a minute): the map follows it about every
-/// half a minute instead of being made again each frame.
+/// SPA gives for the clock moves every frame (0.25° a minute): the map follows it once its
+/// light has moved that far (tens of seconds to minutes, by how much light the model sends onto
+/// the ground: BounceReach) instead of being made again each frame.
 pub const GROUND_BOUNCE_KEPT: f32 = 0.5 / (255.0 * 1.055 / 2.4);
 
 /// The last placement's ground: the model matrix's bits, its transfer and the reach of its

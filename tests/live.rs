@@ -136,7 +136,7 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let table = String::from_utf8_lossy(&out.stdout);
-    for stage in ["camera frame", "sensors + fusion", "sun (SPA)", "compositor (GPU)", "whole frame", "model turning"] {
+    for stage in ["camera frame", "sensors + fusion", "sun (SPA)", "compositor (GPU)", "whole frame", "model turning", "sky changing"] {
         assert!(table.contains(stage), "{stage} missing from:\n{table}");
     }
     // --json: the same stages, the ratio, and the profile's passes by name (GPU ms).

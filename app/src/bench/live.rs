@@ -14,7 +14,7 @@ use std::sync::Arc;
 /// wall time from submit until the pixels are in memory), then the floor: the same frame's
 /// background alone (rendered after it, not part of the frame), what issue 11 compares the
 /// compositor with.
-pub const STAGES: [&str; 17] = [
+pub const STAGES: [&str; 18] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
@@ -32,6 +32,7 @@ pub const STAGES: [&str; 17] = [
     "profile: ground pass",
     "model turning 2 deg a frame: frame's thread (uniforms, ground map, encode), rays on the worker",
     "same, the frame waiting for the ground's rays (before issue 9's worker)",
+    "sky changing every frame (as a refold changes it): frame's thread (uniforms, ground map recombined, encode)",
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
@@ -45,6 +46,10 @@ pub const PROFILE: usize = 10;
 /// 2° each (a new placement every frame: the ground's rays cast again), timed on the frame's
 /// thread with the rays on the worker, then as many waiting for them.
 pub const TURN: usize = 15;
+/// Index of the changing sky's row: after the turning model, as many frames again with a new
+/// sky shape each (one bin of the sky's radiance 1/32 brighter, round the bins: the ground's map
+/// recombined from its kept rays every frame, as each refold of the camera frame makes it).
+pub const SKY: usize = 17;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -71,7 +76,7 @@ pub fn run(
         lon_deg: -2.5879,
         start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00")?.with_timezone(&chrono::Utc),
         frame_hz: 30.0,
-        duration_s: ((4 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
+        duration_s: ((5 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
         noise: NoiseLevel::Phone,
         seed: 1,
     };
@@ -128,6 +133,16 @@ pub fn run(
         }
     }
     session.set_ground_in_background(true);
+    // The sky changing: each frame a sky shape no kept map was made for.
+    progress.set_length((5 * frames + warmup) as u64);
+    for i in 0..frames {
+        session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
+        let bins = &mut session.params_mut().lighting.sky_radiance.bins;
+        bins[i % bins.len()] += 1.0 / 32.0;
+        let r = session.render(gpu)?;
+        samples[SKY].push(r.timings.encode_ms);
+        progress.inc(1);
+    }
     Ok(STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect())
 }
 

@@ -29,7 +29,9 @@ pub enum What {
     /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames; then as
     /// many frames again with each pass timed alone (the profile rows; --json also as named
     /// passes); then as many turning the model 2° a frame, the ground's rays on their worker,
-    /// and as many with the frame waiting for them (the frame's thread's time).
+    /// and as many with the frame waiting for them; then as many under a new sky shape each,
+    /// the ground's map recombined as a refold of the camera frame makes it (the frame's
+    /// thread's time).
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references, drawn as a still (3 × 3 samples a pixel), and the default

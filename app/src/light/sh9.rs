@@ -136,7 +136,7 @@ impl SkyRadiance {
 
     /// The bin of the map's direction at `azimuth` (rad, clockwise from North, any turn) and
     /// height `z`.
-    fn bin_at(azimuth: f32, z: f32) -> usize {
+    pub fn bin_at(azimuth: f32, z: f32) -> usize {
         let row = ((z.clamp(0.0, 1.0) * SKY_ROWS as f32) as usize).min(SKY_ROWS - 1);
         let turns = (azimuth / std::f32::consts::TAU).rem_euclid(1.0);
         let column = ((turns * SKY_COLUMNS as f32) as usize).min(SKY_COLUMNS - 1);

@@ -95,7 +95,8 @@ impl ModelSkyKey {
 
 /// How many lights' ground maps a placement's ground keeps: two compositors drawing the model
 /// under two lights (`bench frame`'s moving sun beside its other paths, each frame) each find
-/// their own instead of recombining it every frame (45 ms of the dragon's CPU frame).
+/// their own instead of recombining it every frame (45 ms of the dragon's CPU frame when it
+/// was found, a few ms since `GroundTransfer::under`).
 const GROUND_LIGHTS_KEPT: usize = 2;
 
 /// How far the model's light on the ground (a gain on the ground's light) may differ from a kept
@@ -135,7 +136,7 @@ impl Ground {
         let at = match self.maps.iter().position(|(held, _)| self.serves(held, &light)) {
             Some(at) => at,
             None => {
-                let sky = Arc::new(self.transfer.map(&|azimuth, z| light.radiance.at_rgb(azimuth, z, light.heading), &light.bounce));
+                let sky = Arc::new(self.transfer.under(&light.radiance, light.heading, &light.bounce));
                 computed.fetch_add(1, Relaxed);
                 self.maps.truncate(GROUND_LIGHTS_KEPT - 1);
                 self.maps.push((light, sky));

@@ -11,7 +11,7 @@
 //! `bvh`/`parry3d` would bring nalgebra and a second maths library next to glam.
 
 use super::{Mesh, Model};
-use crate::light::sh9::SKY_ROWS;
+use crate::light::sh9::{SKY_BINS, SKY_COLUMNS, SKY_ROWS, SkyRadiance};
 use glam::{Mat4, Vec2, Vec3};
 use std::f32::consts::TAU;
 
@@ -1241,6 +1241,52 @@ impl GroundTransfer {
         let bounce = if *bounce == BounceLight::NONE { Vec::new() } else { self.texels.iter().map(|t| t.reflected(bounce)).collect() };
         GroundSky { min: self.min, max: self.max, z: self.z, size: self.size, visibility, visibility_rgb, bounce }
     }
+
+    /// [`GroundTransfer::map`] under the binned sky `sky` turned by `heading` (rad:
+    /// [`SkyRadiance::at_rgb`]), as the model cache makes each new light's map: the same
+    /// products summed in the same order, so the same map to the bit, but each ray's bin read
+    /// from a table of its quantised azimuth and z instead of the sky asked twice a ray, and
+    /// the texels shared among the machine's cores (the demo truck's new sky on the frame's
+    /// thread 38 → 3–4 ms in `previz bench live`; docs/PERFORMANCE.md, twenty-first session).
+    pub fn under(&self, sky: &SkyRadiance, heading: f32, bounce: &BounceLight) -> GroundSky {
+        // Each quantised azimuth's column for this heading (SkyRay::direction's step middle).
+        let columns: Vec<u8> = (0..=u16::MAX)
+            .map(|a| SkyRadiance::bin_at(SkyRay { azimuth: a, z_open: 0 }.direction().0 - heading, 0.5 / 32768.0) as u8)
+            .collect();
+        // Each bin's luminance and colour weights: at_rgb's radiance (not below 0) times the
+        // ray's share of its row (row_weight).
+        let weights: Vec<[f32; 4]> = (0..SKY_BINS)
+            .map(|b| {
+                let rgb = sky.tint[b].map(|t| t * sky.bins[b]);
+                let row = (2 * (b / SKY_COLUMNS) + 1) as f32;
+                let [r, g, b] = rgb.map(|c| c.max(0.0) * row);
+                [crate::colour::luminance_bt709(rgb).max(0.0) * row, r, g, b]
+            })
+            .collect();
+        let reflects = *bounce != BounceLight::NONE;
+        let texel = |t: &Transfer| -> ([f32; 4], [f32; 3]) {
+            let (mut open, mut total) = ([0f32; 4], [0f32; 4]);
+            for r in &t.rays {
+                // SkyRay::direction's z at its step's middle, ((z + ½) / 32768 · SKY_ROWS) cut:
+                // the top three of its 15 bits.
+                let row = usize::from((r.z_open & 0x7fff) >> 12);
+                let w = &weights[row * SKY_COLUMNS + usize::from(columns[usize::from(r.azimuth)])];
+                for c in 0..4 {
+                    total[c] += w[c];
+                    if r.open() {
+                        open[c] += w[c];
+                    }
+                }
+            }
+            let shares = std::array::from_fn(|c| if total[c] > 0.0 { (open[c] / total[c]).clamp(0.0, 1.0) } else { t.plain });
+            (shares, if reflects { t.reflected(bounce) } else { [0.0; 3] })
+        };
+        let texels = parallel_map(&self.texels, ([0.0; 4], [0.0; 3]), |_, t| texel(t));
+        let visibility = texels.iter().map(|(s, _)| s[0]).collect();
+        let visibility_rgb = texels.iter().map(|(s, _)| [s[1], s[2], s[3]]).collect();
+        let bounce = if reflects { texels.iter().map(|&(_, b)| b).collect() } else { Vec::new() };
+        GroundSky { min: self.min, max: self.max, z: self.z, size: self.size, visibility, visibility_rgb, bounce }
+    }
 }
 
 /// `f(point, up, seed)` at the centre of each of the `size`² texels of the [`ground_square`]
@@ -1256,21 +1302,11 @@ fn over_ground<T: Send + Clone + Default>(
     let to_model = model.inverse();
     let up = to_model.transform_vector3(Vec3::Z).normalize_or_zero();
     let n = size.max(1) as usize;
-    let mut values = vec![T::default(); n * n];
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(n);
-    let rows = n.div_ceil(threads);
-    let f = &f;
-    std::thread::scope(|s| {
-        for (c, out) in values.chunks_mut(rows * n).enumerate() {
-            s.spawn(move || {
-                for (k, v) in out.iter_mut().enumerate() {
-                    let (x, y) = (k % n, c * rows + k / n);
-                    let uv = (Vec2::new(x as f32, y as f32) + 0.5) / n as f32;
-                    let world = (min + (max - min) * uv).extend(z);
-                    *v = f(to_model.transform_point3(world), up, (y * n + x) as u32);
-                }
-            });
-        }
+    let values = parallel_map(&vec![(); n * n], T::default(), |k, _| {
+        let (x, y) = (k % n, k / n);
+        let uv = (Vec2::new(x as f32, y as f32) + 0.5) / n as f32;
+        let world = (min + (max - min) * uv).extend(z);
+        f(to_model.transform_point3(world), up, k as u32)
     });
     (min, max, z, values)
 }
@@ -2263,6 +2299,46 @@ mod tests {
         // times its brightest channel times the turn.
         let tiny = reach.bound(&base, &turned(1e-4));
         assert!(tiny <= reach.sun * 1.1 * 1e-4 * 1.001, "{tiny} {reach:?}");
+    }
+
+    #[test]
+    fn a_binned_skys_map_is_the_one_its_radiance_function_gives_to_the_bit() {
+        // The sphere beside a wall, turned and scaled, with the product's texels and rays: the
+        // map `under` a binned sky (bins and tints varying from bin to bin, one row dark) at
+        // several headings, against `map` asking the sky's at_rgb for every ray; and a sky with
+        // no light anywhere, whose texels keep their plain visibility.
+        let (occ, bounds, model) = sphere_beside_a_wall();
+        let transfer = ground_transfer(&occ, bounds, model, GROUND_TEXELS, GROUND_RAYS, &polynomials);
+        let mut sky = SkyRadiance::UNIFORM;
+        for b in 0..SKY_BINS {
+            sky.bins[b] = if b / SKY_COLUMNS == 3 { 0.0 } else { (4.0 * unit_hash(b as u32) * 32.0).round() / 32.0 };
+            sky.tint[b] = [0.6 + unit_hash(3 * b as u32 + 1), 1.0, 1.4 - unit_hash(3 * b as u32 + 2)].map(|c| (c * 32.0).round() / 32.0);
+        }
+        let bounce = BounceLight { sky: [[0.3, 0.2, 0.1]; TERMS], sun: [2.0, 1.8, 1.5], sun_dir: [0.6, 0.0, 0.8], ground: [[0.1; 3]; 2] };
+        let dark = SkyRadiance { bins: [0.0; SKY_BINS], ..SkyRadiance::UNIFORM };
+        for (sky, heading, bounce) in [
+            (sky, 0.0, BounceLight::NONE),
+            (sky, 1.234, bounce),
+            (sky, -2.5, bounce),
+            (sky, TAU + 0.3, BounceLight::NONE),
+            (SkyRadiance::UNIFORM, 0.7, bounce),
+            (dark, 0.0, BounceLight::NONE),
+        ] {
+            let fast = transfer.under(&sky, heading, &bounce);
+            let each_ray = transfer.map(&|azimuth, z| sky.at_rgb(azimuth, z, heading), &bounce);
+            assert_eq!(fast, each_ray, "heading {heading}");
+        }
+        // Not trivially equal: the sky's shape and its heading move texels.
+        let moved =
+            |a: &GroundSky, b: &GroundSky| a.visibility.iter().zip(&b.visibility).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+        let (north, turned, uniform) = (
+            transfer.under(&sky, 0.0, &BounceLight::NONE),
+            transfer.under(&sky, 2.0, &BounceLight::NONE),
+            transfer.under(&SkyRadiance::UNIFORM, 0.0, &BounceLight::NONE),
+        );
+        assert!(moved(&north, &turned) > 0.05 && moved(&north, &uniform) > 0.05, "{} {}", moved(&north, &turned), moved(&north, &uniform));
+        let plain: Vec<f32> = transfer.texels.iter().map(|t| t.plain).collect();
+        assert_eq!(transfer.under(&dark, 0.0, &BounceLight::NONE).visibility, plain);
     }
 
     #[test]

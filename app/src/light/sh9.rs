@@ -143,18 +143,11 @@ impl SkyRadiance {
         row * SKY_COLUMNS + column
     }
 
-    /// Radiance towards the world direction at `azimuth` (rad, clockwise from North) and height
-    /// `z`, for a map turned by `heading` (rad: a world direction d is the map's Rz(heading)·d,
-    /// shaders/frame.wgsl env_map_dir, whose azimuth is d's less the heading); 0 at or below the
-    /// horizon (the ground is not the sky).
-    pub fn at(&self, azimuth: f32, z: f32, heading: f32) -> f32 {
-        if z <= 0.0 {
-            return 0.0;
-        }
-        self.bins[SkyRadiance::bin_at(azimuth - heading, z)]
-    }
-
-    /// [`SkyRadiance::at`] per colour channel: the bin's luminance times its [`tint`](SkyRadiance::tint).
+    /// Radiance per colour channel (linear RGB: the bin's luminance times its
+    /// [`tint`](SkyRadiance::tint)) towards the world direction at `azimuth` (rad, clockwise
+    /// from North) and height `z`, for a map turned by `heading` (rad: a world direction d is the
+    /// map's Rz(heading)·d, shaders/frame.wgsl env_map_dir, whose azimuth is d's less the
+    /// heading); 0 at or below the horizon (the ground is not the sky).
     pub fn at_rgb(&self, azimuth: f32, z: f32, heading: f32) -> [f32; 3] {
         if z <= 0.0 {
             return [0.0; 3];
@@ -163,9 +156,15 @@ impl SkyRadiance {
         self.tint[b].map(|t| t * self.bins[b])
     }
 
-    /// [`SkyRadiance::at`] towards unit world direction `d`.
-    pub fn radiance(&self, d: Vec3, heading: f32) -> f32 {
-        self.at(d.x.atan2(d.y), d.z, heading)
+    /// The radiance towards unit world direction `d` from its bin: its luminance (the bin's) and
+    /// [`SkyRadiance::at_rgb`]'s colour, [luminance, r, g, b] (0 at or below the horizon).
+    pub fn towards(&self, d: Vec3, heading: f32) -> [f32; 4] {
+        if d.z <= 0.0 {
+            return [0.0; 4];
+        }
+        let b = SkyRadiance::bin_at(d.x.atan2(d.y) - heading, d.z);
+        let [r, g, blue] = self.tint[b].map(|t| t * self.bins[b]);
+        [self.bins[b], r, g, blue]
     }
 }
 
@@ -324,7 +323,7 @@ mod tests {
         // A map turned by 90° (its North faces the world's East, frame.wgsl env_map_dir): the
         // map's East is seen looking South; at any heading the bin is the one of Rz(heading)·d.
         let (d, heading) = (-Vec3::Y + 0.05 * Vec3::Z, std::f32::consts::FRAC_PI_2);
-        assert!((sky.radiance(d.normalize(), heading) - sky.bins[east]).abs() < 1e-6);
+        assert!((sky.towards(d.normalize(), heading)[0] - sky.bins[east]).abs() < 1e-6);
         for (i, heading) in [0.0f32, 0.4, 2.0, -2.7, 5.5].iter().enumerate() {
             let (s, c) = heading.sin_cos();
             for k in 0..200 {
@@ -333,11 +332,15 @@ mod tests {
                 let r = (1.0 - z * z).sqrt();
                 let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
                 let m = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
-                assert_eq!(sky.radiance(d, *heading), sky.bins[SkyRadiance::bin(m)], "heading {heading}, {d}");
+                let b = SkyRadiance::bin(m);
+                assert_eq!(sky.towards(d, *heading)[0], sky.bins[b], "heading {heading}, {d}");
+                // Its colour from the same bin: at_rgb's at the direction's azimuth and z.
+                assert_eq!(sky.towards(d, *heading)[1..], sky.tint[b].map(|t| t * sky.bins[b]), "heading {heading}, {d}");
+                assert_eq!(sky.towards(d, *heading)[1..], sky.at_rgb(d.x.atan2(d.y), d.z, *heading), "heading {heading}, {d}");
             }
         }
         // Below the horizon: no sky; no light at all: uniform.
-        assert_eq!(sky.radiance(-Vec3::Z, 0.0), 0.0);
+        assert_eq!(sky.towards(-Vec3::Z, 0.0), [0.0; 4]);
         assert_eq!(SkyRadiance::of(&from_cube(&crate::scene::CubeMap::from_fn(8, |_| [0.0; 3]))), SkyRadiance::UNIFORM);
     }
 

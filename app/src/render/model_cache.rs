@@ -258,15 +258,7 @@ impl PreparedModel {
         let frame = glam::Mat3::from_mat4(placement);
         // The sky's luminance (what the vertex's share of it is: the bent normal's length) and
         // its colour channels (the tint), through each vertex's rays in one walk.
-        let sky = self.rays.sky_channels(
-            &self.model,
-            &|d| {
-                let w = (frame * d).normalize_or_zero();
-                let [r, g, b] = radiance.at_rgb(w.x.atan2(w.y), w.z, heading);
-                [radiance.radiance(w, heading), r, g, b]
-            },
-            occlusion::BOUNCES,
-        );
+        let sky = self.rays.sky_channels(&self.model, &|d| radiance.towards((frame * d).normalize_or_zero(), heading), occlusion::BOUNCES);
         let vertices: Vec<Vec<Vertex>> = self
             .vertices
             .iter()
@@ -883,7 +875,7 @@ mod tests {
                 placement,
                 occlusion::GROUND_TEXELS,
                 occlusion::GROUND_RAYS,
-                &|d| sky.radiance(d, heading),
+                &|d| sky.towards(d, heading)[0],
             );
             let diffs: Vec<f32> = map.visibility.iter().zip(&direct.visibility).map(|(a, b)| (a - b).abs()).collect();
             let (max, mean) = (diffs.iter().copied().fold(0.0f32, f32::max), diffs.iter().sum::<f32>() / diffs.len() as f32);

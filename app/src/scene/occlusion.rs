@@ -852,25 +852,35 @@ fn hit_triangles(model: &Model, occluders: &Occluders) -> Vec<Option<HitTriangle
 impl ModelRays {
     /// Per mesh of `model` (the one the rays were cast for), per vertex: `value` of each sample
     /// averaged over the vertex's neighbours and projected from a large triangle's inner samples
-    /// as [`model_sky_ground`]'s values are. `value(mesh, sample, rays)`: a mesh's samples are its
-    /// vertices, then its inner samples (the index is the rays' seed).
-    fn per_vertex(&self, model: &Model, value: &(dyn Fn(usize, usize, &SampleRays) -> f32 + Sync)) -> Vec<Vec<f32>> {
-        let pack = |v: f32| -> Values { [v, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0] };
+    /// as [`model_sky_ground`]'s values are, each of its `N` channels alone (one walk of the
+    /// samples and one projection for all of them). `value(mesh, sample, rays)`: a mesh's
+    /// samples are its vertices, then its inner samples (the index is the rays' seed).
+    fn per_vertex<const N: usize>(
+        &self,
+        model: &Model,
+        value: &(dyn Fn(usize, usize, &SampleRays) -> [f32; N] + Sync),
+    ) -> Vec<Vec<[f32; N]>> {
+        const { assert!(N <= VALUES, "the projection carries at most VALUES channels") };
+        let pack = |v: &[f32; N]| -> Values { std::array::from_fn(|k| v.get(k).copied().unwrap_or(0.0)) };
         model
             .meshes
             .iter()
             .zip(&self.meshes)
             .enumerate()
             .map(|(j, (mesh, rays))| {
-                let values = parallel_map(&rays.at_vertices, 0.0, |i, r| value(j, i, r));
-                let mut out = smooth_over_neighbours(mesh, &values);
+                let values = parallel_map(&rays.at_vertices, [0.0; N], |i, r| value(j, i, r));
+                let mut out = values.clone();
+                for c in 0..N {
+                    let channel: Vec<f32> = values.iter().map(|v| v[c]).collect();
+                    out.iter_mut().zip(smooth_over_neighbours(mesh, &channel)).for_each(|(o, v)| o[c] = v);
+                }
                 if !rays.inner.is_empty() {
                     let first = rays.at_vertices.len();
-                    let inner = parallel_map(&rays.inner_rays, pack(0.0), |k, r| pack(value(j, first + k, r)));
-                    let at: Vec<Values> = values.iter().map(|&v| pack(v)).collect();
+                    let inner = parallel_map(&rays.inner_rays, pack(&[0.0; N]), |k, r| pack(&value(j, first + k, r)));
+                    let at: Vec<Values> = values.iter().map(pack).collect();
                     for (o, p) in out.iter_mut().zip(lumped_projection(mesh, self.spacing, &at, &rays.inner, &inner)) {
                         if let Some(p) = p {
-                            *o = p[0];
+                            *o = std::array::from_fn(|c| p[c]);
                         }
                     }
                 }
@@ -879,17 +889,22 @@ impl ModelRays {
             .collect()
     }
 
-    /// The light the surfaces a sample's rays meet reflect onto it, (1/N) Σ over those rays of
-    /// the surface's albedo times `light(triangle)` (its irradiance over π), N the rays cast
-    /// (cosine-distributed: the mean of the radiance they meet is the irradiance over π).
-    fn reflected(&self, r: &SampleRays, light: &dyn Fn(&HitTriangle) -> f32) -> f32 {
-        let sum: f32 = r.hits.iter().filter_map(|&h| self.triangles.get(h as usize)?.as_ref()).map(|t| t.albedo * light(t)).sum();
-        sum / self.rays.max(1) as f32
+    /// The light the surfaces a sample's rays meet reflect onto it, per channel, (1/N) Σ over
+    /// those rays of the surface's albedo times `light(triangle)` (its irradiance over π), N the
+    /// rays cast (cosine-distributed: the mean of the radiance they meet is the irradiance over
+    /// π).
+    fn reflected<const C: usize>(&self, r: &SampleRays, light: &dyn Fn(&HitTriangle) -> [f32; C]) -> [f32; C] {
+        let mut sum = [-0.0f32; C];
+        for t in r.hits.iter().filter_map(|&h| self.triangles.get(h as usize)?.as_ref()) {
+            sum.iter_mut().zip(light(t)).for_each(|(s, l)| *s += t.albedo * l);
+        }
+        sum.map(|s| s / self.rays.max(1) as f32)
     }
 
-    /// The mean of `values` (every mesh's vertices in turn) over a triangle's corners.
-    fn corner_mean(values: &[f32], t: &HitTriangle) -> f32 {
-        t.corners.iter().map(|&c| values.get(c as usize).copied().unwrap_or(0.0)).sum::<f32>() / 3.0
+    /// The mean of `values` (every mesh's vertices in turn) over a triangle's corners, per
+    /// channel.
+    fn corner_mean<const C: usize>(values: &[[f32; C]], t: &HitTriangle) -> [f32; C] {
+        std::array::from_fn(|c| t.corners.iter().map(|&k| values.get(k as usize).map_or(0.0, |v| v[c])).sum::<f32>() / 3.0)
     }
 
     /// Per mesh, per vertex: the sky's light as irradiance over π, relative to the sky's mean
@@ -939,18 +954,15 @@ impl ModelRays {
                 parallel_map(&samples, [0.0; N], |i, r| seen_at(r, i as u32))
             })
             .collect();
-        let channels: Vec<Vec<Vec<f32>>> = (0..N)
-            .map(|c| {
-                let mut out = self.per_vertex(model, &|j, i, _| seen[j][i][c]);
-                for _ in 0..bounces {
-                    let all = out.concat();
-                    out = self.per_vertex(model, &|j, i, r| seen[j][i][c] + self.reflected(r, &|t| Self::corner_mean(&all, t)));
-                }
-                out
-            })
-            .collect();
-        let meshes = channels.first().map_or(0, Vec::len);
-        (0..meshes).map(|j| (0..channels[0][j].len()).map(|i| std::array::from_fn(|c| channels[c][j][i])).collect()).collect()
+        let mut out = self.per_vertex(model, &|j, i, _| seen[j][i]);
+        for _ in 0..bounces {
+            let all = out.concat();
+            out = self.per_vertex(model, &|j, i, r| {
+                let bounced = self.reflected(r, &|t| Self::corner_mean(&all, t));
+                std::array::from_fn(|c| seen[j][i][c] + bounced[c])
+            });
+        }
+        out
     }
 
     /// Bytes held (the rays' masks and hits, the samples and the triangles' table).
@@ -1617,6 +1629,43 @@ mod tests {
     }
 
     #[test]
+    fn the_skys_channels_walked_together_are_each_channel_walked_alone() {
+        // A ball resting on a floor 4 wide (its triangles larger than the sample spacing, so
+        // inner samples are projected), grey 0.6: the floor's rays meet the ball and the ball's
+        // the floor, so the bounces carry light. Under a sky whose three channels differ by
+        // direction (model space, y up), sky_channels walks the samples once for all three; each
+        // channel is what that channel's sky alone gives, to the bit, with and without bounces.
+        let mut ball = sphere(0.5, 12, 24);
+        ball.positions.iter_mut().for_each(|p| p[1] += 0.5);
+        let floor = Mesh {
+            positions: vec![[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]],
+            normals: vec![[0.0, 1.0, 0.0]; 4],
+            uvs: vec![],
+            indices: vec![0, 1, 2, 0, 2, 3],
+            material: 0,
+        };
+        let grey = crate::scene::Material { diffuse: [0.6; 3], ..Default::default() };
+        let model = Model { meshes: vec![ball, floor], materials: vec![grey] };
+        let (_, rays) = model_light(&model, &Occluders::of_model(&model));
+        let sky = |d: Vec3| [1.0 + d.x.max(0.0), 1.0, 0.5 + 2.0 * d.z.abs()];
+        for bounces in [0, BOUNCES] {
+            let together = rays.sky_channels(&model, &sky, bounces);
+            for c in 0..3 {
+                let alone = rays.sky_with(&model, &|d| sky(d)[c], bounces);
+                for (m, mesh) in together.iter().enumerate() {
+                    let got: Vec<f32> = mesh.iter().map(|v| v[c]).collect();
+                    assert_eq!(got, alone[m], "mesh {m}, channel {c}, {bounces} bounces");
+                }
+            }
+        }
+        // The bounces carry light: the floor's vertices gain the ball's (through the inner
+        // samples under it, projected onto the corners).
+        let (direct, bounced) = (rays.sky_with(&model, &|_| 1.0, 0), rays.sky(&model, &|_| 1.0));
+        let gained = direct[1].iter().zip(&bounced[1]).map(|(a, b)| b - a).fold(0.0f32, f32::max);
+        assert!(gained > 0.01, "{gained}");
+    }
+
+    #[test]
     fn a_vertex_in_a_closed_box_gets_only_the_light_its_walls_reflect() {
         // A closed cube of albedo 0.5 (normals inwards) with a small level quad of albedo 0.8
         // floating inside, facing up: no ray of the quad passes, so it sees no sky, and the
@@ -1654,8 +1703,8 @@ mod tests {
         let sky = rays.sky(&model, &|_| 1.0);
         let brightest_wall = sky[0].iter().copied().fold(0.0, f32::max);
         assert!(sky[1].iter().all(|&v| v > 0.0 && v <= 0.5 * brightest_wall + 1e-6), "{sky:?}");
-        let lit = rays.per_vertex(&model, &|_, _, r| rays.reflected(r, &|_| 3.0));
-        for v in &lit[1] {
+        let lit = rays.per_vertex(&model, &|_, _, r| rays.reflected(r, &|_| [3.0]));
+        for [v] in &lit[1] {
             assert!((v - 1.5).abs() < 1e-4, "{:?}", lit[1]);
         }
         // The vertices' own shares agree: no ray of the quad passes the box.

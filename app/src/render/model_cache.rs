@@ -290,9 +290,10 @@ impl PreparedModel {
 
     /// [`PreparedModel::vertices_under`] for the live view: the vertices of a new turn or sky
     /// are made on a thread of their own while the set made last is returned, so that turning
-    /// the model never holds a frame (54–63 ms for the dragon in release on this 2-core machine: the ground's map does the
-    /// same on its worker). The first set, with none made before, is made here. While a set is
-    /// being made, newer turns start nothing; the next call after it is done starts the latest.
+    /// the model never holds a frame (54–63 ms for the dragon, release, on a 2-core machine: the
+    /// ground's map does the same on its worker). The first set, with none made before, is made
+    /// here. While a set is being made, newer turns start nothing; the next call after it is
+    /// done starts the latest.
     pub fn vertices_under_without_waiting(self: &Arc<Self>, placement: Mat4, radiance: &SkyRadiance, heading: f32) -> MeshVertices {
         let last = match self.held_vertices(ModelSkyKey::of(placement, radiance, heading)) {
             Some((true, v)) => return v,

@@ -894,7 +894,7 @@ impl ModelRays {
     /// rays cast (cosine-distributed: the mean of the radiance they meet is the irradiance over
     /// π).
     fn reflected<const C: usize>(&self, r: &SampleRays, light: &dyn Fn(&HitTriangle) -> [f32; C]) -> [f32; C] {
-        let mut sum = [-0.0f32; C];
+        let mut sum = [0.0f32; C];
         for t in r.hits.iter().filter_map(|&h| self.triangles.get(h as usize)?.as_ref()) {
             sum.iter_mut().zip(light(t)).for_each(|(s, l)| *s += t.albedo * l);
         }
@@ -1599,13 +1599,7 @@ mod tests {
         // 0.5), and blue towards −x, (0.5, 1, 2): each channel's E / π is the mean of its two
         // halves, (2 + 0.5) / 2 = 1.25 in red and blue, 1 in green, and each is what that
         // channel's sky alone gives (ModelRays::sky_with, walked once per sky).
-        let mesh = Mesh {
-            positions: vec![[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]],
-            normals: vec![[0.0, 1.0, 0.0]; 4],
-            uvs: vec![],
-            indices: vec![0, 1, 2, 0, 2, 3],
-            material: 0,
-        };
+        let mesh = level_quad(1.0, 0);
         let model = Model { meshes: vec![mesh], materials: vec![crate::scene::Material::default()] };
         let (_, rays) = model_light(&model, &Occluders::of_model(&model));
         let sky = |d: Vec3| {
@@ -1637,13 +1631,7 @@ mod tests {
         // channel is what that channel's sky alone gives, to the bit, with and without bounces.
         let mut ball = sphere(0.5, 12, 24);
         ball.positions.iter_mut().for_each(|p| p[1] += 0.5);
-        let floor = Mesh {
-            positions: vec![[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]],
-            normals: vec![[0.0, 1.0, 0.0]; 4],
-            uvs: vec![],
-            indices: vec![0, 1, 2, 0, 2, 3],
-            material: 0,
-        };
+        let floor = level_quad(2.0, 0);
         let grey = crate::scene::Material { diffuse: [0.6; 3], ..Default::default() };
         let model = Model { meshes: vec![ball, floor], materials: vec![grey] };
         let (_, rays) = model_light(&model, &Occluders::of_model(&model));
@@ -1686,13 +1674,7 @@ mod tests {
                 walls.indices.extend([0, 1, 2, 0, 2, 3].map(|i| first + i));
             }
         }
-        let quad = Mesh {
-            positions: vec![[-0.1, 0.0, -0.1], [-0.1, 0.0, 0.1], [0.1, 0.0, 0.1], [0.1, 0.0, -0.1]],
-            normals: vec![[0.0, 1.0, 0.0]; 4],
-            uvs: vec![],
-            indices: vec![0, 1, 2, 0, 2, 3],
-            material: 1,
-        };
+        let quad = level_quad(0.1, 1);
         let grey = |g: f32| crate::scene::Material { diffuse: [g; 3], ..Default::default() };
         let model = Model { meshes: vec![walls, quad], materials: vec![grey(0.5), grey(0.8)] };
         let (shares, rays) = model_light(&model, &Occluders::of_model(&model));
@@ -1709,6 +1691,18 @@ mod tests {
         }
         // The vertices' own shares agree: no ray of the quad passes the box.
         assert!(shares[1].iter().all(|v| v.ao[0] == 0.0 && v.ao[2] == 0.0), "{:?}", shares[1]);
+    }
+
+    /// A level square 2 `half` wide at the model's floor (y = 0, facing up: the model's up is
+    /// y), two triangles, drawn with `material`.
+    fn level_quad(half: f32, material: usize) -> Mesh {
+        Mesh {
+            positions: vec![[-half, 0.0, -half], [-half, 0.0, half], [half, 0.0, half], [half, 0.0, -half]],
+            normals: vec![[0.0, 1.0, 0.0]; 4],
+            uvs: vec![],
+            indices: vec![0, 1, 2, 0, 2, 3],
+            material,
+        }
     }
 
     /// A UV sphere of radius r at the origin with outward unit normals.

@@ -680,9 +680,7 @@ pub fn model_light(model: &Model, occluders: &Occluders) -> (Vec<Vec<VertexLight
             let light =
                 |start: Vec3, normal: Vec3, seed: u32| light_at(occluders, &ground, bounds.0.y, (start, normal), rays, seed, albedo);
             let (values, at_vertices): (Vec<Values>, Vec<SampleRays>) = per_vertex(mesh, none.clone(), light).into_iter().unzip();
-            let smooth: [Vec<f32>; VALUES] =
-                std::array::from_fn(|k| smooth_over_neighbours(mesh, &values.iter().map(|v| v[k]).collect::<Vec<_>>()));
-            let mut out: Vec<Values> = (0..values.len()).map(|i| std::array::from_fn(|k| smooth[k][i])).collect();
+            let mut out = smooth_over_neighbours(mesh, &values);
             let mut inner_rays = Vec::new();
             if !inner.is_empty() {
                 let first = mesh.positions.len() as u32;
@@ -869,11 +867,7 @@ impl ModelRays {
             .enumerate()
             .map(|(j, (mesh, rays))| {
                 let values = parallel_map(&rays.at_vertices, [0.0; N], |i, r| value(j, i, r));
-                let mut out = values.clone();
-                for c in 0..N {
-                    let channel: Vec<f32> = values.iter().map(|v| v[c]).collect();
-                    out.iter_mut().zip(smooth_over_neighbours(mesh, &channel)).for_each(|(o, v)| o[c] = v);
-                }
+                let mut out = smooth_over_neighbours(mesh, &values);
                 if !rays.inner.is_empty() {
                     let first = rays.at_vertices.len();
                     let inner = parallel_map(&rays.inner_rays, pack(&[0.0; N]), |k, r| pack(&value(j, first + k, r)));
@@ -1091,19 +1085,24 @@ pub fn standing_ground(occluders: &Occluders, bounds: (Vec3, Vec3), size: u32, r
 }
 
 /// Each vertex's value averaged with those of the vertices it shares a triangle with (each
-/// neighbour counted once per shared triangle edge, itself once per triangle).
-pub fn smooth_over_neighbours(mesh: &Mesh, values: &[f32]) -> Vec<f32> {
-    let mut sum = vec![(0.0f32, 0u32); values.len()];
+/// neighbour counted once per shared triangle edge, itself once per triangle), each of its `N`
+/// channels alone, in one walk of the triangles.
+pub fn smooth_over_neighbours<const N: usize>(mesh: &Mesh, values: &[[f32; N]]) -> Vec<[f32; N]> {
+    let mut sum = vec![([0.0f32; N], 0u32); values.len()];
     for t in mesh.indices.chunks_exact(3) {
         let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
         if a.max(b).max(c) >= values.len() {
             continue;
         }
         for (i, j, k) in [(a, b, c), (b, c, a), (c, a, b)] {
-            sum[i] = (sum[i].0 + values[i] + 0.5 * (values[j] + values[k]), sum[i].1 + 2);
+            let (s, n) = &mut sum[i];
+            for ch in 0..N {
+                s[ch] = s[ch] + values[i][ch] + 0.5 * (values[j][ch] + values[k][ch]);
+            }
+            *n += 2;
         }
     }
-    values.iter().zip(&sum).map(|(&v, &(s, n))| if n == 0 { v } else { s / n as f32 }).collect()
+    values.iter().zip(&sum).map(|(&v, &(s, n))| if n == 0 { v } else { s.map(|s| s / n as f32) }).collect()
 }
 
 /// The cosine-weighted fraction of the upper hemisphere (+`up`) that `point` sees past the
@@ -1876,14 +1875,21 @@ mod tests {
         for k in 0..6u32 {
             mesh.indices.extend([0, 1 + k, 1 + (k + 1) % 6]);
         }
-        assert!(smooth_over_neighbours(&mesh, &[0.4; 7]).iter().all(|&v| (v - 0.4).abs() < 1e-6));
-        let mut spike = [0.0; 7];
-        spike[0] = 1.0;
+        assert!(smooth_over_neighbours(&mesh, &[[0.4]; 7]).iter().all(|&[v]| (v - 0.4).abs() < 1e-6));
+        // A spike at the centre in the first channel, at a rim vertex in the second: each
+        // channel is smoothed alone.
+        let mut spike = [[0.0; 2]; 7];
+        (spike[0][0], spike[1][1]) = (1.0, 1.0);
         let s = smooth_over_neighbours(&mesh, &spike);
         // Centre: itself in 6 triangles (weight 6 of 12); a rim vertex: the centre at weight 1/2
         // in each of its 2 triangles (1 of 4).
-        assert!((s[0] - 0.5).abs() < 1e-6, "{s:?}");
-        assert!(s[1..].iter().all(|&v| (v - 0.25).abs() < 1e-6), "{s:?}");
+        assert!((s[0][0] - 0.5).abs() < 1e-6, "{s:?}");
+        assert!(s[1..].iter().all(|&[v, _]| (v - 0.25).abs() < 1e-6), "{s:?}");
+        // Rim vertex 1 in the second: itself once in each of its 2 triangles (2 of 4); the
+        // centre sees it at 1/2 in two of its 6 triangles (1 of 12), its rim neighbours at 1/2 in
+        // one of their 2 (1/2 of 4), the rest not at all.
+        assert!((s[1][1] - 0.5).abs() < 1e-6 && (s[0][1] - 1.0 / 12.0).abs() < 1e-6, "{s:?}");
+        assert!((s[2][1] - 0.125).abs() < 1e-6 && (s[6][1] - 0.125).abs() < 1e-6 && s[4][1] == 0.0, "{s:?}");
     }
 
     #[test]

@@ -86,9 +86,9 @@ impl GroundMesh {
         let c = 0.5 * (quad.min + quad.max);
         let h = (0.5 * (quad.max - quad.min)).max(Vec2::splat(1e-12));
         let mut mesh = GroundMesh::EMPTY;
-        // split_convex gives 9 vertices a ray: at most 48 rays (the 12-sided outline clipped
-        // to the quad, 16, and the hull of it and the 16-sided sky region clipped to the quad,
-        // 32): 432.
+        // split_convex gives 3 (3 n_inner + n_outer - 2) vertices: the 12-sided outline clipped
+        // to the quad has at most 16, the hull of it and the 16-sided sky region clipped to the
+        // quad at most 32: 234.
         let all = shadowed.iter().chain(sky_only).take(GROUND_VERTICES);
         for (v, p) in mesh.vertices.iter_mut().zip(all) {
             *v = ((*p - c) / h).to_array();

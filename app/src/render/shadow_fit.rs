@@ -264,38 +264,43 @@ pub fn rect_polygon(min: Vec2, max: Vec2) -> [Vec2; 4] {
 }
 
 /// The convex polygon `outer` (counter-clockwise) split into the part inside the convex polygon
-/// `inner` (counter-clockwise) and the rest, as triangle lists (three points each). Both share
-/// every edge exactly (no T-junctions), so together they cover `outer` once: a fan around the
-/// inner part's centroid, and the ring between its boundary and the outer one cut along the
-/// same rays (each ray through a vertex of either), one convex quad per sector. With no inner
-/// part, the outer polygon as a fan.
+/// `inner` (counter-clockwise) and the rest, as triangle lists (three points each, counter-clockwise).
+/// Both share every edge exactly (no T-junctions), so together they cover `outer` once: the inner
+/// part as a fan from its first vertex, and the ring around it cut along the rays from the
+/// inner part's centroid through its vertices, one convex piece per inner edge (that edge, the
+/// outer boundary between the two rays) drawn as a fan from the edge's first vertex. With no
+/// inner part, the outer polygon as a fan. Few, wide triangles: a software rasteriser shades the
+/// 4×4 blocks along every edge once per triangle that crosses them, so thin slivers cost it
+/// pixels it does not draw.
 pub fn split_convex(inner: &[Vec2], outer: &[Vec2]) -> (Vec<Vec2>, Vec<Vec2>) {
     let area = signed_area(outer).abs();
     let inner = if inner.len() >= 3 { clip_convex(inner, outer) } else { Vec::new() };
     if inner.len() < 3 || signed_area(&inner) <= 1e-9 * area {
-        let ring = (1..outer.len().saturating_sub(1)).flat_map(|i| [outer[0], outer[i], outer[i + 1]]).collect();
-        return (Vec::new(), ring);
+        return (Vec::new(), fan(outer));
     }
     let c = inner.iter().copied().sum::<Vec2>() / inner.len() as f32;
-    // Each ray's points on the inner boundary and on the outer one, in angle order.
-    let angle = |p: Vec2| (p - c).y.atan2((p - c).x);
-    let mut rays: Vec<(f32, Vec2, Vec2)> = Vec::with_capacity(inner.len() + outer.len());
-    for &p in &inner {
-        rays.push((angle(p), p, ray_exit_convex(c, p - c, outer)));
+    let exits: Vec<Vec2> = inner.iter().map(|&p| ray_exit_convex(c, p - c, outer)).collect();
+    let mut ring = Vec::with_capacity(3 * (outer.len() + 2 * inner.len()));
+    for i in 0..inner.len() {
+        let j = (i + 1) % inner.len();
+        let (a, b) = (inner[i] - c, inner[j] - c);
+        // The outer vertices strictly inside the sector from ray i to ray j, in angle order.
+        let mut between: Vec<(f32, Vec2)> = outer
+            .iter()
+            .filter(|&&o| a.perp_dot(o - c) > 0.0 && (o - c).perp_dot(b) > 0.0)
+            .map(|&o| (a.perp_dot(o - c).atan2(a.dot(o - c)), o))
+            .collect();
+        between.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let boundary: Vec<Vec2> =
+            std::iter::once(exits[i]).chain(between.into_iter().map(|(_, o)| o)).chain([exits[j], inner[j]]).collect();
+        ring.extend(boundary.windows(2).flat_map(|w| [inner[i], w[0], w[1]]));
     }
-    for &r in outer {
-        rays.push((angle(r), ray_exit_convex(c, r - c, &inner), r));
-    }
-    rays.sort_by(|a, b| a.0.total_cmp(&b.0));
-    rays.dedup_by(|b, a| (b.0 - a.0).abs() < 1e-6);
-    let (mut fan, mut ring) = (Vec::new(), Vec::new());
-    for k in 0..rays.len() {
-        let (_, p0, r0) = rays[k];
-        let (_, p1, r1) = rays[(k + 1) % rays.len()];
-        fan.extend([c, p0, p1]);
-        ring.extend([p0, r0, r1, p0, r1, p1]);
-    }
-    (fan, ring)
+    (fan(&inner), ring)
+}
+
+/// The convex polygon `poly` as a fan of triangles from its first vertex.
+fn fan(poly: &[Vec2]) -> Vec<Vec2> {
+    (1..poly.len().saturating_sub(1)).flat_map(|i| [poly[0], poly[i], poly[i + 1]]).collect()
 }
 
 /// Where the ray from `c` along `d` leaves the convex polygon `poly` (counter-clockwise, `c`
@@ -790,7 +795,11 @@ mod tests {
             let (fan, ring) = split_convex(poly, outer);
             assert!((triangles_area(&fan) - area).abs() < 1e-4, "{poly:?}: fan {}", triangles_area(&fan));
             assert!((triangles_area(&fan) + triangles_area(&ring) - total).abs() < 1e-4, "{poly:?}: ring {}", triangles_area(&ring));
-            assert!(fan.len() + ring.len() <= 9 * (poly.len() + 4 + outer.len()), "{}", fan.len() + ring.len());
+            // Counter-clockwise (or degenerate, where the inner part touches the outer boundary).
+            let ccw = |t: &[Vec2]| (t[1] - t[0]).perp_dot(t[2] - t[0]) >= -1e-6;
+            assert!(fan.chunks_exact(3).chain(ring.chunks_exact(3)).all(ccw), "{poly:?}: a clockwise triangle");
+            let inner_max = poly.len() + outer.len();
+            assert!(fan.len() + ring.len() <= 3 * (3 * inner_max + outer.len()), "{}", fan.len() + ring.len());
             // Every point of a grid (none on an edge by construction of the odd offsets) lies
             // in exactly one triangle of the two lists, or in none outside the outer polygon.
             for i in 0..40 {

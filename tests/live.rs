@@ -151,6 +151,16 @@ fn headless_cli_writes_frames_and_rejects_bad_flags() {
     for pass in ["total_ms", "background_ms", "model_ms", "ground_ms"] {
         assert!(v["profile"][pass].as_f64().is_some_and(|ms| ms > 0.0), "{pass}: {v}");
     }
+    // What they drew (lavapipe's pipeline statistics): the background's one triangle shades
+    // each of the 96×64 pixels once (in 4×4 blocks: fewer than twice as many), the model and
+    // the ground something.
+    let counts = &v["profile"]["counts"];
+    let fragments = |pass: &str| counts[pass]["fragments"].as_u64().unwrap_or_else(|| panic!("no {pass} count in {v}"));
+    assert!((96 * 64..2 * 96 * 64).contains(&fragments("background")), "{counts}");
+    // Its one triangle reaches past the screen; clipping cuts it into a few.
+    assert!(counts["background"]["triangles"].as_u64().is_some_and(|t| (1..=4).contains(&t)), "{counts}");
+    assert!(fragments("model") > 0 && fragments("ground") > 0, "{counts}");
+    assert!(table.contains("the profile's passes drew"), "{table}");
 
     let bad = tempdir("live", "bad");
     // -o creates a missing folder, but not over a file.

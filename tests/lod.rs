@@ -538,7 +538,8 @@ fn fxaa_brings_the_silhouette_towards_4x_msaa() {
 }
 
 /// `previz bench frame --json` carries the per-pass profile beside the rows: each main path
-/// with its passes' GPU time by name (null where a pass did not run: the floor draws no model).
+/// with its passes' GPU time by name and what they drew (null where a pass did not run: the
+/// floor draws no model).
 #[test]
 fn bench_frame_json_carries_the_per_pass_profile() {
     let v = bench_frame_json("bench-frame-json", (1, 0));
@@ -550,6 +551,21 @@ fn bench_frame_json_carries_the_per_pass_profile() {
     for pass in ["total_ms", "background_ms", "model_ms"] {
         assert!(default[pass].as_f64().is_some_and(|ms| ms > 0.0), "{pass}: {default}");
     }
+    // What the passes drew (lavapipe has pipeline-statistics queries; it counts 16 fragments
+    // for each 4×4 block a triangle covers part of). The floor's one triangle shades each of
+    // the 96×64 pixels once: at least that many, and fewer than twice as many.
+    let count = |row: &serde_json::Value, key: &str| row[key].as_u64().unwrap_or_else(|| panic!("no {key} in {row}"));
+    let pixels = 96 * 64;
+    assert!((pixels..2 * pixels).contains(&count(floor, "background_fragments")), "{floor}");
+    assert!(floor["model_fragments"].is_null() && floor["model_triangles"].is_null(), "{floor}");
+    // The icosphere has 320 triangles (its .obj's faces): all of them at full detail (the
+    // sphere is in view, and back faces are culled after clipping); fewer in the frame, whose
+    // split leaves out most of those facing away. A quarter of the fill draws under half the
+    // fragments.
+    let (full, quarter) = (path(previz::bench::frame::REFERENCE), path(previz::bench::frame::QUARTER));
+    assert_eq!(count(full, "model_triangles"), 320, "{full}");
+    assert!((1..320).contains(&count(default, "model_triangles")), "{default}");
+    assert!(2 * count(quarter, "model_fragments") < count(default, "model_fragments"), "{quarter} {default}");
 }
 
 /// `previz bench frame` measures each path as a user of it has it: a compositor keeps its shadow

@@ -300,6 +300,14 @@ pub struct PassRow {
     pub model_ms: f64,
     pub ground_ms: f64,
     pub fxaa_ms: f64,
+    /// Fragment-shader invocations of each composite pass and the model pass's triangles out of
+    /// clipping, medians (gpu::PassCounter: on lavapipe 16 for each 4×4 block a triangle
+    /// touches; they do not swing with the machine's load). None: no pipeline-statistics
+    /// queries, or the pass did not run.
+    pub background_fragments: Option<u64>,
+    pub model_fragments: Option<u64>,
+    pub ground_fragments: Option<u64>,
+    pub model_triangles: Option<u64>,
 }
 
 /// The profile of [`run`]'s main paths: the floor, the default frame (its shadow map kept and
@@ -338,6 +346,7 @@ pub fn profile(
     progress.set_length(((frames + warmup) * paths.len()) as u64);
     progress.set_position(0);
     let mut samples = vec![Vec::new(); paths.len()];
+    let mut counts = vec![Vec::new(); paths.len()];
     for i in 0..frames + warmup {
         for (k, &(_, layer, params, full, motion)) in paths.iter().enumerate() {
             let c = &mut compositors[k];
@@ -348,17 +357,23 @@ pub fn profile(
             let r = c.render(gpu, &p, layer)?;
             if i >= warmup {
                 samples[k].push(r.timings.passes.ok_or_else(|| anyhow!("no GPU timestamps on this adapter: nothing to profile"))?);
+                counts[k].extend(r.timings.counts);
             }
             progress.inc(1);
         }
     }
     Ok(paths
         .iter()
-        .zip(samples)
-        .map(|(&(name, ..), s)| {
+        .zip(samples.iter().zip(&counts))
+        .map(|(&(name, ..), (s, c))| {
             let of = |f: fn(&crate::render::PassTimes) -> Option<f64>| {
                 let v: Vec<f64> = s.iter().filter_map(f).collect();
                 median(&v)
+            };
+            let count = |f: fn(&crate::render::PassCounts) -> Option<u64>| {
+                let mut v: Vec<u64> = c.iter().filter_map(f).collect();
+                v.sort_unstable();
+                v.get(v.len() / 2).copied()
             };
             PassRow {
                 path: name.into(),
@@ -370,6 +385,10 @@ pub fn profile(
                 model_ms: of(|p| p.model),
                 ground_ms: of(|p| p.ground),
                 fxaa_ms: of(|p| p.fxaa),
+                background_fragments: count(|c| c.background.map(|p| p.fragments)),
+                model_fragments: count(|c| c.model.map(|p| p.fragments)),
+                ground_fragments: count(|c| c.ground.map(|p| p.fragments)),
+                model_triangles: count(|c| c.model.map(|p| p.triangles)),
             }
         })
         .collect())
@@ -378,12 +397,13 @@ pub fn profile(
 /// The profile as a markdown table.
 pub fn profile_markdown(rows: &[PassRow]) -> String {
     let mut s = String::from(
-        "| path (each pass timed alone) | sum GPU ms | shadow | of which vertex sun | background | model | ground | FXAA |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| path (each pass timed alone) | sum GPU ms | shadow | of which vertex sun | background | model | ground | FXAA | fragments: background / model / ground | model triangles |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     let num = |v: f64| if v.is_nan() { "–".to_string() } else { format!("{v:.3}") };
+    let count = |v: Option<u64>| v.map_or("–".to_string(), |v| v.to_string());
     for r in rows {
         s += &format!(
-            "| {} | {:.3} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {:.3} | {} | {} | {} | {} | {} | {} | {} / {} / {} | {} |\n",
             r.path,
             r.total_ms,
             num(r.shadow_ms),
@@ -391,7 +411,11 @@ pub fn profile_markdown(rows: &[PassRow]) -> String {
             num(r.background_ms),
             num(r.model_ms),
             num(r.ground_ms),
-            num(r.fxaa_ms)
+            num(r.fxaa_ms),
+            count(r.background_fragments),
+            count(r.model_fragments),
+            count(r.ground_fragments),
+            count(r.model_triangles)
         );
     }
     s

@@ -63,14 +63,7 @@ pub struct StageRow {
 /// 30 frames per second) and time each stage of the measured ones. The session folds the camera
 /// frame into its environment as the app does before a capture; the fold's row is over the
 /// frames that refreshed it (`live::FOLD_REFRESH_DEG`, `live::FOLD_REFRESH_S`).
-pub fn run(
-    gpu: &Gpu,
-    scene: &Scene,
-    inputs: Inputs,
-    frames: usize,
-    warmup: usize,
-    progress: &indicatif::ProgressBar,
-) -> Result<Vec<StageRow>> {
+pub fn run(gpu: &Gpu, scene: &Scene, inputs: Inputs, frames: usize, warmup: usize, progress: &indicatif::ProgressBar) -> Result<LiveBench> {
     let cfg = LiveConfig {
         lat_deg: 51.4545,
         lon_deg: -2.5879,
@@ -108,9 +101,11 @@ pub fn run(
     // The profile: the same session going on, each pass timed alone.
     session.set_pass_timing(true);
     progress.set_length((2 * frames + warmup) as u64);
+    let mut counts = Vec::new();
     for _ in 0..frames {
         session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
         let r = session.render(gpu)?;
+        counts.extend(r.timings.counts);
         if let Some(p) = r.timings.passes {
             for (v, x) in samples[PROFILE..].iter_mut().zip([Some(p.total()), p.shadow, p.background, p.model, p.ground]) {
                 v.extend(x);
@@ -143,7 +138,20 @@ pub fn run(
         samples[SKY].push(r.timings.encode_ms);
         progress.inc(1);
     }
-    Ok(STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect())
+    // The profile's frame whose model pass drew the median count of fragments.
+    counts.sort_by_key(|c: &crate::render::PassCounts| c.model.map(|m| m.fragments));
+    let counts = counts.get(counts.len() / 2).copied();
+    let stages =
+        STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect();
+    Ok(LiveBench { stages, counts })
+}
+
+/// What [`run`] measured: each stage, and what the profile's passes drew (its frame with the
+/// median count of the model's fragments; None without pipeline-statistics queries).
+#[derive(Clone, Debug)]
+pub struct LiveBench {
+    pub stages: Vec<StageRow>,
+    pub counts: Option<crate::render::PassCounts>,
 }
 
 /// The compositor's median GPU time over the floor's (issue 11's goal: at most 1.5).
@@ -152,8 +160,10 @@ pub fn floor_ratio(rows: &[StageRow]) -> f64 {
 }
 
 /// The rows as JSON (`previz bench live --json`): the stages, the compositor's ratio to the
-/// floor, and the profile's passes by name (GPU medians, ms; null: the pass did not run).
-pub fn json(rows: &[StageRow]) -> serde_json::Value {
+/// floor, and the profile's passes by name (GPU medians, ms; null: the pass did not run), with
+/// what they drew (`counts`: each pass's `triangles` and `fragments`, gpu::PassCounter).
+pub fn json(bench: &LiveBench) -> serde_json::Value {
+    let rows = &bench.stages;
     let ms = |k: usize| rows.get(k).map(|r| r.median_ms).filter(|v| v.is_finite());
     serde_json::json!({
         "stages": rows,
@@ -164,17 +174,30 @@ pub fn json(rows: &[StageRow]) -> serde_json::Value {
             "background_ms": ms(PROFILE + 2),
             "model_ms": ms(PROFILE + 3),
             "ground_ms": ms(PROFILE + 4),
+            "counts": bench.counts,
         },
     })
 }
 
-/// The rows as a markdown table, then the compositor's ratio to the floor.
-pub fn markdown(rows: &[StageRow]) -> String {
+/// The rows as a markdown table, then the compositor's ratio to the floor and what the
+/// profile's passes drew.
+pub fn markdown(bench: &LiveBench) -> String {
     let mut s = String::from("| stage | median ms | p95 ms |\n|---|---:|---:|\n");
-    for r in rows {
+    for r in &bench.stages {
         s += &format!("| {} | {:.3} | {:.3} |\n", r.stage, r.median_ms, r.p95_ms);
     }
-    let ratio = floor_ratio(rows);
+    let ratio = floor_ratio(&bench.stages);
     s += &format!("\ncompositor / floor (GPU medians): {ratio:.2}x (goal <= 1.5x: {})\n", if ratio <= 1.5 { "met" } else { "not met" });
+    if let Some(c) = bench.counts {
+        let pass = |p: Option<crate::gpu::PassCount>| {
+            p.map_or("–".to_string(), |p| format!("{} triangles, {} fragments", p.triangles, p.fragments))
+        };
+        s += &format!(
+            "the profile's passes drew (fragment-shader invocations as the driver counts them; lavapipe: 16 for each 4×4 block a triangle touches): background {}; model {}; ground {}\n",
+            pass(c.background),
+            pass(c.model),
+            pass(c.ground)
+        );
+    }
     s
 }

@@ -106,8 +106,10 @@ pub struct LiveArgs {
     pub warmup: usize,
     /// Print the stages as JSON instead of a table: {"stages": [{stage, median_ms, p95_ms}],
     /// "compositor_over_floor", "profile": {"total_ms", "shadow_ms", "background_ms",
-    /// "model_ms", "ground_ms"}} (the profile: GPU medians with each pass timed alone; null
-    /// for a pass that did not run).
+    /// "model_ms", "ground_ms", "counts": {"background", "model", "ground": {"triangles",
+    /// "fragments"}}}} (the profile: GPU medians with each pass timed alone; null for a pass
+    /// that did not run; counts: what the passes drew, from pipeline-statistics queries, null
+    /// without them).
     #[arg(long)]
     pub json: bool,
 }
@@ -127,8 +129,10 @@ pub struct FrameArgs {
     #[arg(long)]
     pub csv: Option<PathBuf>,
     /// Print the rows as JSON instead of a table: {"rows": [...], "profile": [{path, frames,
-    /// total_ms, shadow_ms, background_ms, model_ms, ground_ms, fxaa_ms}]} (the profile: GPU
-    /// medians of each pass timed alone; null for a pass that did not run).
+    /// total_ms, shadow_ms, background_ms, model_ms, ground_ms, fxaa_ms, background_fragments,
+    /// model_fragments, ground_fragments, model_triangles}]} (the profile: GPU medians of each
+    /// pass timed alone and of what it drew, from pipeline-statistics queries; null for a pass
+    /// that did not run or without the queries).
     #[arg(long)]
     pub json: bool,
 }
@@ -221,10 +225,10 @@ fn run_frame(a: FrameArgs) -> Result<()> {
 fn run_live(a: LiveArgs) -> Result<()> {
     let Bench { scene, inputs, gpu, bar } = Bench::set_up(&a.scene, a.frames)?;
     let triangles = inputs.model.triangle_count();
-    let rows = live::run(&gpu, &scene, inputs, a.frames, a.warmup, &bar)?;
+    let bench = live::run(&gpu, &scene, inputs, a.frames, a.warmup, &bar)?;
     bar.finish_and_clear();
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&live::json(&rows))?);
+        println!("{}", serde_json::to_string_pretty(&live::json(&bench))?);
         return Ok(());
     }
     println!(
@@ -235,7 +239,7 @@ fn run_live(a: LiveArgs) -> Result<()> {
         a.frames,
         a.warmup
     );
-    print!("{}", live::markdown(&rows));
+    print!("{}", live::markdown(&bench));
     Ok(())
 }
 

@@ -1,12 +1,14 @@
 //! The bottom layer: the wgpu device, validation-error scopes, buffer readback, the timestamp
-//! timer and small builders, in the spirit of `wgpu::util::DeviceExt`. Nothing here knows about
+//! timer, the passes' pipeline-statistics counter and small builders, in the spirit of `wgpu::util::DeviceExt`. Nothing here knows about
 //! passes or scenes; `render`, `colour`, `priors`, `capture` and `ui` build on it.
 
 pub mod build;
+pub mod counter;
 pub mod readback;
 pub mod timer;
 pub mod wgsl;
 
+pub use counter::{PassCount, PassCounter};
 pub use readback::{Readback, padded_row_bytes, read_buffer};
 pub use timer::GpuTimer;
 
@@ -29,6 +31,8 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     /// Whether GPU timestamp queries are available (timings in `--json` and `previz bench`).
     pub timestamps: bool,
+    /// Whether pipeline-statistics queries are available (the passes' counts in `previz bench`).
+    pub pipeline_statistics: bool,
     /// Per-device state built once and shared (pipelines), by type; see [`Gpu::shared`].
     shared: Mutex<HashMap<TypeId, Arc<dyn Any + Send + Sync>>>,
     /// GPU errors that escaped every [`Gpu::checked`] scope (printed to stderr).
@@ -70,7 +74,8 @@ impl Gpu {
         }))
         .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let required_features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let required_features = adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::PIPELINE_STATISTICS_QUERY);
+        let pipeline_statistics = required_features.contains(wgpu::Features::PIPELINE_STATISTICS_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("previz"),
             required_features,
@@ -86,7 +91,7 @@ impl Gpu {
             count.fetch_add(1, Ordering::Relaxed);
             eprintln!("GPU error: {e}");
         }));
-        Ok(Gpu { instance, adapter, device, queue, timestamps, shared: Mutex::new(HashMap::new()), uncaptured })
+        Ok(Gpu { instance, adapter, device, queue, timestamps, pipeline_statistics, shared: Mutex::new(HashMap::new()), uncaptured })
     }
 
     /// How many GPU errors escaped every [`Gpu::checked`] scope so far (each was printed to

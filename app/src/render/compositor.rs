@@ -24,7 +24,7 @@ use super::shadow_fit::{self, ShadowDrawn};
 use super::supersample;
 use super::targets::Targets;
 use super::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms};
-use crate::gpu::{Gpu, GpuTimer, build};
+use crate::gpu::{Gpu, GpuTimer, PassCount, PassCounter, build};
 use crate::scene::environment::Equirect;
 use crate::scene::{CubeMap, Model, Rgba8Image, occlusion};
 use anyhow::{Result, anyhow};
@@ -62,6 +62,18 @@ pub struct Timings {
     /// GPU: each pass alone, with pass timing on ([`Compositor::set_pass_timing`]; None
     /// otherwise or without timestamp queries).
     pub passes: Option<PassTimes>,
+    /// What each composite pass drew, with pass timing on (None otherwise or without
+    /// pipeline-statistics queries).
+    pub counts: Option<PassCounts>,
+}
+
+/// What each of the composite's passes drew in one frame ([`crate::gpu::PassCounter`]; None: the
+/// pass did not run). The ground's count leaves out its ground-sun pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PassCounts {
+    pub background: Option<PassCount>,
+    pub model: Option<PassCount>,
+    pub ground: Option<PassCount>,
 }
 
 /// GPU milliseconds of each pass of one frame (None: the pass did not run). With pass timing on
@@ -145,6 +157,8 @@ pub struct Compositor {
     model: Option<ModelGpu>,
     /// Slot 0: from the first pass's start to the composite pass's end.
     timer: Option<GpuTimer>,
+    /// The composite's steps' counts with pass timing on (slot: the step).
+    counter: Option<PassCounter>,
     /// Which level of detail it draws: a frame's, a still's or level 0.
     detail: Detail,
     /// Draw the shadow into the largest map whatever the screen allows (a full-shadow reference).
@@ -296,6 +310,7 @@ impl Compositor {
             environment_writes: 0,
             model: None,
             timer: GpuTimer::new(gpu, TIMER_SLOTS),
+            counter: PassCounter::new(gpu, 3),
             pipelines,
             detail: Detail::Frame,
             full_shadow: false,
@@ -725,6 +740,12 @@ impl Compositor {
         if let Some(timer) = &self.timer {
             timer.resolve(&mut encoder, TIMER_SLOTS);
         }
+        let steps = self.composite_steps(layer);
+        let counted: Vec<u32> = (0..3).filter(|&i| steps[i as usize]).collect();
+        let counter = self.counter.as_ref().filter(|_| self.pass_timing);
+        if let Some(counter) = counter {
+            counter.resolve(&mut encoder, &counted);
+        }
         let encode_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();
         gpu.queue.submit([encoder.finish()]);
@@ -773,8 +794,16 @@ impl Compositor {
             }
             None => (None, None, None),
         };
+        let counts = match counter {
+            Some(counter) => {
+                let c = counter.read(gpu)?;
+                let ran = |step: usize| steps[step].then_some(c[step]);
+                Some(PassCounts { background: ran(0), model: ran(1), ground: ran(2) })
+            }
+            None => None,
+        };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
-        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms, passes };
+        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms, passes, counts };
         Ok(Rendered { width: self.width / k, height: self.height / k, rgba, timings })
     }
 
@@ -1016,7 +1045,10 @@ impl Compositor {
                 let last = k + 1 == run.len();
                 let timestamps = self.timer.as_ref().and_then(|t| t.render_pass(slots[step], true, true));
                 let mut pass = self.targets.begin_composite_part(encoder, (k == 0).then_some(clear), last, timestamps);
-                draw_step(&mut pass, step)?;
+                match &self.counter {
+                    Some(counter) => counter.count(&mut pass, step as u32, |pass| draw_step(pass, step))?,
+                    None => draw_step(&mut pass, step)?,
+                }
             }
         } else {
             let mut pass = self.targets.begin_composite(encoder, clear, stamp(first, self.fxaa.is_none()));

@@ -20,7 +20,7 @@ pub mod uniforms;
 pub mod view;
 
 pub use antialiasing::Antialiasing;
-pub use compositor::{Compositor, PassTimes, PassesRun, Rendered, Timings};
+pub use compositor::{Compositor, PassCounts, PassTimes, PassesRun, Rendered, Timings};
 pub use frame::{Detail, FrameData};
 pub use method::LightingMethod;
 pub use params::{Camera, ColourSettings, FrameParams, HemispherePriors, Layer, Lighting, MaterialTerms};

@@ -1,7 +1,7 @@
 //! What a render pass drew, from pipeline-statistics queries: the triangles that left clipping
 //! and the fragment-shader invocations, as the driver counts them. Lavapipe counts 16
-//! invocations for every 4×4 block a triangle touches, whatever its coverage or depth test (a
-//! full 960×640 triangle: 619,520), which is the work its rasteriser does; other drivers count
+//! invocations for every 4×4 block a triangle covers part of, before the depth test (a full
+//! 960×640 triangle: 619,520), which is the work its rasteriser does; other drivers count
 //! their own way. Unlike timestamps, the counts do not swing with the machine's load, so two
 //! builds' passes can be compared on a busy machine.
 

@@ -302,7 +302,7 @@ pub struct PassRow {
     pub fxaa_ms: f64,
     /// Fragment-shader invocations of each composite pass and the model pass's triangles out of
     /// clipping, medians (gpu::PassCounter: on lavapipe 16 for each 4×4 block a triangle
-    /// touches; they do not swing with the machine's load). None: no pipeline-statistics
+    /// covers part of; they do not swing with the machine's load). None: no pipeline-statistics
     /// queries, or the pass did not run.
     pub background_fragments: Option<u64>,
     pub model_fragments: Option<u64>,

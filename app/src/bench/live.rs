@@ -193,7 +193,7 @@ pub fn markdown(bench: &LiveBench) -> String {
             p.map_or("–".to_string(), |p| format!("{} triangles, {} fragments", p.triangles, p.fragments))
         };
         s += &format!(
-            "the profile's passes drew (fragment-shader invocations as the driver counts them; lavapipe: 16 for each 4×4 block a triangle touches): background {}; model {}; ground {}\n",
+            "the profile's passes drew (fragment-shader invocations as the driver counts them; lavapipe: 16 for each 4×4 block a triangle covers part of): background {}; model {}; ground {}\n",
             pass(c.background),
             pass(c.model),
             pass(c.ground)

@@ -6,6 +6,7 @@
 //! builds' passes can be compared on a busy machine.
 
 use super::Gpu;
+use super::readback::QueryResults;
 use anyhow::Result;
 
 /// The pipeline statistics each slot records, in the order the query writes them.
@@ -24,11 +25,12 @@ pub struct PassCount {
 
 /// Pipeline-statistics queries for up to `capacity` render passes, one slot each.
 pub struct PassCounter {
-    query_set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    readback: wgpu::Buffer,
+    queries: QueryResults,
     capacity: u32,
 }
+
+/// Bytes between two slots' results in the resolve buffer (each resolve's offset is aligned).
+const STRIDE: u64 = wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
 
 impl PassCounter {
     /// `None` when the device has no pipeline-statistics queries (or `capacity` is 0).
@@ -36,16 +38,9 @@ impl PassCounter {
         if !gpu.pipeline_statistics || capacity == 0 {
             return None;
         }
-        let query_set = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some("pass counter"),
-            ty: wgpu::QueryType::PipelineStatistics(STATISTICS),
-            count: capacity,
-        });
-        let size = u64::from(capacity) * wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
-        use wgpu::BufferUsages as U;
-        let resolve = super::build::buffer(&gpu.device, "pass counter resolve", size, U::QUERY_RESOLVE | U::COPY_SRC);
-        let readback = super::build::buffer(&gpu.device, "pass counter readback", size, U::MAP_READ | U::COPY_DST);
-        Some(PassCounter { query_set, resolve, readback, capacity })
+        let ty = wgpu::QueryType::PipelineStatistics(STATISTICS);
+        let queries = QueryResults::new(gpu, "pass counter", ty, capacity, u64::from(capacity) * STRIDE);
+        Some(PassCounter { queries, capacity })
     }
 
     /// Count what `draw` records into `pass` in `slot` (uncounted beyond the capacity).
@@ -53,7 +48,7 @@ impl PassCounter {
         if slot >= self.capacity {
             return draw(pass);
         }
-        pass.begin_pipeline_statistics_query(&self.query_set, slot);
+        pass.begin_pipeline_statistics_query(&self.queries.query_set, slot);
         let drawn = draw(pass);
         pass.end_pipeline_statistics_query();
         drawn
@@ -62,20 +57,17 @@ impl PassCounter {
     /// Record the resolve of `slots` (after the passes, before submit): those counted in this
     /// submission, each into its own place.
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder, slots: &[u32]) {
-        const STRIDE: u64 = wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
         for &slot in slots.iter().filter(|&&s| s < self.capacity) {
-            encoder.resolve_query_set(&self.query_set, slot..slot + 1, &self.resolve, u64::from(slot) * STRIDE);
+            self.queries.resolve(encoder, slot..slot + 1, u64::from(slot) * STRIDE);
         }
-        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, self.resolve.size());
+        self.queries.copy_out(encoder, u64::from(self.capacity) * STRIDE);
     }
 
     /// The count of each slot (after the submission completed; what a slot not resolved in it
     /// holds is stale).
     pub fn read(&self, gpu: &Gpu) -> Result<Vec<PassCount>> {
-        let bytes = super::read_buffer(gpu, &self.readback)?;
-        let values: &[u64] = bytemuck::cast_slice(&bytes);
-        let stride = (wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT / 8) as usize;
-        Ok(values.chunks_exact(stride).map(|v| PassCount { triangles: v[0], fragments: v[1] }).collect())
+        let values = self.queries.read(gpu)?;
+        Ok(values.chunks_exact((STRIDE / 8) as usize).map(|v| PassCount { triangles: v[0], fragments: v[1] }).collect())
     }
 }
 

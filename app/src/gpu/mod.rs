@@ -1,6 +1,7 @@
 //! The bottom layer: the wgpu device, validation-error scopes, buffer readback, the timestamp
-//! timer, the passes' pipeline-statistics counter and small builders, in the spirit of `wgpu::util::DeviceExt`. Nothing here knows about
-//! passes or scenes; `render`, `colour`, `priors`, `capture` and `ui` build on it.
+//! timer, the passes' pipeline-statistics counter and small builders, in the spirit of
+//! `wgpu::util::DeviceExt`. Nothing here knows about passes or scenes; `render`, `colour`,
+//! `priors`, `capture` and `ui` build on it.
 
 pub mod build;
 pub mod counter;
@@ -73,8 +74,8 @@ impl Gpu {
             apply_limit_buckets: false,
         }))
         .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
-        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let required_features = adapter.features() & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::PIPELINE_STATISTICS_QUERY);
+        let timestamps = required_features.contains(wgpu::Features::TIMESTAMP_QUERY);
         let pipeline_statistics = required_features.contains(wgpu::Features::PIPELINE_STATISTICS_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("previz"),

@@ -1,5 +1,5 @@
-//! Reading GPU memory back: whole buffers, and textures through a buffer whose rows are padded
-//! to wgpu's copy alignment ([`padded_row_bytes`]) and unpadded on the way out.
+//! Reading GPU memory back: whole buffers, query results, and textures through a buffer whose
+//! rows are padded to wgpu's copy alignment ([`padded_row_bytes`]) and unpadded on the way out.
 
 use super::Gpu;
 use anyhow::{Context, Result, bail};
@@ -23,6 +23,41 @@ pub fn read_buffer(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
     let data = slice.get_mapped_range().context("cannot read a mapped GPU buffer")?.to_vec();
     buffer.unmap();
     Ok(data)
+}
+
+/// A query set with the buffer its results are resolved into and the one they are read back
+/// from (the timestamp timer's and the pass counter's).
+pub struct QueryResults {
+    pub query_set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+impl QueryResults {
+    /// `count` queries of type `ty`, their results `bytes` long once resolved.
+    pub fn new(gpu: &Gpu, label: &str, ty: wgpu::QueryType, count: u32, bytes: u64) -> QueryResults {
+        let query_set = gpu.device.create_query_set(&wgpu::QuerySetDescriptor { label: Some(label), ty, count });
+        use wgpu::BufferUsages as U;
+        let resolve = super::build::buffer(&gpu.device, &format!("{label} resolve"), bytes, U::QUERY_RESOLVE | U::COPY_SRC);
+        let readback = super::build::buffer(&gpu.device, &format!("{label} readback"), bytes, U::MAP_READ | U::COPY_DST);
+        QueryResults { query_set, resolve, readback }
+    }
+
+    /// Record the resolve of `queries` to `offset` of the resolve buffer.
+    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder, queries: std::ops::Range<u32>, offset: u64) {
+        encoder.resolve_query_set(&self.query_set, queries, &self.resolve, offset);
+    }
+
+    /// Record the copy of the resolve buffer's first `bytes` to the readback buffer (after the
+    /// resolves).
+    pub fn copy_out(&self, encoder: &mut wgpu::CommandEncoder, bytes: u64) {
+        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, bytes);
+    }
+
+    /// The readback buffer's results as 64-bit values (after the submission completed).
+    pub fn read(&self, gpu: &Gpu) -> Result<Vec<u64>> {
+        Ok(bytemuck::cast_slice(&read_buffer(gpu, &self.readback)?).to_vec())
+    }
 }
 
 /// A buffer that receives every array layer of a texture's first mip level and returns its

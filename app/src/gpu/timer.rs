@@ -2,13 +2,12 @@
 //! several passes: the first writes its begin, the last its end.
 
 use super::Gpu;
+use super::readback::QueryResults;
 use anyhow::Result;
 
 /// Pairs of GPU timestamps (begin, end) for up to `capacity` slots.
 pub struct GpuTimer {
-    query_set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    readback: wgpu::Buffer,
+    queries: QueryResults,
     capacity: u32,
 }
 
@@ -19,13 +18,8 @@ impl GpuTimer {
             return None;
         }
         let count = capacity * 2;
-        let query_set =
-            gpu.device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("timer"), ty: wgpu::QueryType::Timestamp, count });
-        let size = u64::from(count) * 8;
-        use wgpu::BufferUsages as U;
-        let resolve = super::build::buffer(&gpu.device, "timer resolve", size, U::QUERY_RESOLVE | U::COPY_SRC);
-        let readback = super::build::buffer(&gpu.device, "timer readback", size, U::MAP_READ | U::COPY_DST);
-        Some(GpuTimer { query_set, resolve, readback, capacity })
+        let queries = QueryResults::new(gpu, "timer", wgpu::QueryType::Timestamp, count, u64::from(count) * 8);
+        Some(GpuTimer { queries, capacity })
     }
 
     fn indices(&self, slot: u32, begin: bool, end: bool) -> Option<(Option<u32>, Option<u32>)> {
@@ -35,7 +29,7 @@ impl GpuTimer {
     /// Timestamp writes for a render pass: the begin and/or end of `slot`.
     pub fn render_pass(&self, slot: u32, begin: bool, end: bool) -> Option<wgpu::RenderPassTimestampWrites<'_>> {
         self.indices(slot, begin, end).map(|(b, e)| wgpu::RenderPassTimestampWrites {
-            query_set: &self.query_set,
+            query_set: &self.queries.query_set,
             beginning_of_pass_write_index: b,
             end_of_pass_write_index: e,
         })
@@ -44,7 +38,7 @@ impl GpuTimer {
     /// Timestamp writes for a compute pass: the begin and/or end of `slot`.
     pub fn compute_pass(&self, slot: u32, begin: bool, end: bool) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
         self.indices(slot, begin, end).map(|(b, e)| wgpu::ComputePassTimestampWrites {
-            query_set: &self.query_set,
+            query_set: &self.queries.query_set,
             beginning_of_pass_write_index: b,
             end_of_pass_write_index: e,
         })
@@ -54,8 +48,8 @@ impl GpuTimer {
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder, used: u32) {
         let used = used.min(self.capacity);
         if used > 0 {
-            encoder.resolve_query_set(&self.query_set, 0..used * 2, &self.resolve, 0);
-            encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, u64::from(used) * 16);
+            self.queries.resolve(encoder, 0..used * 2, 0);
+            self.queries.copy_out(encoder, u64::from(used) * 16);
         }
     }
 
@@ -68,8 +62,7 @@ impl GpuTimer {
     /// The raw timestamps (slot i's begin at 2i, its end at 2i + 1) and nanoseconds per tick, for
     /// spans between the ends of consecutive passes (after the submission completed).
     pub fn read_ticks(&self, gpu: &Gpu) -> Result<(Vec<u64>, f64)> {
-        let bytes = super::read_buffer(gpu, &self.readback)?;
-        Ok((bytemuck::cast_slice(&bytes).to_vec(), f64::from(gpu.queue.get_timestamp_period())))
+        Ok((self.queries.read(gpu)?, f64::from(gpu.queue.get_timestamp_period())))
     }
 }
 

@@ -42,6 +42,7 @@ fn frames_allocate_no_gpu_resources_and_reuse_pipelines() {
     placements_write_the_ground_sky_once_each(&mut compositor, &start);
     lod_switches_allocate_nothing();
     antialiased_frames_allocate_nothing();
+    reprojected_frames_allocate_nothing();
     a_second_composite_reuses_the_pipelines();
 }
 
@@ -95,6 +96,35 @@ fn antialiased_frames_allocate_nothing() {
             compositor.render(gpu(), &params, Layer::Composite).unwrap();
         }
         assert_unchanged(&before, &settled_counters(), &FRAME_RESOURCES, &format!("frames with {}", aa.name()));
+    }
+}
+
+/// Called from the one test: the live view's reprojection (render::reprojection) allocates its
+/// layers when it is turned on; frames that compose them through a turn and frames that shade
+/// them again (a new placement) allocate nothing, one sample a pixel (packed) or four.
+fn reprojected_frames_allocate_nothing() {
+    let s = scene("width = 160\nheight = 120\n");
+    let background = previz::scene::Rgba8Image { width: 160, height: 120, pixels: vec![128; 4 * 160 * 120] };
+    let inputs = Inputs {
+        model: triangle(),
+        env: CubeMap { size: 4, faces: std::array::from_fn(|_| vec![[0.5; 3]; 16]) },
+        env_equirect: None,
+        background: Some(background),
+    };
+    for aa in [Antialiasing::Msaa(1), Antialiasing::Msaa(4)] {
+        let (mut compositor, mut params) = previz::setup::prepare_reprojected(gpu(), &s, &inputs, aa).unwrap();
+        compositor.render(gpu(), &params, Layer::Composite).unwrap();
+        let before = settled_counters();
+        for i in 0..6 {
+            params.camera.pose *= glam::Quat::from_rotation_y(0.01 * i as f32);
+            if i == 3 {
+                params.placement.rotation.z += 0.2;
+            }
+            compositor.render(gpu(), &params, Layer::Composite).unwrap();
+        }
+        let (reprojected, shaded) = compositor.reprojection_counts();
+        assert!(reprojected >= 4 && shaded >= 2, "{reprojected} reprojected, {shaded} shaded");
+        assert_unchanged(&before, &settled_counters(), &FRAME_RESOURCES, &format!("reprojected frames, {}", aa.name()));
     }
 }
 

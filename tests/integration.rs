@@ -33,6 +33,7 @@ mod live;
 mod loaders;
 mod lod;
 mod raster;
+mod reprojection;
 mod self_shadow;
 mod sun_cli;
 mod sun_heading;

@@ -14,7 +14,7 @@ use std::sync::Arc;
 /// wall time from submit until the pixels are in memory), then the floor: the same frame's
 /// background alone (rendered after it, not part of the frame), what issue 11 compares the
 /// compositor with.
-pub const STAGES: [&str; 18] = [
+pub const STAGES: [&str; 19] = [
     "camera frame (virtual phone, CPU) + upload",
     "sensors + fusion",
     "sun (SPA)",
@@ -33,6 +33,7 @@ pub const STAGES: [&str; 18] = [
     "model turning 2 deg a frame: frame's thread (uniforms, ground map, encode), rays on the worker",
     "same, the frame waiting for the ground's rays (before issue 9's worker)",
     "sky changing every frame (as a refold changes it): frame's thread (uniforms, ground map recombined, encode)",
+    "compositor, every frame shading its model and ground (reprojection off; GPU)",
 ];
 /// Index of the compositor's row in [`STAGES`], of the floor's, and of the fold's.
 pub const COMPOSITOR: usize = 3;
@@ -50,6 +51,10 @@ pub const TURN: usize = 15;
 /// sky shape each (one bin of the sky's radiance 1/32 brighter, round the bins: the ground's map
 /// recombined from its kept rays every frame, as each refold of the camera frame makes it).
 pub const SKY: usize = 17;
+/// Index of the row without reprojection: after the changing sky, as many frames again with
+/// reprojection off (render::reprojection), every frame shading its model and ground: the
+/// compositor row's alternative, in the same run.
+pub const SHADED: usize = 18;
 
 /// One stage's median and 95th percentile, ms.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -69,7 +74,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: Inputs, frames: usize, warmup: usiz
         lon_deg: -2.5879,
         start: chrono::DateTime::parse_from_rfc3339("2026-06-21T15:00:00+01:00")?.with_timezone(&chrono::Utc),
         frame_hz: 30.0,
-        duration_s: ((5 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
+        duration_s: ((6 * frames + warmup) as f64 / 30.0).ceil() + 1.0,
         noise: NoiseLevel::Phone,
         seed: 1,
     };
@@ -77,6 +82,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: Inputs, frames: usize, warmup: usiz
     session.fold_camera_into_environment();
     progress.set_length((frames + warmup) as u64);
     let mut samples: [Vec<f64>; STAGES.len()] = Default::default();
+    let mut reprojected = 0;
     for i in 0..frames + warmup {
         let t = std::time::Instant::now();
         let folds = session.fold_refreshes().map_or(0, |r| r.0);
@@ -86,6 +92,7 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: Inputs, frames: usize, warmup: usiz
         let wall = t.elapsed().as_secs_f64() * 1e3;
         let floor = session.render_layer(gpu, crate::render::Layer::Background)?;
         if i >= warmup {
+            reprojected += usize::from(r.timings.reprojected);
             let gpu_ms = |r: &crate::render::Rendered| r.timings.gpu_ms.unwrap_or(f64::NAN);
             let (encode, submitted) = (r.timings.encode_ms, r.timings.readback_ms);
             for (v, x) in samples.iter_mut().zip([f.camera_ms, f.pose_ms, f.sun_ms, gpu_ms(&r), encode, submitted, wall, gpu_ms(&floor)]) {
@@ -138,12 +145,21 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: Inputs, frames: usize, warmup: usiz
         samples[SKY].push(r.timings.encode_ms);
         progress.inc(1);
     }
+    // Every frame shaded: the compositor's alternative without reprojection.
+    session.shade_every_frame(gpu)?;
+    progress.set_length((6 * frames + warmup) as u64);
+    for _ in 0..frames {
+        session.advance(gpu)?.ok_or_else(|| anyhow!("the simulated session ended early"))?;
+        let r = session.render(gpu)?;
+        samples[SHADED].push(r.timings.gpu_ms.unwrap_or(f64::NAN));
+        progress.inc(1);
+    }
     // The profile's frame whose model pass drew the median count of fragments.
     counts.sort_by_key(|c: &crate::render::PassCounts| c.model.map(|m| m.fragments));
     let counts = counts.get(counts.len() / 2).copied();
     let stages =
         STAGES.iter().zip(&samples).map(|(stage, v)| StageRow { stage, median_ms: median(v), p95_ms: percentile(v, 0.95) }).collect();
-    Ok(LiveBench { stages, counts })
+    Ok(LiveBench { stages, counts, reprojected: (reprojected, frames) })
 }
 
 /// What [`run`] measured: each stage, and what the profile's passes drew (its frame with the
@@ -152,6 +168,9 @@ pub fn run(gpu: &Gpu, scene: &Scene, inputs: Inputs, frames: usize, warmup: usiz
 pub struct LiveBench {
     pub stages: Vec<StageRow>,
     pub counts: Option<crate::render::PassCounts>,
+    /// Of the measured frames, how many reprojected the last shaded frame's layers
+    /// (render::reprojection), and how many there were.
+    pub reprojected: (usize, usize),
 }
 
 /// The compositor's median GPU time over the floor's (issue 11's goal: at most 1.5).
@@ -168,6 +187,9 @@ pub fn json(bench: &LiveBench) -> serde_json::Value {
     serde_json::json!({
         "stages": rows,
         "compositor_over_floor": floor_ratio(rows),
+        "shaded_over_floor": rows[SHADED].median_ms / rows[FLOOR].median_ms,
+        "frames_reprojected": bench.reprojected.0,
+        "frames_measured": bench.reprojected.1,
         "profile": {
             "total_ms": ms(PROFILE),
             "shadow_ms": ms(PROFILE + 1),
@@ -186,8 +208,14 @@ pub fn markdown(bench: &LiveBench) -> String {
     for r in &bench.stages {
         s += &format!("| {} | {:.3} | {:.3} |\n", r.stage, r.median_ms, r.p95_ms);
     }
-    let ratio = floor_ratio(&bench.stages);
+    let (rows, ratio) = (&bench.stages, floor_ratio(&bench.stages));
     s += &format!("\ncompositor / floor (GPU medians): {ratio:.2}x (goal <= 1.5x: {})\n", if ratio <= 1.5 { "met" } else { "not met" });
+    let (reprojected, measured) = bench.reprojected;
+    s += &format!(
+        "of the {measured} measured frames, {reprojected} composed the last shaded frame's model and ground through the camera's turn (reprojected), {} shaded them; every frame shaded (reprojection off): {:.2}x the floor\n",
+        measured - reprojected,
+        rows[SHADED].median_ms / rows[FLOOR].median_ms
+    );
     if let Some(c) = bench.counts {
         let pass = |p: Option<crate::gpu::PassCount>| {
             p.map_or("–".to_string(), |p| format!("{} triangles, {} fragments", p.triangles, p.fragments))

@@ -54,7 +54,7 @@ use crate::scene::{CubeMap, Model};
 use crate::sensors::sim::{NoiseLevel, SimConfig, SimSensors, SimSite};
 use crate::sensors::{Reading, SensorSource};
 use crate::setup::scene_file::Scene;
-use crate::setup::{LightTerms, camera_and_placement, compositor_and_light, environment_light, exposure};
+use crate::setup::{LightTerms, camera_and_placement, environment_light, exposure, live_compositor_and_light};
 use crate::sun::{Algorithm, SunInput, SunPosition, position};
 use crate::ui::controls::Controls;
 use anyhow::{Context, Result, bail};
@@ -344,9 +344,7 @@ impl LiveSession {
     /// the sensor readings; [`LiveSession::simulated`] makes the simulated ones.
     pub fn new(gpu: &Gpu, env: &CubeMap, model: &Model, scene: &Scene, cfg: LiveConfig, sources: Sources) -> Result<LiveSession> {
         cfg.validate()?;
-        let (mut compositor, params, light) = compositor_and_light(gpu, scene, env, model)?;
-        // A turn or scale of the model casts the ground's rays off the frame's thread.
-        compositor.set_ground_in_background(true);
+        let (compositor, params, light) = live_compositor_and_light(gpu, scene, env, model)?;
         let unit_light = light.unit;
         let map_sun_dir = params.lighting.sun_dir;
         // True north from the first GPS fix and the World Magnetic Model for the date.
@@ -569,6 +567,14 @@ impl LiveSession {
 
     pub fn compositor(&self) -> &Compositor {
         &self.compositor
+    }
+
+    /// Turn off the reprojection of frames that only turn the camera (render::reprojection; on
+    /// from the start): every frame shades its model and ground, as `bench live` measures it
+    /// side by side. It cannot be turned on again in the session.
+    pub fn shade_every_frame(&mut self, gpu: &Gpu) -> Result<()> {
+        self.compositor.set_reprojection(gpu, false)?;
+        Ok(())
     }
 
     /// Time each pass of the following frames alone (`Compositor::set_pass_timing`: a profile

@@ -20,6 +20,7 @@ use super::passes::model::{Culling, ModelGpu, ModelPass};
 use super::passes::shadow::ShadowPass;
 use super::passes::vertex_sun::{self, SunLookup, VertexSunPass};
 use super::pipelines::{LAYER_SAMPLES, Pipelines};
+use super::reprojection::{self, Held, Reprojection};
 use super::shadow_fit::{self, ShadowDrawn};
 use super::supersample;
 use super::targets::Targets;
@@ -65,6 +66,9 @@ pub struct Timings {
     /// What each composite pass drew, with pass timing on (None otherwise or without
     /// pipeline-statistics queries).
     pub counts: Option<PassCounts>,
+    /// The frame composed the last shaded frame's layers through the camera's turn instead of
+    /// shading the model and its ground (render::reprojection).
+    pub reprojected: bool,
 }
 
 /// What each of the composite's passes drew in one frame ([`crate::gpu::PassCounter`]; None: the
@@ -192,6 +196,23 @@ pub struct Compositor {
     /// The ground's regions (the shadow's outline, the sky's visible occlusion), computed once
     /// per shadow map drawn and per sky map.
     ground_regions: RegionCache,
+    /// The live view's reprojection ([`Compositor::set_reprojection`]; None: every frame shades).
+    reprojection: Option<Reprojecting>,
+    /// Whether the last prepared frame reprojected, whether it shaded the layers (the shading
+    /// compositor's passes ran), and how many frames reprojected and shaded since reprojection
+    /// was turned on.
+    reprojected: bool,
+    shaded_layers: bool,
+    reprojection_counts: (usize, usize),
+}
+
+/// The live view's reprojection (render::reprojection): the pass that composes the layers into
+/// the frame, and the compositor that shades the model and its ground into them, at the frame's
+/// size and field of view widened by `reprojection::margin_px` on every side (its own shadow
+/// maps, ground and model buffers; the same environment, model and settings, forwarded).
+struct Reprojecting {
+    pass: Reprojection,
+    shader: Box<Compositor>,
 }
 
 /// What the model's visibility-per-vertex buffers were computed from: a shadow map (its index
@@ -325,6 +346,10 @@ impl Compositor {
             ground_sky_updates: 0,
             ground_in_background: false,
             ground_regions: RegionCache::default(),
+            reprojection: None,
+            reprojected: false,
+            shaded_layers: false,
+            reprojection_counts: (0, 0),
         })
     }
 
@@ -353,9 +378,13 @@ impl Compositor {
     /// [`Compositor::set_environment`] with the CPU work already done ([`environment::prepare`]
     /// of the same `cube`, e.g. on another thread).
     pub fn set_prepared_environment(&mut self, gpu: &Gpu, cube: &CubeMap, prepared: environment::Prepared) -> Result<()> {
+        if let Some(shader) = self.shader_mut() {
+            shader.set_prepared_environment(gpu, cube, prepared.clone())?;
+        }
         let environment::Prepared { levels, env } = prepared;
         // The camera sees the new cube map until its equirectangular source is set again.
         self.background.use_cube();
+        self.forget_layers();
         if let Some(textures) = self.env_textures.as_ref().filter(|t| t.size() == cube.size) {
             gpu.checked("the environment cube map", || textures.write(gpu, cube, &levels))?;
             self.env = Some(env);
@@ -390,6 +419,7 @@ impl Compositor {
     /// any later [`Compositor::set_environment`], go back to the cube map. A map beyond the
     /// device's 2D texture size keeps the cube map.
     pub fn set_equirect_background(&mut self, gpu: &Gpu, map: Option<&Equirect>) -> Result<()> {
+        self.forget_layers();
         self.background.set_equirect(gpu, &self.pipelines, &self.frame_buf, map)
     }
 
@@ -420,9 +450,13 @@ impl Compositor {
     /// [`ModelCache`], computed on the first upload of that content. On an error (bad mesh, or
     /// the GPU rejecting the upload) the current model stays.
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
+        if let Some(shader) = self.shader_mut() {
+            shader.set_model(gpu, model)?;
+        }
         let prepared = ModelCache::of(gpu)?.prepare(model)?;
         let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);
+        self.forget_layers();
         self.ground_sky_uploaded = None;
         self.model_sky_uploaded = None;
         self.shadow_held.fill(None);
@@ -435,6 +469,10 @@ impl Compositor {
     /// Which level of detail to draw: a frame's (the default), a still's, or the model as loaded
     /// (level 0, for the full-detail references that measure what the levels cost in accuracy).
     pub fn set_detail(&mut self, detail: Detail) {
+        self.forget_layers();
+        if let Some(shader) = self.shader_mut() {
+            shader.set_detail(detail);
+        }
         self.detail = detail;
     }
 
@@ -442,6 +480,10 @@ impl Compositor {
     /// closed meshes seen from outside) or draw every triangle after a depth pre-pass: for a
     /// closed mesh the same pixels, for the tests and benchmarks that check and measure it.
     pub fn set_culling(&mut self, on: bool) {
+        self.forget_layers();
+        if let Some(shader) = self.shader_mut() {
+            shader.set_culling(on);
+        }
         self.model_pass.set_culling(on);
     }
 
@@ -450,6 +492,10 @@ impl Compositor {
     /// (`passes::model::MAX_SUN_EDGE_PX`, the default, is the limit measured); 0: the map looked
     /// up per pixel everywhere (docs/PERFORMANCE.md, ninth and tenth sessions).
     pub fn set_sun_edge_limit(&mut self, px: f32) {
+        self.forget_layers();
+        if let Some(shader) = self.shader_mut() {
+            shader.set_sun_edge_limit(px);
+        }
         self.model_pass.set_sun_edge_limit(px);
     }
 
@@ -466,6 +512,10 @@ impl Compositor {
     /// vertices (`passes::model::MAX_LIGHT_EDGE_PX` and 1, the defaults, are the limits
     /// measured); `px` 0: every pixel shaded (docs/PERFORMANCE.md, sixteenth session).
     pub fn set_light_limits(&mut self, px: f32, turn_scale: f32) {
+        self.forget_layers();
+        if let Some(shader) = self.shader_mut() {
+            shader.set_light_limits(px, turn_scale);
+        }
         self.model_pass.set_light_limits(px, turn_scale);
     }
 
@@ -510,13 +560,75 @@ impl Compositor {
     /// frame waits for them.
     pub fn set_ground_in_background(&mut self, on: bool) {
         self.ground_in_background = on;
+        if let Some(shader) = self.shader_mut() {
+            shader.set_ground_in_background(on);
+        }
     }
 
     /// Draw the shadow into the largest map instead of the one its footprint on screen needs,
     /// and look it up over the whole ground quad instead of only where it can fall: for the
     /// full-shadow references that measure what the smaller maps and the split cost in accuracy.
     pub fn set_full_shadow(&mut self, on: bool) {
+        self.forget_layers();
+        if let Some(shader) = self.shader_mut() {
+            shader.set_full_shadow(on);
+        }
         self.full_shadow = on;
+    }
+
+    /// Reproject the frames that only turn the camera (the live view; render::reprojection):
+    /// the model and its ground are shaded into layers, and a later frame with the same
+    /// parameters but the camera's orientation composes them with its own camera image through
+    /// the turn. Turning it on makes the layers (the frame's size, once); off, every frame
+    /// shades. A frame with FXAA, a supersampled one, one timed pass by pass, one of a layer
+    /// other than the composite, and one over the environment seen by the camera (no camera
+    /// image) always shade. Returns whether it is on.
+    ///
+    /// The layers are shaded by a second compositor of the frame's size plus a margin, which
+    /// takes the environment, the model and the settings this one is given from then on: it is
+    /// an error to turn it on after setting the environment or the model.
+    pub fn set_reprojection(&mut self, gpu: &Gpu, on: bool) -> Result<bool> {
+        let possible = on && self.fxaa.is_none() && self.supersample == 1;
+        if !possible {
+            self.reprojection = None;
+        } else if self.reprojection.is_none() {
+            if self.env.is_some() || self.model.is_some() {
+                anyhow::bail!("reprojection must be turned on before the environment and the model are set");
+            }
+            let frame = (self.width, self.height);
+            let (layer, _) = reprojection::layer_view(1.0, frame);
+            let samples = self.antialiasing.samples();
+            let mut shader = Compositor::create(gpu, layer, self.antialiasing, 1)?;
+            shader.ground_in_background = self.ground_in_background;
+            shader.detail = self.detail;
+            shader.full_shadow = self.full_shadow;
+            let pass = Reprojection::new(&gpu.device, &self.pipelines, self.background.view(), (frame, layer), samples);
+            self.reprojection = Some(Reprojecting { pass, shader: Box::new(shader) });
+        }
+        self.reprojection_counts = (0, 0);
+        Ok(self.reprojection.is_some())
+    }
+
+    /// The compositor that shades the reprojected layers, when on.
+    fn shader_mut(&mut self) -> Option<&mut Compositor> {
+        self.reprojection.as_mut().map(|r| &mut *r.shader)
+    }
+
+    /// Whether the last frame reprojected the layers instead of shading (render::reprojection).
+    pub fn reprojected(&self) -> bool {
+        self.reprojected
+    }
+
+    /// Frames that reprojected and frames that shaded since reprojection was turned on.
+    pub fn reprojection_counts(&self) -> (usize, usize) {
+        self.reprojection_counts
+    }
+
+    /// The layers hold nothing a later frame can reuse (a new environment, model or setting).
+    fn forget_layers(&mut self) {
+        if let Some(r) = &mut self.reprojection {
+            r.pass.held = None;
+        }
     }
 
     /// The loaded model's level-of-detail chain: per level, triangles (None before a model).
@@ -706,6 +818,7 @@ impl Compositor {
     /// After a failed frame no shadow map is known to hold what was noted.
     fn forget_shadows_on_error<T>(&mut self, r: Result<T>) -> Result<T> {
         if r.is_err() {
+            self.forget_layers();
             self.shadow_held.fill(None);
             self.shadow_redrawn.fill(false);
             self.vertex_sun_held = None;
@@ -738,6 +851,14 @@ impl Compositor {
         let mut encoder = self.prepare_frame(gpu, p, layer)?;
         self.targets.copy_for_readback(&mut encoder);
         if let Some(timer) = &self.timer {
+            timer.resolve(&mut encoder, TIMER_SLOTS);
+        }
+        let shader_timer = self
+            .reprojection
+            .as_ref()
+            .filter(|_| self.shaded_layers)
+            .and_then(|r| r.shader.timer.as_ref().map(|t| (t, r.shader.passes_run)));
+        if let Some((timer, _)) = shader_timer {
             timer.resolve(&mut encoder, TIMER_SLOTS);
         }
         let steps = self.composite_steps(layer);
@@ -794,6 +915,15 @@ impl Compositor {
             }
             None => (None, None, None),
         };
+        // A frame that shaded the layers: the shading compositor's shadow pass and layer passes.
+        let (gpu_ms, shadow_gpu_ms) = match shader_timer {
+            Some((timer, run)) => {
+                let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
+                let shadow = (run.shadow_drawn || run.vertex_sun).then_some(ms[SHADOW_SLOT as usize]);
+                (gpu_ms.map(|g| g + ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow)
+            }
+            None => (gpu_ms, shadow_gpu_ms),
+        };
         let counts = match counter {
             Some(counter) => {
                 let c = counter.read(gpu)?;
@@ -803,7 +933,7 @@ impl Compositor {
             None => None,
         };
         let readback_ms = t1.elapsed().as_secs_f64() * 1e3;
-        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms, passes, counts };
+        let timings = Timings { encode_ms, gpu_ms, shadow_gpu_ms, readback_ms, passes, counts, reprojected: self.reprojected };
         Ok(Rendered { width: self.width / k, height: self.height / k, rgba, timings })
     }
 
@@ -832,12 +962,103 @@ impl Compositor {
         self.forget_shadows_on_error(r)
     }
 
-    /// Write the frame's uniforms and encode its passes.
+    /// Write the frame's uniforms and encode its passes: with reprojection on, a frame whose
+    /// camera only turned composes the held layers; one that shades draws its model and ground
+    /// into the layers (the shading compositor, wider than the frame) and composes them, or,
+    /// when the layers cannot hold all of both, draws them into the frame.
     fn prepare_frame(&mut self, gpu: &Gpu, p: &FrameParams, layer: Layer) -> Result<wgpu::CommandEncoder> {
-        self.write_frame(gpu, p, layer)?;
         let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let reprojects = self.reprojection.is_some() && layer == Layer::Composite && !self.pass_timing && !self.background.from_env();
+        self.reprojected = reprojects && self.reproject(gpu, p)?;
+        self.shaded_layers = false;
+        if self.reprojected {
+            self.passes_run = PassesRun::default();
+            self.reprojection_counts.0 += 1;
+            let timestamps = self.timer.as_ref().and_then(|t| t.render_pass(REST_SLOT, true, true));
+            self.encode_reprojected(&mut encoder, timestamps)?;
+            return Ok(encoder);
+        }
+        if reprojects {
+            self.reprojection_counts.1 += 1;
+            let frame = (self.width, self.height);
+            let r = self.reprojection.as_mut().ok_or_else(|| anyhow!("reprojection is off"))?;
+            r.pass.held = None;
+            if r.shader.model.is_some() && r.shader.env.is_some() {
+                let (layer_size, vfov) = reprojection::layer_view(p.camera.vfov, frame);
+                let wide = FrameParams { camera: super::Camera { vfov, ..p.camera }, ..*p };
+                let data = r.shader.write_frame(gpu, &wide, Layer::Composite)?;
+                if let Some(mut held) = r.shader.hold(&wide, &data) {
+                    held.params = *p;
+                    r.pass.held = Some(held);
+                    let to_layer = reprojection::homography((p.camera.pose, p.camera.vfov, frame), (p.camera.pose, vfov, layer_size));
+                    if r.pass.prepare(&gpu.queue, &to_layer) {
+                        r.shader.encode_layers_into(&mut encoder, &r.pass, p.method)?;
+                        self.shaded_layers = true;
+                        self.passes_run = PassesRun::default();
+                        let timestamps = self.timer.as_ref().and_then(|t| t.render_pass(REST_SLOT, true, true));
+                        self.encode_reprojected(&mut encoder, timestamps)?;
+                        return Ok(encoder);
+                    }
+                    r.pass.held = None;
+                }
+            }
+        }
+        self.write_frame(gpu, p, layer)?;
         self.encode_frame(&mut encoder, layer, p.method)?;
         Ok(encoder)
+    }
+
+    /// Whether a frame of `p` can compose the held layers (render::reprojection::reusable, and
+    /// the worker's maps the layers drew still the frame's); if so, the homography and the
+    /// hull are written for it.
+    fn reproject(&mut self, gpu: &Gpu, p: &FrameParams) -> Result<bool> {
+        let frame = (self.width, self.height);
+        let Some(r) = self.reprojection.as_mut() else { return Ok(false) };
+        let Some(held) = r.pass.held.as_ref() else { return Ok(false) };
+        if !reprojection::reusable(&held.params, p) {
+            return Ok(false);
+        }
+        let (layer_size, vfov) = reprojection::layer_view(p.camera.vfov, frame);
+        let wide = FrameParams { camera: super::Camera { vfov, ..p.camera }, ..*p };
+        if let Some(sky) = &held.ground_sky
+            && !Arc::ptr_eq(sky, &r.shader.ground_sky(&wide)?)
+        {
+            return Ok(false);
+        }
+        if let Some(vertices) = &held.model_sky
+            && !Arc::ptr_eq(vertices, &r.shader.model_sky(&wide)?)
+        {
+            return Ok(false);
+        }
+        let to_layer = reprojection::homography((p.camera.pose, p.camera.vfov, frame), (held.params.camera.pose, vfov, layer_size));
+        Ok(r.pass.prepare(&gpu.queue, &to_layer))
+    }
+
+    /// What a shaded frame's layers will hold (None: part of the model or its ground lies
+    /// outside the frame, or neither is on screen: the frame draws them into itself).
+    fn hold(&self, p: &FrameParams, data: &FrameData) -> Option<Held> {
+        let model = self.model.as_ref()?;
+        if !data.shadow_pass {
+            return None;
+        }
+        let matrix = glam::Mat4::from_cols_array_2d(&data.instance.model);
+        let corners = shadow_fit::box_corners(model.bounds(), matrix);
+        let ground = self.passes_run.ground;
+        let plane = glam::Mat4::from_cols_array_2d(&data.ground.model);
+        let mesh = &data.ground_mesh;
+        let drawn = if ground { &mesh.vertices[..(mesh.shadowed + mesh.sky_only) as usize] } else { &[] };
+        let triangles: Vec<Vec3> = drawn.iter().map(|&[x, y]| plane.transform_point3(Vec3::new(x, y, 0.0))).collect();
+        let view_proj = glam::Mat4::from_cols_array_2d(&data.frame.view_proj);
+        let content = reprojection::content_hull(&corners, &triangles, view_proj, (self.width, self.height))?;
+        let hull = reprojection::held_part(&content, (self.width, self.height))?;
+        let sky_drawn = ground && p.lighting.sky_occlusion > 0.0;
+        Some(Held {
+            params: *p,
+            content,
+            hull,
+            ground_sky: self.ground_sky_uploaded.clone().filter(|_| sky_drawn),
+            model_sky: self.model_sky_uploaded.clone().filter(|_| p.method == super::LightingMethod::Sh9Ggx),
+        })
     }
 
     /// Write the frame's uniforms; note its level of detail and the passes it runs.
@@ -852,17 +1073,7 @@ impl Compositor {
         }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
         if p.method == super::LightingMethod::Sh9Ggx {
-            // The sky each vertex sees under this sky and turn of the model (the model cache
-            // makes it once per turn and sky; the same Arc while they stay); in the live view on
-            // a thread of its own, drawing the previous set meanwhile, as the ground's map.
-            let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
-            let matrix = super::view::model_matrix(model.bounds(), &p.placement);
-            let (sky, heading) = (&p.lighting.sky_radiance, env.heading);
-            let vertices = if self.ground_in_background {
-                model.prepared.vertices_under_without_waiting(matrix, sky, heading)
-            } else {
-                model.prepared.vertices_under(matrix, sky, heading)
-            };
+            let vertices = self.model_sky(p)?;
             if !self.model_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &vertices)) {
                 model.write_vertices(&gpu.queue, &vertices);
                 self.model_sky_uploaded = Some(vertices);
@@ -967,6 +1178,21 @@ impl Compositor {
         Ok(data)
     }
 
+    /// The sky each of the model's vertices sees under `p`'s sky and turn of the model (sh9-ggx):
+    /// the model cache makes it once per turn and sky (the same Arc while they stay); in the
+    /// live view on a thread of its own, drawing the previous set meanwhile, as the ground's map.
+    fn model_sky(&self, p: &FrameParams) -> Result<super::model_cache::MeshVertices> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let env = self.env.as_ref().ok_or_else(|| anyhow!("no environment set"))?;
+        let matrix = super::view::model_matrix(model.bounds(), &p.placement);
+        let (sky, heading) = (&p.lighting.sky_radiance, env.heading);
+        Ok(if self.ground_in_background {
+            model.prepared.vertices_under_without_waiting(matrix, sky, heading)
+        } else {
+            model.prepared.vertices_under(matrix, sky, heading)
+        })
+    }
+
     /// The ground's sky visibility under the model as `p` places it and its sky lights it, from
     /// the device's model cache (computed there once per turn or scale of the model and sky
     /// shape; the same `Arc` while they stay).
@@ -1065,6 +1291,54 @@ impl Compositor {
             let mut pass = self.targets.begin_fxaa(encoder, timestamps);
             in_group(&mut pass, "fxaa pass", |pass| fxaa.draw(pass));
         }
+        Ok(())
+    }
+
+    /// The shading compositor's passes for reprojection's layers `r` (render::reprojection): the
+    /// shadow pass as a frame's, then the model into the model layer and the ground against the
+    /// model's depth into the matte (packed, one sample a pixel: the same layer, in the same
+    /// pass). The frame composes them after (`encode_reprojected`).
+    fn encode_layers_into(&self, encoder: &mut wgpu::CommandEncoder, r: &Reprojection, method: super::LightingMethod) -> Result<()> {
+        let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let stamp = |begin: bool, end: bool| self.timer.as_ref().and_then(|t| t.render_pass(REST_SLOT, begin, end));
+        self.encode_shadow_and_env_view(encoder, model, true)?;
+        let first = !self.passes_run.ground_sun;
+        let ground = |pass: &mut wgpu::RenderPass<'_>, pipelines: Option<[&wgpu::RenderPipeline; 3]>| {
+            if self.passes_run.ground {
+                in_group(pass, "ground pass", |pass| match pipelines {
+                    Some(p) => self.ground.draw_parts(pass, p, self.shadow_index),
+                    None => self.ground.draw(pass, self.shadow_index),
+                });
+            }
+        };
+        // Packed: the model, then the ground against its depth with the frame's own pipelines,
+        // over the matte 1 with alpha 0.
+        let c = f64::from(reprojection::packed_clear());
+        let clear = if r.packed() { wgpu::Color { r: c, g: c, b: c, a: 0.0 } } else { wgpu::Color::TRANSPARENT };
+        {
+            let mut pass = self.targets.begin_into(encoder, (r.model_view(), clear), stamp(first, r.packed()));
+            in_group(&mut pass, "model pass", |pass| self.model_pass.draw(pass, model, method, (self.level, self.shadow_index)))?;
+            if r.packed() {
+                ground(&mut pass, None);
+            }
+        }
+        if let Some(mut pass) = r.begin_matte(encoder, self.targets.depth_view(), stamp(false, true)) {
+            ground(&mut pass, r.ground_pipelines());
+        }
+        Ok(())
+    }
+
+    /// The reprojection pass over the held hull, then the background around it, into the
+    /// frame: one render pass.
+    fn encode_reprojected(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> Result<()> {
+        let r = &self.reprojection.as_ref().ok_or_else(|| anyhow!("reprojection is off"))?.pass;
+        let mut pass = self.targets.begin_composite(encoder, wgpu::Color::BLACK, timestamps);
+        in_group(&mut pass, "reprojection pass", |pass| r.draw(pass));
+        in_group(&mut pass, "background pass", |pass| self.background.draw(pass));
         Ok(())
     }
 

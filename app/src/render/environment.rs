@@ -135,6 +135,7 @@ impl EnvironmentCache {
 }
 
 /// What the frame needs from the environment besides its texture.
+#[derive(Clone)]
 pub struct Environment {
     pub priors: HemispherePriors,
     /// Colour statistics of the horizontal faces after exposure, the correction's source.
@@ -228,6 +229,7 @@ impl EnvironmentTextures {
 
 /// What the GPU and the frame need from a map besides its texels, computed on the CPU (on any
 /// thread: the live view prepares its folded camera frame off the frame's thread).
+#[derive(Clone)]
 pub struct Prepared {
     /// The map convolved with the GGX lobe, one level per roughness (light::ggx::prefilter).
     pub levels: Arc<Vec<CubeMap>>,

@@ -12,6 +12,7 @@ pub mod model_cache;
 pub mod params;
 pub mod passes;
 pub mod pipelines;
+pub mod reprojection;
 pub mod shaders;
 pub mod shadow_fit;
 pub mod supersample;

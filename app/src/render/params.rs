@@ -130,3 +130,34 @@ pub enum Layer {
     /// The background alone.
     Background,
 }
+
+#[cfg(test)]
+impl FrameParams {
+    /// A plain frame for tests: camera at the origin looking along its identity pose, Blinn-Phong,
+    /// the sun overhead.
+    pub fn example() -> FrameParams {
+        use super::{MaterialTerms, Placement};
+        FrameParams {
+            camera: Camera { pose: Quat::IDENTITY, position: Vec3::ZERO, vfov: 1.0 },
+            method: LightingMethod::BlinnPhong,
+            lighting: Lighting {
+                sun_dir: Vec3::Z,
+                sunlight: 1.0,
+                daylight: 0.5,
+                material: MaterialTerms { ambient: 1.0, diffuse: 1.0, specular: 0.5, gloss: None },
+                reflection: 0.0,
+                ior: 1.5,
+                shadow_opacity: 0.6,
+                sky_occlusion: 0.0,
+                live_depth: 1.0,
+                sky_sh: [[0.0; 3]; 9],
+                sky_radiance: crate::light::sh9::SkyRadiance::UNIFORM,
+                ground_radiance: [0.0; 3],
+                sun_colour: [1.0; 3],
+                sun_angular_radius: 0.0047,
+            },
+            placement: Placement { position: Vec3::ZERO, rotation: Vec3::ZERO, scale: 1.0 },
+            colour: ColourSettings::NONE,
+        }
+    }
+}

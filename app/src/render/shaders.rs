@@ -15,10 +15,12 @@ pub enum Technique {
     /// The model's sun per vertex (a compute shader).
     VertexSun,
     Fxaa,
+    /// The live view's layers composed through a turn of the camera (render::reprojection).
+    Reproject,
 }
 
 impl Technique {
-    pub const ALL: [Technique; 9] = [
+    pub const ALL: [Technique; 10] = [
         Technique::Background,
         Technique::EnvView,
         Technique::EnvViewEquirect,
@@ -28,6 +30,7 @@ impl Technique {
         Technique::Model,
         Technique::VertexSun,
         Technique::Fxaa,
+        Technique::Reproject,
     ];
 
     fn file(self) -> &'static str {
@@ -41,6 +44,7 @@ impl Technique {
             Technique::Model => include_str!("../../../shaders/model.wgsl"),
             Technique::VertexSun => include_str!("../../../shaders/vertex_sun.wgsl"),
             Technique::Fxaa => include_str!("../../../shaders/fxaa.wgsl"),
+            Technique::Reproject => include_str!("../../../shaders/reproject.wgsl"),
         }
     }
 }

@@ -205,7 +205,7 @@ pub fn silhouette_outline(
 }
 
 /// Twice the signed area of a polygon (positive: counter-clockwise).
-fn signed_area(poly: &[Vec2]) -> f32 {
+pub fn signed_area(poly: &[Vec2]) -> f32 {
     (0..poly.len()).map(|i| poly[i].perp_dot(poly[(i + 1) % poly.len()])).sum()
 }
 

@@ -115,6 +115,44 @@ impl Targets {
         })
     }
 
+    /// The depth the composite's passes share (the frame's samples).
+    pub fn depth_view(&self) -> &wgpu::TextureView {
+        &self.depth
+    }
+
+    /// A pass drawing into `into` (single-sampled, the frame's colour format) through the
+    /// frame's colour and depth targets: colour cleared to `clear` and resolved into
+    /// `into` (multisampled) or drawn there (one sample), depth cleared to 1 and kept for a
+    /// later pass (render::reprojection's model layer, then its matte).
+    pub fn begin_into<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        (into, clear): (&wgpu::TextureView, wgpu::Color),
+        timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+    ) -> wgpu::RenderPass<'e> {
+        let (view, resolve_target, store) = match &self.msaa {
+            Some(msaa) => (msaa, Some(into), wgpu::StoreOp::Discard),
+            None => (into, None, wgpu::StoreOp::Store),
+        };
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("layer of the composite"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: timestamps,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+
     /// The FXAA pass: from [`Targets::aa_input`] into the frame.
     pub fn begin_fxaa<'e>(
         &self,

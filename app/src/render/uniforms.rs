@@ -133,5 +133,7 @@ mod tests {
         crate::assert_wgsl_layout!(module, GroundSunUniforms, "GroundSun", [square, texels]);
         let module = crate::gpu::wgsl::validate(&source(Technique::VertexSun)).unwrap();
         crate::assert_wgsl_layout!(module, SplitLevelUniforms, "SplitLevel", [first, count, second, unused]);
+        let module = crate::gpu::wgsl::validate(&source(Technique::Reproject)).unwrap();
+        crate::assert_wgsl_layout!(module, crate::render::reprojection::ReprojectUniforms, "Reproject", [to_layer, size, matte_scale]);
     }
 }

@@ -217,6 +217,16 @@ pub fn prepare_antialiased(gpu: &Gpu, scene: &Scene, inputs: &Inputs, aa: Antial
     Ok((compositor, params))
 }
 
+/// [`prepare_antialiased`] with the live view's reprojection on (render::reprojection), turned
+/// on before the environment and the model are set so that its shading compositor gets them.
+pub fn prepare_reprojected(gpu: &Gpu, scene: &Scene, inputs: &Inputs, aa: Antialiasing) -> Result<(Compositor, FrameParams)> {
+    let mut compositor = Compositor::with_antialiasing(gpu, scene.width, scene.height, aa)?;
+    compositor.set_reprojection(gpu, true)?;
+    let (mut compositor, params, _) = set_up(gpu, compositor, scene, &inputs.env, &inputs.model)?;
+    set_background(gpu, &mut compositor, inputs)?;
+    Ok((compositor, params))
+}
+
 /// The inputs' background image, or without one the environment seen by the camera: in its
 /// equirectangular image when it was loaded from one (uploaded only then), else in the cube map.
 fn set_background(gpu: &Gpu, compositor: &mut Compositor, inputs: &Inputs) -> Result<()> {
@@ -235,6 +245,16 @@ pub fn compositor_for(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) ->
 /// [`compositor_for`], and the light measured in the environment ([`SceneLight`]).
 pub fn compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams, SceneLight)> {
     set_up(gpu, Compositor::new(gpu, scene.width, scene.height)?, scene, env, model)
+}
+
+/// [`compositor_and_light`] for the live view: a turn or scale of the model casts the ground's
+/// rays off the frame's thread, and a frame that only turns the camera composes the last shaded
+/// frame's model and ground through the turn (render::reprojection).
+pub fn live_compositor_and_light(gpu: &Gpu, scene: &Scene, env: &CubeMap, model: &Model) -> Result<(Compositor, FrameParams, SceneLight)> {
+    let mut compositor = Compositor::new(gpu, scene.width, scene.height)?;
+    compositor.set_ground_in_background(true);
+    compositor.set_reprojection(gpu, true)?;
+    set_up(gpu, compositor, scene, env, model)
 }
 
 /// Give `compositor` the scene's environment and model; the frame's parameters and light.

@@ -210,7 +210,7 @@ mod tests {
         // 1.5 m North. With a 90° vertical field of view, the bottom edge looks straight down
         // (the point below the camera) and the ray 1/3 of the way up from the centre to the top,
         // pitched down 45° − atan(1/3) = 26.565°, hits at 1.5 / tan(26.565°) = 3.0 m.
-        let mut p = params();
+        let mut p = FrameParams::example();
         p.camera.position = Vec3::new(0.0, 0.0, 1.5);
         p.camera.pose = camera_pose(0.0, -45f32.to_radians(), 0.0);
         p.camera.vfov = 90f32.to_radians();
@@ -239,7 +239,7 @@ mod tests {
 
     #[test]
     fn gestures_move_scale_and_turn_the_model() {
-        let mut p = params();
+        let mut p = FrameParams::example();
         let mut c = Controls::from_params(&p);
         c.rotation_deg[2] = 170.0;
         apply_gesture(&mut p, &mut c, Vec3::new(1.0, 2.0, 0.0), 2.0, 20f32.to_radians());
@@ -252,7 +252,7 @@ mod tests {
 
     #[test]
     fn controls_round_trip_and_sl_scales_the_sun() {
-        let mut p = params();
+        let mut p = FrameParams::example();
         let mut c = Controls::from_params(&p);
         c.sunlight = 0.0;
         c.rotation_deg = [0.0, 0.0, 90.0];
@@ -268,7 +268,7 @@ mod tests {
     /// R, CC, A, D, S, G, X/Y/Z; the method).
     #[test]
     fn every_slider_writes_the_term_it_names() {
-        let mut p = params();
+        let mut p = FrameParams::example();
         let c = Controls {
             open: true,
             daylight: 1.25,
@@ -303,7 +303,7 @@ mod tests {
         let ctx = egui::Context::default();
         ctx.all_styles_mut(|s| s.animation_time = 0.0);
         let rect = egui::Rect::from_min_size(egui::pos2(400.0, 0.0), egui::vec2(300.0, 600.0));
-        let mut c = Controls { open: false, ..Controls::from_params(&params()) };
+        let mut c = Controls { open: false, ..Controls::from_params(&FrameParams::example()) };
         let pass = |c: &mut Controls, events: Vec<egui::Event>| {
             let input = egui::RawInput {
                 screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0))),
@@ -358,31 +358,5 @@ mod tests {
         let listed = click(&mut c, LightingMethod::BlinnPhong.name(), &unfolded);
         click(&mut c, LightingMethod::Sh9Ggx.name(), &listed);
         assert_eq!(c.method, LightingMethod::Sh9Ggx, "picked from the list");
-    }
-
-    fn params() -> FrameParams {
-        use crate::render::{Camera, ColourSettings, Lighting, MaterialTerms, Placement};
-        FrameParams {
-            camera: Camera { pose: Quat::IDENTITY, position: Vec3::ZERO, vfov: 1.0 },
-            method: LightingMethod::BlinnPhong,
-            lighting: Lighting {
-                sun_dir: Vec3::Z,
-                sunlight: 1.0,
-                daylight: 0.5,
-                material: MaterialTerms { ambient: 1.0, diffuse: 1.0, specular: 0.5, gloss: None },
-                reflection: 0.0,
-                ior: 1.5,
-                shadow_opacity: 0.6,
-                sky_occlusion: 0.0,
-                live_depth: 1.0,
-                sky_sh: [[0.0; 3]; 9],
-                sky_radiance: crate::light::sh9::SkyRadiance::UNIFORM,
-                ground_radiance: [0.0; 3],
-                sun_colour: [1.0; 3],
-                sun_angular_radius: 0.0047,
-            },
-            placement: Placement { position: Vec3::ZERO, rotation: Vec3::ZERO, scale: 1.0 },
-            colour: ColourSettings::NONE,
-        }
     }
 }

@@ -456,15 +456,21 @@ impl GroundPass {
     /// fall with the sun's visibility (looked up, or baked: [`GroundPass::sun_baked`]), the rest
     /// without.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, shadow_index: usize) {
+        self.draw_parts(pass, [&self.pipeline, &self.baked, &self.sky_only], shadow_index);
+    }
+
+    /// [`GroundPass::draw`] with other targets' twins of its pipelines (looked up, baked, sky
+    /// only; render::reprojection's matte).
+    pub fn draw_parts(&self, pass: &mut wgpu::RenderPass<'_>, [lookup, baked, sky]: [&wgpu::RenderPipeline; 3], shadow_index: usize) {
         let (shadowed, sky_only) = self.counts;
         pass.set_bind_group(0, &self.bind_groups[shadow_index], &[]);
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         if shadowed > 0 {
-            pass.set_pipeline(if self.sun_baked { &self.baked } else { &self.pipeline });
+            pass.set_pipeline(if self.sun_baked { baked } else { lookup });
             pass.draw(0..shadowed, 0..1);
         }
         if sky_only > 0 {
-            pass.set_pipeline(&self.sky_only);
+            pass.set_pipeline(sky);
             pass.draw(shadowed..shadowed + sky_only, 0..1);
         }
     }

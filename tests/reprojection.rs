@@ -31,7 +31,13 @@ fn the_live_view_reprojects_while_the_user_looks_around_within_the_flip_budget()
     // The demo (the truck on the lawn, 960×640), held by the simulated user of `bench live` (a
     // look around the truck with the hand's tremor, phone-grade sensors).
     let s = scene(previz::scene::demo::SCENE_TOML);
-    let inputs = load_inputs(&s, true).unwrap();
+    let mut inputs = load_inputs(&s, true).unwrap();
+    // The truck scaled by a millionth: a model no other test in this process draws (the device's
+    // model cache holds one ground map per model, which a frame must find unchanged to
+    // reproject, and other tests draw the truck at other placements).
+    for p in inputs.model.meshes.iter_mut().flat_map(|m| m.positions.iter_mut()) {
+        *p = p.map(|c| c * 1.000_001);
+    }
     let cfg = LiveConfig {
         lat_deg: 51.4545,
         lon_deg: -2.5879,
@@ -89,14 +95,17 @@ fn assert_shaded_as_drawn(full: &Rendered, frame: &Rendered, what: &str) {
     assert!(e <= FLIP_BUDGET, "{what}: shaded frame FLIP {e}");
 }
 
-/// The bunny on the Park2 lawn at 240×160 over a camera image (a reprojected frame needs one),
-/// and its frame parameters.
-fn bunny() -> (previz::setup::scene_file::Scene, Inputs) {
+/// A sphere on the Park2 lawn at 240×160 over a camera image (a reprojected frame needs one).
+/// A model no other test draws: the device's model cache (the ground's map for a placement,
+/// which a frame must find unchanged to reproject) is shared by every test in the process.
+fn sphere() -> (previz::setup::scene_file::Scene, Inputs) {
     let s = scene(
         "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
          [camera]\nheading = 90.0\npitch = -8.0\n",
     );
     let mut inputs = common::inputs(&s);
+    let material = previz::scene::Material { diffuse: [0.7, 0.55, 0.3], ..Default::default() };
+    inputs.model = common::uv_sphere(29, material);
     // A camera image with detail everywhere (what the ground darkens and the model covers).
     let pixels = (0..s.width * s.height)
         .flat_map(|i| {
@@ -145,7 +154,7 @@ fn within_a_pixel(full: &Rendered, test: &Rendered, background: &[u8], tol: u8) 
 
 #[test]
 fn a_turned_frame_puts_everything_within_a_pixel_of_the_full_render_multisampled_or_not() {
-    let (s, inputs) = bunny();
+    let (s, inputs) = sphere();
     for aa in [Antialiasing::Msaa(1), Antialiasing::Msaa(4)] {
         let (mut live, p) = prepare_reprojected(gpu(), &s, &inputs, aa).unwrap();
         let (mut frame, _) = prepare_antialiased(gpu(), &s, &inputs, aa).unwrap();
@@ -159,12 +168,12 @@ fn a_turned_frame_puts_everything_within_a_pixel_of_the_full_render_multisampled
             let full = frame.render(gpu(), &q, Layer::Composite).unwrap();
             let background = &inputs.background.as_ref().unwrap().pixels;
             let share = within_a_pixel(&full, &reprojected, background, 12);
-            // Measured: 97.1–97.4 % at one sample a pixel, 93.6–94.8 % with 4× MSAA, whose edge
+            // Measured: 99.0–99.5 % at one sample a pixel, 95.9–96.4 % with 4× MSAA, whose edge
             // pixels blend the model with what is behind it at the layers' sample positions;
             // the rest are where the frame's shadow map, fitted to each view, moved an edge.
-            assert!(share >= 0.9, "{aa:?}: turned {h}°, {v}°: {:.2} % within a pixel", 100.0 * share);
+            assert!(share >= 0.93, "{aa:?}: turned {h}°, {v}°: {:.2} % within a pixel", 100.0 * share);
             // The check can fail: the layers as drawn, not turned (the model and its shadow a few
-            // pixels off: f·tan 1.5° is 3.5 px here) match 43–80 %.
+            // pixels off: f·tan 1.5° is 3.5 px here) match 51–83 %.
             let unturned = within_a_pixel(&full, &first, background, 12);
             assert!(unturned < 0.85, "{aa:?}: turned {h}°, {v}°: the unturned frame matched {:.2} %", 100.0 * unturned);
         }
@@ -173,7 +182,7 @@ fn a_turned_frame_puts_everything_within_a_pixel_of_the_full_render_multisampled
 
 #[test]
 fn anything_but_a_turn_of_the_camera_shades_again() {
-    let (s, inputs) = bunny();
+    let (s, inputs) = sphere();
     let (mut live, p): (Compositor, FrameParams) = prepare_reprojected(gpu(), &s, &inputs, Antialiasing::Msaa(1)).unwrap();
     let mut render = |q: &FrameParams| live.render(gpu(), q, Layer::Composite).unwrap().timings.reprojected;
     assert!(!render(&p));

@@ -26,12 +26,14 @@ pub enum What {
     /// goes (the same frames with each pass timed alone; in --json too, not in --csv).
     Frame(FrameArgs),
     /// The live loop, stage by stage: camera frame (virtual phone, CPU), sensors + fusion, sun
-    /// (SPA), compositor (GPU): medians and 95th percentiles over the measured frames; then as
-    /// many frames again with each pass timed alone (the profile rows; --json also as named
-    /// passes); then as many turning the model 2° a frame, the ground's rays on their worker,
-    /// and as many with the frame waiting for them; then as many under a new sky shape each,
-    /// the ground's map recombined as a refold of the camera frame makes it (the frame's
-    /// thread's time).
+    /// (SPA), compositor (GPU; frames that only turned the camera reproject the last shaded
+    /// frame's model and ground, and the output says how many did): medians and 95th
+    /// percentiles over the measured frames; then as many frames again with each pass timed
+    /// alone (the profile rows; --json also as named passes); then as many turning the model 2°
+    /// a frame, the ground's rays on their worker, and as many with the frame waiting for them;
+    /// then as many under a new sky shape each, the ground's map recombined as a refold of the
+    /// camera frame makes it (the frame's thread's time); then as many with reprojection off,
+    /// every frame shading its model and ground.
     Live(LiveArgs),
     /// Accuracy against path-traced references: every method on every scene of --scenes with a
     /// reference in --references, drawn as a still (3 × 3 samples a pixel), and the default

@@ -659,9 +659,10 @@ impl Compositor {
 
     /// How many times the ground's sky visibility under the model has been uploaded (once per
     /// turn or scale of a model whose sky occlusion is drawn; moving it reuses the map; the
-    /// model cache computes each once per device: `PreparedModel::ground_sky_computed`).
+    /// model cache computes each once per device: `PreparedModel::ground_sky_computed`); with
+    /// reprojection, the uploads of the compositor that shades its layers too.
     pub fn ground_sky_updates(&self) -> usize {
-        self.ground_sky_updates
+        self.ground_sky_updates + self.reprojection.as_ref().map_or(0, |r| r.shader.ground_sky_updates())
     }
 
     /// How many times the ground's sun visibility was drawn into its ground-space texture

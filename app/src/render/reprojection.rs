@@ -4,23 +4,27 @@
 //!
 //! The live camera turns about a fixed point (the phone's pose is an orientation at the scene's
 //! camera position), so everything it sees moves on screen by one homography of the pixel
-//! plane, `K · R_layer⁻¹ · R_now · K⁻¹` ([`homography`]), whatever its depth; and what the
-//! model and the ground show does not depend on the turn (the view vector from the camera to a
-//! point is the same). A shaded frame draws the model (premultiplied, over transparent black) and
-//! the ground's matte (what the ground leaves of the background per channel, over white) into
-//! textures of the frame's size, then composes them with the camera image
-//! (shaders/reproject.wgsl); a later frame with the same parameters but the camera's
-//! orientation composes the same textures with its own camera image, each pixel reading the
-//! layer texel under it through the homography (nearest texel: at most half a pixel of shift,
-//! the same bound the level of detail keeps).
+//! plane, `K_layer · R_layerᵀ · R_now · K_now⁻¹` ([`homography`]), whatever its depth; and what
+//! the model and the ground show does not depend on the turn (the view vector from the camera to
+//! a point is the same). A shaded frame draws the model (premultiplied) and the ground's matte
+//! (what the ground leaves of the background per channel) into layers of the frame's size plus
+//! [`margin_px`] on every side, with the same focal length ([`layer_view`]; a second compositor
+//! of that size, render::compositor), then composes them with the camera image
+//! (shaders/reproject.wgsl). At one sample a pixel the two share one layer in the frame's
+//! colour format ([`packed_clear`]); multisampled, they are two, so that the resolve does not
+//! mix them. A later frame with the same parameters but the camera's orientation composes the
+//! same layers with its own camera image, each pixel reading the layer texel under it through
+//! the homography (nearest texel: at most half a pixel of shift, the same bound the level of
+//! detail keeps).
 //!
 //! A frame shades again when anything but the orientation changed (placement, light, sky,
 //! method, colour, camera position or field of view; a new environment or model; a ground or
-//! sky map that arrived from the worker), when the camera turned more than [`MAX_TURN_DEG`]
-//! since, or when part of the model or of its ground was outside the frame it was shaded in
-//! (a turn would bring in what the layer does not hold). Frames that reproject run no shadow,
-//! model or ground pass: one pass over the screen, which reads the layers inside the hull of
-//! what they hold ([`content_hull`]) and the camera image alone elsewhere.
+//! model sky map that arrived from the worker), when the camera turned more than
+//! [`MAX_TURN_DEG`] since, or when its view would show content the layers do not hold
+//! ([`view_held`]: the hull of the model's box and the ground's triangles, [`content_hull`],
+//! within the view must lie inside the layers). Frames that reproject run no shadow, model or
+//! ground pass: one pass over the hull of what the layers hold ([`held_part`]), the camera image
+//! alone (the background pass, depth-tested) elsewhere.
 
 use super::params::FrameParams;
 use super::pipelines::{COLOR_FORMAT, depth_state};

@@ -369,7 +369,8 @@ impl Compositor {
     /// A map of the face size already held is written into the textures made for it (the map
     /// and its prefiltered levels; nothing allocated, the bind groups stay): the refresh path of
     /// the live camera frame folded into the environment. On an error the current environment
-    /// stays.
+    /// stays (with reprojection, where its shading compositor took the new one and this one
+    /// did not, reprojection stops).
     pub fn set_environment(&mut self, gpu: &Gpu, cube: &CubeMap, exposure: f32, heading: f32) -> Result<()> {
         let prepared = environment::prepare_cached(gpu, cube, exposure, heading)?;
         self.set_prepared_environment(gpu, cube, prepared)
@@ -381,6 +382,21 @@ impl Compositor {
         if let Some(shader) = self.shader_mut() {
             shader.set_prepared_environment(gpu, cube, prepared.clone())?;
         }
+        let r = self.write_environment(gpu, cube, prepared);
+        self.keep_reprojection_if(r.is_ok());
+        r
+    }
+
+    /// Reprojection's shading compositor took what this one failed to take: it holds another
+    /// environment or model than the frames drawn here, so reprojection stops (every frame
+    /// shades here).
+    fn keep_reprojection_if(&mut self, both_took_it: bool) {
+        if !both_took_it {
+            self.reprojection = None;
+        }
+    }
+
+    fn write_environment(&mut self, gpu: &Gpu, cube: &CubeMap, prepared: environment::Prepared) -> Result<()> {
         let environment::Prepared { levels, env } = prepared;
         // The camera sees the new cube map until its equirectangular source is set again.
         self.background.use_cube();
@@ -448,11 +464,18 @@ impl Compositor {
     /// Upload a model: one vertex/index buffer and material bind group per mesh. What the model's
     /// content gives (ambient occlusion, level-of-detail chain) comes from the device's
     /// [`ModelCache`], computed on the first upload of that content. On an error (bad mesh, or
-    /// the GPU rejecting the upload) the current model stays.
+    /// the GPU rejecting the upload) the current model stays (with reprojection, where its
+    /// shading compositor took the new one and this one did not, reprojection stops).
     pub fn set_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
         if let Some(shader) = self.shader_mut() {
             shader.set_model(gpu, model)?;
         }
+        let r = self.upload_model(gpu, model);
+        self.keep_reprojection_if(r.is_ok());
+        r
+    }
+
+    fn upload_model(&mut self, gpu: &Gpu, model: &Model) -> Result<()> {
         let prepared = ModelCache::of(gpu)?.prepare(model)?;
         let uploaded = gpu.checked("the model's buffers and textures", || self.model_pass.upload(gpu, model, prepared))?;
         self.model = Some(uploaded);

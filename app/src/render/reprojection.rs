@@ -48,8 +48,11 @@ pub const MAX_TURN_DEG: f64 = 10.0;
 /// content reads the nearest texel, up to half a pixel inside it.
 pub const HULL_MARGIN_PX: f32 = 1.5;
 
-/// Most corners of the drawn hull; a hull with more is drawn as its bounding rectangle.
+/// Most corners of the content's hull; a hull with more is drawn as its bounding rectangle.
 pub const HULL_CORNERS: usize = 64;
+/// Most vertices of the drawn fan: the hull clipped to the layers' rectangle gains at most
+/// four corners.
+const FAN_VERTICES: usize = 3 * (HULL_CORNERS + 4 - 2);
 
 /// Mirrors `struct Reproject` in shaders/reproject.wgsl.
 #[repr(C)]
@@ -325,7 +328,7 @@ impl Reprojection {
             (resolved, view(build::texture(device, "matte msaa (reprojection)", extent, MATTE_FORMAT, samples, attach)))
         });
         let uniform = build::uniform_buffer::<ReprojectUniforms>(device, "reproject");
-        let bytes = (3 * HULL_CORNERS * std::mem::size_of::<[f32; 2]>()) as u64;
+        let bytes = (FAN_VERTICES * std::mem::size_of::<[f32; 2]>()) as u64;
         let vertices = build::buffer(device, "reprojection hull", bytes, wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST);
         let bind_group = build::bind_group(
             device,
@@ -401,7 +404,7 @@ impl Reprojection {
         if !view_held(&held.content, to_layer, self.frame, self.layer) {
             return false;
         }
-        let Some(fan) = fan_in_frame(&held.hull, to_layer) else { return false };
+        let Some(fan) = fan_in_frame(&held.hull, to_layer).filter(|f| f.len() <= FAN_VERTICES) else { return false };
         let h = to_layer.as_mat3();
         let column = |c: glam::Vec3| [c.x, c.y, c.z, 0.0];
         let size = |(w, h): (u32, u32)| [w as f32, h as f32];

@@ -602,8 +602,8 @@ impl Compositor {
     /// Reproject the frames that only turn the camera (the live view; render::reprojection):
     /// the model and its ground are shaded into layers, and a later frame with the same
     /// parameters but the camera's orientation composes them with its own camera image through
-    /// the turn. Turning it on makes the layers (the frame's size, once); off, every frame
-    /// shades. A frame with FXAA, a supersampled one, one timed pass by pass, one of a layer
+    /// the turn. Turning it on makes the layers (the frame's size plus a margin) and the
+    /// compositor that shades them, once; off, every frame shades. A frame with FXAA, a supersampled one, one timed pass by pass, one of a layer
     /// other than the composite, and one over the environment seen by the camera (no camera
     /// image) always shade. Returns whether it is on.
     ///

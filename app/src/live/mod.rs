@@ -268,6 +268,11 @@ pub struct LiveSession {
     /// The sun direction measured in the map (or set by the scene) the frames use when not
     /// `sun_from_clock`.
     map_sun_dir: Vec3,
+    /// With `sun_from_clock`, the sun the frames light with: SPA's for the clock, taken again
+    /// once SPA's has turned away from it by more than [`crate::setup::light::sun_step`] allows
+    /// (the shadow moved half a pixel, or the light a fraction of a level), so that frames in
+    /// between have the same parameters (kept maps, reprojected turns).
+    clock_sun: Option<Vec3>,
     /// The current camera image (the background of the frame) when it came as an image; a YUV
     /// frame stays on the GPU, in `yuv`'s target.
     camera_image: Option<crate::scene::Rgba8Image>,
@@ -364,6 +369,7 @@ impl LiveSession {
             sun_intensity: scene.sun.sunlight as f32 * unit_light.sunlight,
             sun_from_clock: scene.env.captured_here,
             map_sun_dir,
+            clock_sun: None,
             camera_image: None,
             yuv: None,
             unit_light,
@@ -441,7 +447,7 @@ impl LiveSession {
         let t3 = std::time::Instant::now();
         // SPA's sun for a capture of this place and moment; otherwise the map's own sun (the
         // demo's picture, a downloaded HDR), whatever the clock says.
-        let sun_dir = if self.sun_from_clock { sun.direction_enu() } else { self.map_sun_dir };
+        let sun_dir = if self.sun_from_clock { self.clock_sun(sun.direction_enu()) } else { self.map_sun_dir };
         let sunlight = self.full_sunlight * crate::sun::twilight::sunlight_factor_toward(sun_dir);
         if let Some(p) = pose {
             self.params.camera.pose = p.q;
@@ -486,6 +492,28 @@ impl LiveSession {
             sun_ms: ms(t2, t3),
             user_tapped,
         }))
+    }
+
+    /// The sun a frame lights with when it follows the clock: the held one while SPA's sun `now`
+    /// is within a step of it (`setup::light::sun_step` for the model where it stands, half a
+    /// pixel), else `now`, held from then on.
+    fn clock_sun(&mut self, now: Vec3) -> Vec3 {
+        let bounds = self.compositor.model_bounds();
+        let p = &self.params;
+        let step = |held: Vec3| match bounds {
+            Some(b) => {
+                let corners = crate::render::shadow_fit::box_corners(b, crate::render::view::model_matrix(b, &p.placement));
+                let view = (p.camera.vfov, (self.scene.width, self.scene.height));
+                crate::setup::light::sun_step(&corners, p.placement.position.z, p.camera.position, view, held, 0.5)
+            }
+            None => 0.0,
+        };
+        // The chord's angle: acos of a dot product in f32 cannot tell turns under ~0.02°.
+        let turn = |held: Vec3| 2.0 * (0.5 * (held.as_dvec3().normalize() - now.as_dvec3().normalize()).length()).asin();
+        match self.clock_sun {
+            Some(held) if turn(held) <= f64::from(step(held)) => held,
+            _ => *self.clock_sun.insert(now),
+        }
     }
 
     /// The app went to the background (another app, the screen locked): stop the camera and the
@@ -665,6 +693,7 @@ impl LiveSession {
         // A capture just taken here: from now on the sun is SPA's for the place and the clock.
         scene.env.captured_here = true;
         self.sun_from_clock = true;
+        self.clock_sun = None;
         self.params.lighting.daylight = light.daylight;
         self.params.lighting.shadow_opacity = light.shadow_opacity;
         self.params.lighting.sky_occlusion = light.sky_occlusion;

@@ -202,6 +202,45 @@ pub fn sky_occlusion(ground_sun: f32, ground_sky: f32) -> f32 {
     if ground_sun + ground_sky > 0.0 { (ground_sky / (ground_sun + ground_sky)).clamp(0.0, 1.0) } else { 0.0 }
 }
 
+/// The farthest (radians) a sun that follows the clock turns before the frame's light follows it
+/// at any geometry: the twilight fade moves by at most 0.25 %/0.01° (`sun::twilight`'s steepest
+/// slope, 1.5/6 per degree) and a surface's cosine to the sun by at most 1.7·10⁻⁴, both under half
+/// an 8-bit level of the light they scale. The sun crosses it in 2.4 s at its fastest
+/// (15°/h).
+pub const MAX_SUN_STEP_RAD: f32 = 0.01 * std::f32::consts::PI / 180.0;
+
+/// How far a sun that follows the clock may turn (radians) before the frame must light with it:
+/// the turn that moves the model's shadow by at most `px` pixels on screen, at most
+/// [`MAX_SUN_STEP_RAD`]. The shadow of a point `h` above the ground lies `h·cot e` from its foot
+/// (e the sun's elevation); a turn of the sun by Δ moves it by at most `h·Δ/sin²e` (a change
+/// Δe of the elevation moves it `h·Δe/sin²e` away from the foot, a change Δa of the azimuth
+/// `h·cot e·Δa` = `h·(cos e·Δa)/sin e` across, and Δ² = Δe² + (cos e·Δa)²). That
+/// displacement is seen from no nearer than the nearest point the shadow can reach: the model's
+/// box `corners` (world) and its shadow, no nearer than the camera's height above the ground
+/// plane `ground_z`; and the projection magnifies an angle by at most `1 + tan²φ` at the frame's
+/// corner φ off axis (vertical field `vfov`, radians; `size` in pixels). A sun below the horizon
+/// casts no shadow: only the light's bound holds then. `sun` is a unit direction.
+pub fn sun_step(corners: &[Vec3; 8], ground_z: f32, camera: Vec3, (vfov, size): (f32, (u32, u32)), sun: Vec3, px: f32) -> f32 {
+    let height = corners.iter().map(|c| c.z - ground_z).fold(0.0f32, f32::max);
+    let sin_e = sun.z;
+    if !(height > 0.0 && sin_e > 0.0) {
+        return MAX_SUN_STEP_RAD;
+    }
+    let foot = corners.iter().fold(Vec3::ZERO, |a, &c| a + c) / 8.0;
+    let reach = corners.iter().map(|c| (c.truncate() - foot.truncate()).length()).fold(0.0f32, f32::max);
+    let shadow_len = height * (1.0 - sin_e * sin_e).max(0.0).sqrt() / sin_e;
+    let lift = (camera.z - ground_z).abs();
+    let across = ((camera.truncate() - foot.truncate()).length() - reach - shadow_len).max(0.0);
+    let nearest = (across * across + lift * lift).sqrt();
+    let half_v = 0.5 * vfov;
+    let focal = 0.5 * size.1 as f32 / half_v.tan();
+    let aspect = size.0 as f32 / size.1.max(1) as f32;
+    let tan_corner_sq = half_v.tan().powi(2) * (1.0 + aspect * aspect);
+    let px_per_rad_at_nearest = focal * (1.0 + tan_corner_sq) / nearest.max(1e-6);
+    let step = px * sin_e * sin_e / (height * px_per_rad_at_nearest);
+    if step.is_nan() { 0.0 } else { step.min(MAX_SUN_STEP_RAD) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -263,5 +302,72 @@ mod tests {
         for (sun, sky) in [(3.0, 1.0), (0.2, 5.0), (1.0, 0.0)] {
             assert!((shadow_opacity(sun, sky) + sky_occlusion(sun, sky) - 1.0).abs() < 1e-6);
         }
+    }
+
+    /// Where the shadows of the box's top corners fall on the ground, in pixels of the camera
+    /// (None for one behind the camera or off the frame: nothing on screen moves there).
+    fn shadow_tips_px(corners: &[Vec3; 8], sun: Vec3, view_proj: glam::Mat4, (w, h): (u32, u32)) -> Vec<Option<glam::Vec2>> {
+        corners
+            .iter()
+            .filter(|c| c.z > 1e-6)
+            .map(|&c| {
+                let clip = view_proj * (c - sun * (c.z / sun.z)).extend(1.0);
+                let px = glam::Vec2::new((clip.x / clip.w + 1.0) * 0.5 * w as f32, (1.0 - clip.y / clip.w) * 0.5 * h as f32);
+                (clip.w > 0.0 && px.x >= 0.0 && px.y >= 0.0 && px.x <= w as f32 && px.y <= h as f32).then_some(px)
+            })
+            .collect()
+    }
+
+    fn sun_at(elevation_deg: f32, azimuth_deg: f32) -> Vec3 {
+        let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+        Vec3::new(e.cos() * a.sin(), e.cos() * a.cos(), e.sin())
+    }
+
+    #[test]
+    fn a_sun_step_moves_the_shadow_by_at_most_half_a_pixel() {
+        use crate::render::view::{Placement, camera_pose, model_matrix, projection, view_matrix};
+        let size = (960, 640);
+        let vfov = 60f32.to_radians();
+        let camera = Vec3::new(0.0, 0.0, 1.5);
+        // A truck-sized box 8 m ahead, turned; the camera looks at it 10° down.
+        let bounds = (Vec3::new(-2.0, 0.0, -1.0), Vec3::new(2.0, 1.6, 1.0));
+        let placement = Placement { position: Vec3::new(1.0, 8.0, 0.0), rotation: Vec3::new(0.0, 0.0, 0.5), scale: 1.0 };
+        let corners = crate::render::shadow_fit::box_corners(bounds, model_matrix(bounds, &placement));
+        let view_proj = projection(vfov, 1.5, 0.05, 100.0) * view_matrix(camera_pose(0.0, -10f32.to_radians(), 0.0), camera);
+        let mut tightest = 0.0f32;
+        for elevation in [3.0, 8.0, 20.0, 45.0, 80.0] {
+            for azimuth in [0.0, 70.0, 160.0, 250.0] {
+                let sun = sun_at(elevation, azimuth);
+                let step = sun_step(&corners, 0.0, camera, (vfov, size), sun, 0.5);
+                assert!(step > 0.0 && step <= MAX_SUN_STEP_RAD, "{elevation} {azimuth}: {step}");
+                let before = shadow_tips_px(&corners, sun, view_proj, size);
+                // The turn by the step in eight directions: up, down, along the horizon, between.
+                for k in 0..8 {
+                    let t = k as f32 * std::f32::consts::FRAC_PI_4;
+                    let turned = sun_at(
+                        elevation + (step * t.cos()).to_degrees(),
+                        azimuth + (step * t.sin() / elevation.to_radians().cos()).to_degrees(),
+                    );
+                    let moved = before
+                        .iter()
+                        .zip(shadow_tips_px(&corners, turned, view_proj, size))
+                        .filter_map(|(a, b)| Some(a.as_ref()?.distance(b?)))
+                        .fold(0.0f32, f32::max);
+                    assert!(moved <= 0.5, "{elevation}° {azimuth}° turned {:.5}° towards {k}: {moved} px", step.to_degrees());
+                    if step < MAX_SUN_STEP_RAD {
+                        tightest = tightest.max(moved);
+                    }
+                }
+            }
+        }
+        // The bound is not vacuous: somewhere it is within a factor of 10 of the half pixel.
+        assert!(tightest > 0.05, "largest move {tightest} px");
+        // A low sun steps in smaller turns than a high one; below the horizon, or for a flat
+        // model, only the light's bound is left.
+        let low = sun_step(&corners, 0.0, camera, (vfov, size), sun_at(5.0, 0.0), 0.5);
+        let high = sun_step(&corners, 0.0, camera, (vfov, size), sun_at(40.0, 0.0), 0.5);
+        assert!(low < high, "{low} {high}");
+        assert_eq!(sun_step(&corners, 0.0, camera, (vfov, size), sun_at(-2.0, 0.0), 0.5), MAX_SUN_STEP_RAD);
+        assert_eq!(sun_step(&corners, 5.0, camera, (vfov, size), sun_at(30.0, 0.0), 0.5), MAX_SUN_STEP_RAD);
     }
 }

@@ -64,8 +64,8 @@ fn camera_image_is_the_background_model_at_the_pose_sun_from_spa() {
         // (setup::light::sun_step): within a step of this instant's, and this instant's on the
         // frames where the session took it again.
         let lit = session.params().lighting.sun_dir;
-        let off = 2.0 * (0.5 * (lit - expected).length()).asin();
-        assert!(off <= previz::setup::light::MAX_SUN_STEP_RAD * 1.001, "the frame's sun is {off} rad from SPA's");
+        let off = previz::setup::light::sun_turn(lit, expected);
+        assert!(off <= f64::from(previz::setup::light::MAX_SUN_STEP_RAD) * 1.001, "the frame's sun is {off} rad from SPA's");
         if lit_before != Some(lit) {
             assert!((lit - expected).length() < 1e-5);
             suns_taken += 1;

@@ -82,8 +82,8 @@ fn live_view_against_the_full_render(captured_here: bool, frames: usize, scale: 
         if captured_here {
             let lit = exact.lighting.sun_dir;
             exact.lighting.sun_dir = f.sun.direction_enu();
-            let off = 2.0 * (0.5 * (lit - exact.lighting.sun_dir).length()).asin();
-            assert!(off <= previz::setup::light::MAX_SUN_STEP_RAD * 1.001, "the frame's sun is {off} rad from SPA's");
+            let off = previz::setup::light::sun_turn(lit, exact.lighting.sun_dir);
+            assert!(off <= f64::from(previz::setup::light::MAX_SUN_STEP_RAD) * 1.001, "the frame's sun is {off} rad from SPA's");
         }
         let truth = reference.render(gpu(), &exact, Layer::Composite).unwrap();
         let e = flip(&truth, &frame);

@@ -508,10 +508,8 @@ impl LiveSession {
             }
             None => 0.0,
         };
-        // The chord's angle: acos of a dot product in f32 cannot tell turns under ~0.02°.
-        let turn = |held: Vec3| 2.0 * (0.5 * (held.as_dvec3().normalize() - now.as_dvec3().normalize()).length()).asin();
         match self.clock_sun {
-            Some(held) if turn(held) <= f64::from(step(held)) => held,
+            Some(held) if crate::setup::light::sun_turn(held, now) <= f64::from(step(held)) => held,
             _ => *self.clock_sun.insert(now),
         }
     }

@@ -209,6 +209,12 @@ pub fn sky_occlusion(ground_sun: f32, ground_sky: f32) -> f32 {
 /// (15°/h).
 pub const MAX_SUN_STEP_RAD: f32 = 0.01 * std::f32::consts::PI / 180.0;
 
+/// The angle (radians) between two sun directions (any non-zero lengths), from their chord: acos
+/// of an f32 dot product cannot tell turns under ~0.02° from none.
+pub fn sun_turn(a: Vec3, b: Vec3) -> f64 {
+    2.0 * (0.5 * (a.as_dvec3().normalize() - b.as_dvec3().normalize()).length()).asin()
+}
+
 /// How far a sun that follows the clock may turn (radians) before the frame must light with it:
 /// the turn that moves the model's shadow by at most `px` pixels on screen, at most
 /// [`MAX_SUN_STEP_RAD`]. The shadow of a point `h` above the ground lies `h·cot e` from its foot
@@ -321,6 +327,20 @@ mod tests {
     fn sun_at(elevation_deg: f32, azimuth_deg: f32) -> Vec3 {
         let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
         Vec3::new(e.cos() * a.sin(), e.cos() * a.cos(), e.sin())
+    }
+
+    #[test]
+    fn the_turn_between_suns_holds_for_a_hundred_thousandth_of_a_degree() {
+        // About 0.00001° apart, far below what acos of an f32 dot resolves: against the angle of
+        // the same two vectors from atan2(|a×b|, a·b) in f64.
+        let (a, b) = (sun_at(30.0, 10.0), sun_at(30.00001, 10.0));
+        let (da, db) = (a.as_dvec3(), b.as_dvec3());
+        let truth = da.cross(db).length().atan2(da.dot(db));
+        assert!(truth > 1e-7 && truth < 3e-7, "{truth}");
+        assert!((sun_turn(a, b) - truth).abs() < 1e-12, "{} {truth}", sun_turn(a, b));
+        assert!((f64::from(a.angle_between(b)) - truth).abs() > 0.5 * truth, "f32 acos resolves it after all");
+        assert!((sun_turn(Vec3::X, Vec3::Y * 2.0) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!((sun_turn(Vec3::X, -Vec3::X) - std::f64::consts::PI).abs() < 1e-12);
     }
 
     #[test]

@@ -603,9 +603,10 @@ impl Compositor {
     /// the model and its ground are shaded into layers, and a later frame with the same
     /// parameters but the camera's orientation composes them with its own camera image through
     /// the turn. Turning it on makes the layers (the frame's size plus a margin) and the
-    /// compositor that shades them, once; off, every frame shades. A frame with FXAA, a supersampled one, one timed pass by pass, one of a layer
-    /// other than the composite, and one over the environment seen by the camera (no camera
-    /// image) always shade. Returns whether it is on.
+    /// compositor that shades them, once; off, every frame shades. A frame with FXAA, a
+    /// supersampled one, one timed pass by pass, one of a layer other than the composite, and
+    /// one over the environment seen by the camera (no camera image) always shade. Returns
+    /// whether it is on.
     ///
     /// The layers are shaded by a second compositor of the frame's size plus a margin, which
     /// takes the environment, the model and the settings this one is given from then on: it is

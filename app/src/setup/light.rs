@@ -325,8 +325,7 @@ mod tests {
     }
 
     fn sun_at(elevation_deg: f32, azimuth_deg: f32) -> Vec3 {
-        let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
-        Vec3::new(e.cos() * a.sin(), e.cos() * a.cos(), e.sin())
+        crate::sun::direction_enu(f64::from(90.0 - elevation_deg).to_radians(), f64::from(azimuth_deg).to_radians())
     }
 
     #[test]

@@ -62,29 +62,22 @@ fn colour_luminance(rgb: vec3<f32>) -> f32 {
 
 // Linear RGB -> lab (log lαβ when use_log, else lαβ without the log).
 fn colour_rgb_to_lab(rgb: vec3<f32>, use_log: bool) -> vec3<f32> {
-    var lms = COLOUR_RGB_TO_LMS * rgb;
-    if (use_log) {
-        lms = log2(max(lms, vec3<f32>(0.0)) + COLOUR_LOG_OFFSET) * COLOUR_LOG10_2;
-    }
-    return COLOUR_LMS_TO_LAB * lms;
+    let lms = COLOUR_RGB_TO_LMS * rgb;
+    let logged = log2(max(lms, vec3<f32>(0.0)) + COLOUR_LOG_OFFSET) * COLOUR_LOG10_2;
+    return COLOUR_LMS_TO_LAB * select(lms, logged, use_log);
 }
 
 // Inverse of colour_rgb_to_lab (not clamped).
 fn colour_lab_to_rgb(lab: vec3<f32>, use_log: bool) -> vec3<f32> {
-    var lms = transpose(COLOUR_LMS_TO_LAB) * lab;
-    if (use_log) {
-        lms = exp2(lms * COLOUR_LOG2_10) - COLOUR_LOG_OFFSET;
-    }
-    return COLOUR_LMS_TO_RGB * lms;
+    let lms = transpose(COLOUR_LMS_TO_LAB) * lab;
+    let unlogged = exp2(lms * COLOUR_LOG2_10) - COLOUR_LOG_OFFSET;
+    return COLOUR_LMS_TO_RGB * select(lms, unlogged, use_log);
 }
 
 // smoothstep that is a step at e0 when e1 - e0 < COLOUR_MIN_RANGE (WGSL leaves that undefined).
 fn colour_smoothstep_safe(e0: f32, e1: f32, x: f32) -> f32 {
-    if (e1 - e0 < COLOUR_MIN_RANGE) {
-        return select(0.0, 1.0, x >= e0);
-    }
-    let t = clamp((x - e0) / (e1 - e0), 0.0, 1.0);
-    return t * t * (3.0 - 2.0 * t);
+    let t = clamp((x - e0) / max(e1 - e0, COLOUR_MIN_RANGE), 0.0, 1.0);
+    return select(t * t * (3.0 - 2.0 * t), select(0.0, 1.0, x >= e0), e1 - e0 < COLOUR_MIN_RANGE);
 }
 
 // Output luminance of the brightness/contrast correction (app/src/colour/intensity.rs).
@@ -112,21 +105,15 @@ fn colour_correct_intensity(rgb_in: vec3<f32>, cc: ColourCorrection) -> vec3<f32
     return vec3<f32>(y_out);
 }
 
-// The correction before clamping and strength.
+// The correction before clamping and strength. Every method's result is computed and the
+// method's chosen with select: lavapipe recompiles a shader that branches on uniform values
+// alone at each bind (gpu::uniform_branches), several milliseconds a frame.
 fn colour_correct_unclipped(rgb: vec3<f32>, cc: ColourCorrection) -> vec3<f32> {
-    switch cc.method {
-        case 1u: {
-            return colour_correct_intensity(rgb, cc);
-        }
-        case 2u, 3u, 4u: {
-            let use_log = cc.method != 3u;
-            let lab = colour_rgb_to_lab(rgb, use_log);
-            return colour_lab_to_rgb(cc.transfer * lab + cc.offset, use_log);
-        }
-        default: {
-            return rgb;
-        }
-    }
+    let use_log = cc.method != 3u;
+    let transferred = colour_lab_to_rgb(cc.transfer * colour_rgb_to_lab(rgb, use_log) + cc.offset, use_log);
+    let intensity = colour_correct_intensity(rgb, cc);
+    let lab_method = (cc.method >= 2u) & (cc.method <= 4u);
+    return select(select(rgb, intensity, cc.method == 1u), transferred, lab_method);
 }
 
 // The model's colour correction: linear RGB in, linear RGB out. Negative results (out of

@@ -49,12 +49,16 @@ fn vs_main(@location(0) corner: vec2<f32>) -> GroundOut {
     return out;
 }
 
+// Seen from below (the camera under the plane) there is no ground to shadow: the factor 1.
+// Chosen with select, as every choice here that depends on uniforms alone: lavapipe recompiles
+// a shader that branches on them at each bind (gpu::uniform_branches).
 @fragment
 fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
-    // Seen from below (the camera under the plane) there is no ground to shadow: the factor 1.
-    if (frame.camera_pos.z <= plane.model[3].z) {
-        return vec4<f32>(0.5);
-    }
+    let below = frame.camera_pos.z <= plane.model[3].z;
+    return select(ground_factor(in), vec4<f32>(0.5), below);
+}
+
+fn ground_factor(in: GroundOut) -> vec4<f32> {
     // The model hides part of the sky: the sky's share of the ground's light times the share of
     // the (cosine-weighted) sky hidden here. Outside the square the sky is whole.
     let square = light.ground_square;
@@ -71,16 +75,16 @@ fn fs_main(in: GroundOut) -> @location(0) vec4<f32> {
     }
     // The sun's shadow removes the sun's share of the ground's light: shadow_opacity is that
     // share (measured from the environment by setup::light), none when there is no sunlight.
-    var sun_lost = 0.0;
-    if (frame.sun_dir.z > 0.0 && frame.sunlight > 0.0 && frame.shadow_opacity > 0.0) {
-        var visibility: f32;
-        if (SUN == SUN_BAKED) {
-            visibility = baked_sun(in.world.xy);
-        } else {
-            visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
-        }
-        sun_lost = frame.shadow_opacity * (1.0 - visibility);
+    // The pipelines that look the sun up are drawn only where the sun's shadow can fall (the
+    // full-shadow reference excepted), so the lookup is made and its loss kept where it counts.
+    var visibility: f32;
+    if (SUN == SUN_BAKED) {
+        visibility = baked_sun(in.world.xy);
+    } else {
+        visibility = sun_visibility_soft(shadow_map, shadow_smp, shadow_gather_smp, frame, in.world, light.sun.w);
     }
+    let shadowed = (frame.sun_dir.z > 0.0) & (frame.sunlight > 0.0) & (frame.shadow_opacity > 0.0);
+    let sun_lost = select(0.0, frame.shadow_opacity * (1.0 - visibility), shadowed);
     var sky_seen = vec3<f32>(1.0);
     var bounce = vec3<f32>(0.0);
     if (inside) {
@@ -112,13 +116,10 @@ fn ground_loss(sun_lost: f32, sky_lost: vec3<f32>) -> vec3<f32> {
     let sun_share = frame.shadow_opacity;
     let sky_share = light.ground_sky.x;
     let total = sun_share + sky_share;
-    if (total <= 0.0) {
-        return vec3<f32>(0.0);
-    }
     let sun_colour = light.sun.rgb;
     let sky_colour = light.ground_sky.yzw;
-    // The ground's light per channel, luminance 1 (shares normalised).
-    let light_rgb = (sun_share * sun_colour + sky_share * sky_colour) / total;
+    // The ground's light per channel, luminance 1 (shares normalised); nothing lost without light.
+    let light_rgb = (sun_share * sun_colour + sky_share * sky_colour) / max(total, 1e-30);
     let lost = (sun_lost * sun_colour + sky_lost * sky_colour) / max(light_rgb, vec3<f32>(1e-6));
-    return clamp(lost, vec3<f32>(0.0), vec3<f32>(1.0));
+    return select(clamp(lost, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(0.0), total <= 0.0);
 }

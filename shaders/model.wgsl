@@ -150,13 +150,14 @@ const DIFFUSE_LOD_BIAS: f32 = -1.5;
 // The surface's diffuse reflectance after colour correction (seed §5.6), which acts on what the
 // model priors were measured on: the diffuse texture's linear colour when there is one, else
 // the material's diffuse colour. A corrected reflectance is kept at or below 1.
+// Chosen with select, not branched on: lavapipe recompiles a shader that branches on uniform
+// values alone at each bind (gpu::uniform_branches); an untextured material's texture is 1×1.
 fn surface_albedo(uv: vec2<f32>) -> vec3<f32> {
     let albedo = material.albedo.rgb;
-    if (material.albedo.a > 0.5) {
-        let texel = textureSampleBias(diffuse_tex, diffuse_smp, uv, DIFFUSE_LOD_BIAS).rgb;
-        return albedo * min(corrected_colour(texel), vec3<f32>(1.0));
-    }
-    return min(corrected_colour(albedo), vec3<f32>(1.0));
+    let texel = textureSampleBias(diffuse_tex, diffuse_smp, uv, DIFFUSE_LOD_BIAS).rgb;
+    let source = select(albedo, texel, material.albedo.a > 0.5);
+    let corrected = min(corrected_colour(source), vec3<f32>(1.0));
+    return select(corrected, albedo * corrected, material.albedo.a > 0.5);
 }
 
 // The colour correction of a reflectance, or the reflectance itself in the pipelines without

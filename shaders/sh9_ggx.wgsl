@@ -101,17 +101,18 @@ fn sh9_ggx_light(p: vec3<f32>, normal: vec3<f32>, ao: vec4<f32>, bent: vec3<f32>
     let sky = sky_and_ground(n, ao, b, seen, tint) * (frame.daylight * material.terms.x);
     let n_dot_l = max(dot(n, frame.sun_dir), 0.0);
     let sun = light.sun.rgb * (frame.sunlight * n_dot_l * visibility * material.terms.y);
-    var out = Sh9Light(sky + sun, vec3<f32>(0.0));
+    // The reflection is computed for every material (zero without a specular term): a branch on
+    // the material alone is one lavapipe recompiles the shader for at each bind
+    // (gpu::uniform_branches).
     let f0 = material.specular.rgb;
-    if (max(f0.r, max(f0.g, f0.b)) * material.terms.z > 0.0) {
-        let roughness = roughness_from_exponent(material.specular.a);
-        let n_dot_v = clamp(dot(n, v), 1e-3, 1.0);
-        let r = reflect(-v, n);
-        let prefiltered = textureSampleLevel(specular_env, env_smp, env_dir(frame, r), roughness * (PREFILTER_LEVELS - 1.0)).rgb;
-        let ab = textureSampleLevel(brdf_lut, background_smp, vec2<f32>(n_dot_v, roughness), 0.0).xy;
-        out.specular = prefiltered * frame.env_exposure * (f0 * ab.x + ab.y) * ((ao.x + ao.w) * material.terms.z);
-    }
-    return out;
+    let roughness = roughness_from_exponent(material.specular.a);
+    let n_dot_v = clamp(dot(n, v), 1e-3, 1.0);
+    let r = reflect(-v, n);
+    let prefiltered = textureSampleLevel(specular_env, env_smp, env_dir(frame, r), roughness * (PREFILTER_LEVELS - 1.0)).rgb;
+    let ab = textureSampleLevel(brdf_lut, background_smp, vec2<f32>(n_dot_v, roughness), 0.0).xy;
+    let strength = select(0.0, material.terms.z, max(f0.r, max(f0.g, f0.b)) * material.terms.z > 0.0);
+    let specular = prefiltered * frame.env_exposure * (f0 * ab.x + ab.y) * ((ao.x + ao.w) * strength);
+    return Sh9Light(sky + sun, specular);
 }
 
 // The unit normal at `p` turned to the viewer (a double-sided material's back faces' too).

@@ -120,17 +120,19 @@ fn assert_shaded_as_drawn(full: &Rendered, frame: &Rendered, what: &str) {
     assert!(e <= FLIP_BUDGET, "{what}: shaded frame FLIP {e}");
 }
 
-/// A sphere on the Park2 lawn at 240×160 over a camera image (a reprojected frame needs one).
-/// A model no other test draws: the device's model cache (the ground's map for a placement,
-/// which a frame must find unchanged to reproject) is shared by every test in the process.
-fn sphere() -> (previz::setup::scene_file::Scene, Inputs) {
+/// A sphere of `rings` on the Park2 lawn at 240×160 over a camera image (a reprojected frame
+/// needs one). Each test draws a sphere no other test draws: the device's model cache (the
+/// ground's map for a placement, which a frame must find unchanged to reproject) is shared by
+/// every test in the process, and one test turning its model while another drew the same one
+/// made the other's next frame shade (seen once in a full run under load).
+fn sphere(rings: u32) -> (previz::setup::scene_file::Scene, Inputs) {
     let s = scene(
         "width = 240\nheight = 160\nenvironment = \"cubemaps/humus_Park2_512\"\nmodel = \"meshes/stanford-bunny.obj\"\n\
          [camera]\nheading = 90.0\npitch = -8.0\n",
     );
     let mut inputs = common::inputs(&s);
     let material = previz::scene::Material { diffuse: [0.7, 0.55, 0.3], ..Default::default() };
-    inputs.model = common::uv_sphere(29, material);
+    inputs.model = common::uv_sphere(rings, material);
     // A camera image with detail everywhere (what the ground darkens and the model covers).
     let pixels = (0..s.width * s.height)
         .flat_map(|i| {
@@ -179,7 +181,7 @@ fn within_a_pixel(full: &Rendered, test: &Rendered, background: &[u8], tol: u8) 
 
 #[test]
 fn a_turned_frame_puts_everything_within_a_pixel_of_the_full_render_multisampled_or_not() {
-    let (s, inputs) = sphere();
+    let (s, inputs) = sphere(29);
     for aa in [Antialiasing::Msaa(1), Antialiasing::Msaa(4)] {
         let (mut live, p) = prepare_reprojected(gpu(), &s, &inputs, aa).unwrap();
         let (mut frame, _) = prepare_antialiased(gpu(), &s, &inputs, aa).unwrap();
@@ -207,7 +209,7 @@ fn a_turned_frame_puts_everything_within_a_pixel_of_the_full_render_multisampled
 
 #[test]
 fn anything_but_a_turn_of_the_camera_shades_again() {
-    let (s, inputs) = sphere();
+    let (s, inputs) = sphere(31);
     let (mut live, p): (Compositor, FrameParams) = prepare_reprojected(gpu(), &s, &inputs, Antialiasing::Msaa(1)).unwrap();
     let mut render = |q: &FrameParams| live.render(gpu(), q, Layer::Composite).unwrap().timings.reprojected;
     assert!(!render(&p));

@@ -7,6 +7,7 @@ pub mod build;
 pub mod counter;
 pub mod readback;
 pub mod timer;
+pub mod uniform_branches;
 pub mod wgsl;
 
 pub use counter::{PassCount, PassCounter};

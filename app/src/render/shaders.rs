@@ -93,6 +93,61 @@ pub fn source(t: Technique) -> String {
 mod tests {
     use super::*;
 
+    /// Every pipeline a frame binds, with the override constants it is made with, branches on
+    /// nothing that lavapipe would inline and recompile at each bind (gpu::uniform_branches:
+    /// several milliseconds a frame for each such pipeline, whatever it draws;
+    /// docs/PERFORMANCE.md, twenty-sixth session).
+    #[test]
+    fn no_pipeline_branches_on_uniform_values_alone() {
+        use crate::gpu::uniform_branches::uniform_branches;
+        // The technique, its vertex (or compute) and fragment (or second) entry points and its
+        // override constants.
+        type Pipeline<'a> = (Technique, [&'a str; 2], Vec<(&'a str, f64)>);
+        let mut pipelines: Vec<Pipeline> = Vec::new();
+        for method in crate::render::LightingMethod::ALL {
+            for corrected in [0.0, 1.0] {
+                let m = f64::from(method.shader_id());
+                for (entries, vertex_sun) in [(["vs_main", "fs_main"], 0.0), (["vs_main", "fs_main"], 1.0), (["vs_light", "fs_light"], 1.0)]
+                {
+                    pipelines.push((
+                        Technique::Model,
+                        entries,
+                        vec![("METHOD", m), ("COLOUR_CORRECTION", corrected), ("VERTEX_SUN", vertex_sun)],
+                    ));
+                }
+            }
+        }
+        pipelines.push((Technique::Model, ["vs_main", "fs_depth"], vec![("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)]));
+        for sun in [0.0, 1.0, 2.0] {
+            pipelines.push((Technique::Ground, ["vs_main", "fs_main"], vec![("SUN", sun)]));
+        }
+        for soft in [0.0, 1.0] {
+            pipelines.push((Technique::VertexSun, ["main", "split"], vec![("SOFT", soft)]));
+        }
+        for packed in [0.0, 1.0] {
+            pipelines.push((Technique::Reproject, ["vs_main", "fs_main"], vec![("PACKED", packed)]));
+        }
+        for t in [Technique::Background, Technique::EnvView, Technique::EnvViewEquirect, Technique::GroundSun, Technique::Fxaa] {
+            pipelines.push((t, ["vs_main", "fs_main"], Vec::new()));
+        }
+        pipelines.push((Technique::Shadow, ["vs_main", "vs_main"], Vec::new()));
+        let mut checked = 0;
+        for (t, entries, constants) in &pipelines {
+            let module = crate::gpu::wgsl::validate(&source(*t)).unwrap();
+            for entry in entries {
+                assert!(module.entry_points.iter().any(|e| e.name == *entry), "{t:?} has no entry point {entry}");
+                let found = uniform_branches(&module, entry, constants);
+                assert!(
+                    found.is_empty(),
+                    "{t:?} {entry} with {constants:?}: {}",
+                    found.iter().map(|b| b.to_string()).collect::<Vec<_>>().join(", ")
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 2 * pipelines.len());
+    }
+
     #[test]
     fn every_shader_parses_and_validates() {
         for t in Technique::ALL {

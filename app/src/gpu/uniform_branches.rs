@@ -12,7 +12,9 @@
 //! invocation (entry-point inputs, texture reads, storage buffers, derivatives), followed
 //! through locals, function arguments and results as NIR's function inlining would see them.
 //! Literals and pipeline-override constants are fixed when the pipeline is made and do not
-//! count.
+//! count; a branch they decide is not looked into on the side not taken. `&&` and `||` reach
+//! naga as an `if` storing into a local, which this does not decide: the code behind such a
+//! condition on constants is checked as if it could run (a false alarm at worst).
 
 use naga::{AddressSpace, Block, Expression, Function, Handle, Module, Statement};
 
@@ -202,6 +204,13 @@ impl Fixed<'_> {
                     B::GreaterEqual => bool_value(a >= b),
                     B::LogicalAnd => bool_value(a != 0.0 && b != 0.0),
                     B::LogicalOr => bool_value(a != 0.0 || b != 0.0),
+                    // Booleans (0, 1) and unsigned integers bit by bit.
+                    B::And => ((a as u64) & (b as u64)) as f64,
+                    B::InclusiveOr => ((a as u64) | (b as u64)) as f64,
+                    B::ExclusiveOr => ((a as u64) ^ (b as u64)) as f64,
+                    B::Add => a + b,
+                    B::Subtract => a - b,
+                    B::Multiply => a * b,
                     _ => return None,
                 }
             }
@@ -443,6 +452,29 @@ mod tests {
             }}"
         );
         assert_eq!(branches(&src, "fs"), ["if in fn fs (entry point)"]);
+    }
+
+    #[test]
+    fn override_constants_decide_their_branches_and_only_the_side_taken_counts() {
+        let src = format!(
+            "{HEAD}override ON: bool = true;
+            fn helper(x: f32) -> f32 {{ if (u.a > 0.5) {{ return x; }} return -x; }}
+            @fragment fn fs(@location(0) x: f32) -> @location(0) vec4<f32> {{
+                var c = x;
+                if (ON) {{ c = helper(x); }}
+                if ((K >= 2.0) & !ON) {{ if (u.n == 3u) {{ c = 0.0; }} }}
+                if (K >= 2.0 && !ON) {{ c += 1.0; }}
+                return vec4<f32>(c);
+            }}"
+        );
+        let module = crate::gpu::wgsl::validate(&src).unwrap();
+        let found = |constants: &[(&str, f64)]| -> Vec<String> {
+            uniform_branches(&module, "fs", constants).iter().map(|b| b.to_string()).collect()
+        };
+        // Defaults (ON, K = 1): the helper is called, the second block is not taken.
+        assert_eq!(found(&[]), ["if in fn helper"]);
+        assert!(found(&[("ON", 0.0)]).is_empty());
+        assert_eq!(found(&[("ON", 0.0), ("K", 2.0)]), ["if in fn fs (entry point)"]);
     }
 
     #[test]

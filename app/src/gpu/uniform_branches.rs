@@ -75,19 +75,24 @@ pub fn uniform_branches(module: &Module, entry: &str, constants: &[(&str, f64)])
         .map(|(_, f)| Summary { arguments: vec![Depends::default(); f.arguments.len()], ..Default::default() })
         .collect();
     let entry_args = vec![Depends::VARIES; ep.function.arguments.len()];
+    let ep_name = format!("{} (entry point)", ep.name);
     // Arguments and results flow between functions: repeat until nothing changes.
     let mut found = Vec::new();
+    // What each function (and, last, the entry point) calls on the sides of branches taken.
+    let mut callees = vec![Vec::new(); summaries.len() + 1];
     for _ in 0..64 {
         let before = summaries.clone();
         found.clear();
+        callees.iter_mut().for_each(Vec::clear);
         let mut calls = vec![Vec::new(); summaries.len()];
-        analyse(&fixed, &ep.function, "entry point", &entry_args, &summaries, &mut calls, &mut found);
         for (h, f) in module.functions.iter() {
             let name = f.name.clone().unwrap_or_default();
             let args = summaries[h.index()].arguments.clone();
-            let result = analyse(&fixed, f, &name, &args, &summaries, &mut calls, &mut found);
-            summaries[h.index()].result = result;
+            let mut out = Out { calls: &mut calls, callees: &mut callees[h.index()], found: &mut found };
+            summaries[h.index()].result = analyse(&fixed, (f, &name), &args, &summaries, &mut out);
         }
+        let mut out = Out { calls: &mut calls, callees: &mut callees[summaries.len()], found: &mut found };
+        analyse(&fixed, (&ep.function, &ep_name), &entry_args, &summaries, &mut out);
         for (callee, seen) in calls.into_iter().enumerate() {
             for args in seen {
                 for (slot, d) in summaries[callee].arguments.iter_mut().zip(args) {
@@ -100,51 +105,24 @@ pub fn uniform_branches(module: &Module, entry: &str, constants: &[(&str, f64)])
         }
     }
     // Only functions reachable from the entry point matter.
-    let reachable = reachable_functions(&fixed, &ep.function);
-    let ep_name = format!("{} (entry point)", ep.name);
-    found
-        .into_iter()
-        .filter(|b| b.function == "entry point" || reachable.contains(&b.function))
-        .map(|b| if b.function == "entry point" { UniformBranch { function: ep_name.clone(), ..b } } else { b })
-        .collect()
-}
-
-/// The names of the functions `f` calls, directly or not, on the sides of branches taken.
-fn reachable_functions(fixed: &Fixed, f: &Function) -> Vec<String> {
-    let mut stack = Vec::new();
-    calls_in(fixed, f, &f.body, &mut stack);
-    let mut seen: Vec<Handle<Function>> = Vec::new();
+    let mut stack = callees[summaries.len()].clone();
+    let mut reachable = Vec::new();
     while let Some(h) = stack.pop() {
-        if !seen.contains(&h) {
-            seen.push(h);
-            let callee = &fixed.module.functions[h];
-            calls_in(fixed, callee, &callee.body, &mut stack);
+        let name = module.functions[h].name.clone().unwrap_or_default();
+        if !reachable.contains(&name) {
+            reachable.push(name);
+            stack.extend_from_slice(&callees[h.index()]);
         }
     }
-    seen.into_iter().map(|h| fixed.module.functions[h].name.clone().unwrap_or_default()).collect()
+    found.into_iter().filter(|b| b.function == ep_name || reachable.contains(&b.function)).collect()
 }
 
-fn calls_in(fixed: &Fixed, f: &Function, block: &Block, out: &mut Vec<Handle<Function>>) {
-    for s in block.iter() {
-        match s {
-            Statement::Call { function, .. } => out.push(*function),
-            Statement::Block(b) => calls_in(fixed, f, b, out),
-            Statement::If { condition, accept, reject } => match fixed.truth(f, *condition) {
-                Some(true) => calls_in(fixed, f, accept, out),
-                Some(false) => calls_in(fixed, f, reject, out),
-                None => {
-                    calls_in(fixed, f, accept, out);
-                    calls_in(fixed, f, reject, out);
-                }
-            },
-            Statement::Switch { cases, .. } => cases.iter().for_each(|c| calls_in(fixed, f, &c.body, out)),
-            Statement::Loop { body, continuing, .. } => {
-                calls_in(fixed, f, body, out);
-                calls_in(fixed, f, continuing, out);
-            }
-            _ => {}
-        }
-    }
+/// Where [`analyse`] records what it finds: each callee's arguments at each call (by callee),
+/// the functions the analysed one calls, and its uniform-only branches.
+struct Out<'b> {
+    calls: &'b mut [Vec<Vec<Depends>>],
+    callees: &'b mut Vec<Handle<Function>>,
+    found: &'b mut Vec<UniformBranch>,
 }
 
 /// The module with its pipeline's override constants: what a condition is when they decide it.
@@ -219,24 +197,17 @@ impl Fixed<'_> {
     }
 }
 
-/// One function with arguments depending on `args`: records its calls' arguments in `calls`
-/// (by callee) and its uniform-only branches in `found`; returns what its result depends on.
-fn analyse(
-    fixed: &Fixed,
-    f: &Function,
-    name: &str,
-    args: &[Depends],
-    summaries: &[Summary],
-    calls: &mut [Vec<Vec<Depends>>],
-    found: &mut Vec<UniformBranch>,
-) -> Depends {
+/// One function `f` named `name` with arguments depending on `args`: records its calls and
+/// uniform-only branches in `out`; returns what its result depends on.
+fn analyse(fixed: &Fixed, (f, name): (&Function, &str), args: &[Depends], summaries: &[Summary], out: &mut Out) -> Depends {
     // NIR keeps a local stored once as that value, and makes one stored in several places a phi,
     // which lavapipe does not look through except in a loop's exit (its induction variables).
     let mut count = vec![0usize; f.local_variables.len()];
     for (h, v) in f.local_variables.iter() {
         count[h.index()] += usize::from(v.init.is_some());
     }
-    store_counts(f, &f.body, &mut count);
+    // A store in a loop is a phi at the loop's head.
+    local_stores(f, &f.body, false, &mut |l, _, in_loop| count[l.index()] += if in_loop { 2 } else { 1 });
     let mut locals = vec![Depends::default(); f.local_variables.len()];
     let mut exprs = vec![Depends::default(); f.expressions.len()];
     // Locals take every value stored into them, which may depend on their own loads: repeat.
@@ -250,7 +221,7 @@ fn analyse(
                 next[h.index()] = next[h.index()].join(exprs[init.index()]);
             }
         }
-        stores(f, &f.body, &exprs, &mut next);
+        local_stores(f, &f.body, false, &mut |l, value, _| next[l.index()] = next[l.index()].join(exprs[value.index()]));
         if next == locals {
             break;
         }
@@ -262,7 +233,7 @@ fn analyse(
     for (h, e) in f.expressions.iter() {
         direct[h.index()] = expression(fixed.module, e, &direct, &phis, args, summaries);
     }
-    let mut walk = Walk { fixed, f, exprs: &direct, loop_exprs: &exprs, name, result: Depends::default(), calls, found, in_loop: false };
+    let mut walk = Walk { fixed, f, exprs: &direct, loop_exprs: &exprs, name, result: Depends::default(), out, in_loop: false };
     walk.block(&f.body);
     walk.result
 }
@@ -300,51 +271,25 @@ fn expression(module: &Module, e: &Expression, exprs: &[Depends], locals: &[Depe
     }
 }
 
-/// Join into `locals` every value `block` stores into a local variable (through any access).
-fn stores(f: &Function, block: &Block, exprs: &[Depends], locals: &mut [Depends]) {
+/// Call `visit(local, value, in_loop)` for every value `block` stores into a local variable
+/// (through any access); `in_loop`: the store is inside a loop.
+fn local_stores(f: &Function, block: &Block, in_loop: bool, visit: &mut dyn FnMut(Handle<naga::LocalVariable>, Handle<Expression>, bool)) {
     for s in block.iter() {
         match s {
             Statement::Store { pointer, value } => {
                 if let Some(l) = root_local(f, *pointer) {
-                    locals[l.index()] = locals[l.index()].join(exprs[value.index()]);
+                    visit(l, *value, in_loop);
                 }
             }
-            Statement::Block(b) => stores(f, b, exprs, locals),
+            Statement::Block(b) => local_stores(f, b, in_loop, visit),
             Statement::If { accept, reject, .. } => {
-                stores(f, accept, exprs, locals);
-                stores(f, reject, exprs, locals);
+                local_stores(f, accept, in_loop, visit);
+                local_stores(f, reject, in_loop, visit);
             }
-            Statement::Switch { cases, .. } => cases.iter().for_each(|c| stores(f, &c.body, exprs, locals)),
+            Statement::Switch { cases, .. } => cases.iter().for_each(|c| local_stores(f, &c.body, in_loop, visit)),
             Statement::Loop { body, continuing, .. } => {
-                stores(f, body, exprs, locals);
-                stores(f, continuing, exprs, locals);
-            }
-            _ => {}
-        }
-    }
-}
-
-/// Count into `count` the stores `block` makes into each local variable.
-fn store_counts(f: &Function, block: &Block, count: &mut [usize]) {
-    for s in block.iter() {
-        match s {
-            Statement::Store { pointer, .. } => {
-                if let Some(l) = root_local(f, *pointer) {
-                    count[l.index()] += 1;
-                }
-            }
-            Statement::Block(b) => store_counts(f, b, count),
-            Statement::If { accept, reject, .. } => {
-                store_counts(f, accept, count);
-                store_counts(f, reject, count);
-            }
-            Statement::Switch { cases, .. } => cases.iter().for_each(|c| store_counts(f, &c.body, count)),
-            Statement::Loop { body, continuing, .. } => {
-                // A store in a loop is a phi at the loop's head.
-                store_counts(f, body, count);
-                store_counts(f, body, count);
-                store_counts(f, continuing, count);
-                store_counts(f, continuing, count);
+                local_stores(f, body, true, visit);
+                local_stores(f, continuing, true, visit);
             }
             _ => {}
         }
@@ -374,15 +319,14 @@ struct Walk<'a, 'b> {
     in_loop: bool,
     name: &'a str,
     result: Depends,
-    calls: &'b mut [Vec<Vec<Depends>>],
-    found: &'b mut Vec<UniformBranch>,
+    out: &'a mut Out<'b>,
 }
 
 impl Walk<'_, '_> {
     fn check(&mut self, h: Handle<Expression>, statement: &'static str, exit: bool) {
         let d = if exit { self.loop_exprs[h.index()] } else { self.exprs[h.index()] };
         if d.inlined() {
-            self.found.push(UniformBranch { function: self.name.to_string(), statement });
+            self.out.found.push(UniformBranch { function: self.name.to_string(), statement });
         }
     }
 
@@ -418,7 +362,8 @@ impl Walk<'_, '_> {
                 Statement::Block(b) => self.block(b),
                 Statement::Return { value: Some(v) } => self.result = self.result.join(self.exprs[v.index()]),
                 Statement::Call { function, arguments, .. } => {
-                    self.calls[function.index()].push(arguments.iter().map(|a| self.exprs[a.index()]).collect());
+                    self.out.calls[function.index()].push(arguments.iter().map(|a| self.exprs[a.index()]).collect());
+                    self.out.callees.push(*function);
                 }
                 _ => {}
             }

@@ -14,6 +14,12 @@ override COLOUR_CORRECTION: bool = true;
 // up per pixel. A uniform branch on a material value instead saved nothing on lavapipe
 // (docs/PERFORMANCE.md, ninth session).
 override VERTEX_SUN: bool = false;
+// LIGHT_KEPT too, for the light from the vertices (below): true where the vertex-light pass
+// computed the light at the vertices for this frame (cs_light: a camera that only turns keeps
+// it), false where the vertex stage computes it (the camera moving: the pass would run every
+// frame, and costs more than the vertex stage's light; docs/PERFORMANCE.md, twenty-seventh
+// session).
+override LIGHT_KEPT: bool = false;
 // The light from the vertices (sh9-ggx, with VERTEX_SUN; entry points vs_light and fs_light):
 // the whole light is computed at the vertices and interpolated (LightOut), the fragment
 // multiplying its own albedo by it, for meshes whose triangles are a few pixels on screen and
@@ -95,22 +101,100 @@ struct LightOut {
     @location(2) specular: vec3<f32>,
 };
 
+// What an untextured mesh's light from the vertices interpolates: its whole colour, the
+// material's albedo (constant over the mesh) times the light plus the reflection, which is what
+// the two interpolated apart give (the product is linear in the light). 3 floats instead of 8,
+// and a fragment that only writes them (docs/PERFORMANCE.md, twenty-seventh session).
+struct ColourOut {
+    @invariant @builtin(position) clip: vec4<f32>,
+    @location(0) colour: vec3<f32>,
+};
+
+// The light at a vertex as the vertex-light pass computed it (cs_light; read where LIGHT_KEPT):
+// two more attributes of the light-from-the-vertices pipelines, from the mesh's light buffer
+// (at render::pipelines::LIGHT_LOCATION and LIGHT_SPECULAR_LOCATION).
+struct LightIn {
+    @location(7) lit: vec4<f32>,
+    @location(8) specular: vec4<f32>,
+};
+
 @vertex
 fn vs_main(vertex: VertexIn) -> VertexOut {
     return vertex_out(vertex);
 }
 
-// The light from the vertices: sh9-ggx's light at the vertex, from its sun's visibility.
-@vertex
-fn vs_light(vertex: VertexIn) -> LightOut {
+// The clip-space position of a model-space point (vertex_out's, @invariant: the same depth).
+fn clip_position(position: vec3<f32>) -> vec4<f32> {
+    return frame.view_proj * (instance.model * vec4<f32>(position, 1.0));
+}
+
+// sh9-ggx's light at a vertex from its sun's visibility: as the vertex-light pass computed it
+// (LIGHT_KEPT), or computed here.
+fn light_at_vertex(vertex: VertexIn, light_in: LightIn) -> Sh9Light {
+    if (LIGHT_KEPT) {
+        return Sh9Light(light_in.lit.rgb, light_in.specular.rgb);
+    }
     let v = vertex_out(vertex);
-    let shaded = sh9_ggx_light(v.world, v.normal, v.ao, v.bent, v.tint, vertex.sun);
-    return LightOut(v.clip, v.uv, shaded.lit, shaded.specular);
+    return sh9_ggx_light(v.world, v.normal, v.ao, v.bent, v.tint, vertex.sun);
+}
+
+// The light from the vertices.
+@vertex
+fn vs_light(vertex: VertexIn, light_in: LightIn) -> LightOut {
+    let shaded = light_at_vertex(vertex, light_in);
+    return LightOut(clip_position(vertex.position), vertex.uv, shaded.lit, shaded.specular);
 }
 
 @fragment
 fn fs_light(in: LightOut) -> @location(0) vec4<f32> {
     return vec4<f32>(surface_albedo(in.uv) * in.lit + in.specular, 1.0);
+}
+
+// The light from the vertices of an untextured material: the whole colour at the vertex.
+@vertex
+fn vs_colour(vertex: VertexIn, light_in: LightIn) -> ColourOut {
+    let shaded = light_at_vertex(vertex, light_in);
+    let albedo = min(corrected_colour(material.albedo.rgb), vec3<f32>(1.0));
+    return ColourOut(clip_position(vertex.position), albedo * shaded.lit + shaded.specular);
+}
+
+@fragment
+fn fs_colour(in: ColourOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(in.colour, 1.0);
+}
+
+// The vertex-light pass (render::passes::model::VertexLightPass): sh9-ggx's light at each vertex
+// of a mesh's drawn level (`level_vertices`, each once), from the mesh's vertices
+// (render::pipelines::Vertex, VERTEX_FLOATS floats each) and its sun per vertex (vertex_sun.wgsl),
+// written to `vertex_light` (two vec4 per vertex: what the albedo multiplies, what is added) for
+// vs_light and vs_colour. It reads the frame's camera position but not its view: a camera that
+// only turns keeps the buffer (render::passes::model::LightKey; the shaders test checks which
+// fields of Frame it reads).
+@group(2) @binding(0) var<storage, read> mesh_vertices: array<f32>;
+@group(2) @binding(1) var<storage, read> level_vertices: array<u32>;
+@group(2) @binding(2) var<storage, read> vertex_sun_values: array<f32>;
+@group(2) @binding(3) var<storage, read_write> vertex_light: array<vec4<f32>>;
+
+fn vertex_vec3(v: u32, offset: u32) -> vec3<f32> {
+    let k = v * VERTEX_FLOATS + offset;
+    return vec3<f32>(mesh_vertices[k], mesh_vertices[k + 1u], mesh_vertices[k + 2u]);
+}
+
+// One invocation per vertex of the level: in world space as vertex_out places it.
+@compute @workgroup_size(64)
+fn cs_light(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= arrayLength(&level_vertices)) {
+        return;
+    }
+    let v = level_vertices[id.x];
+    let world = (instance.model * vec4<f32>(vertex_vec3(v, VERTEX_POSITION), 1.0)).xyz;
+    let normal = (instance.normal * vec4<f32>(vertex_vec3(v, VERTEX_NORMAL), 0.0)).xyz;
+    let bent = (instance.normal * vec4<f32>(vertex_vec3(v, VERTEX_BENT), 0.0)).xyz;
+    let k = v * VERTEX_FLOATS + VERTEX_AO;
+    let ao = vec4<f32>(mesh_vertices[k], mesh_vertices[k + 1u], mesh_vertices[k + 2u], mesh_vertices[k + 3u]);
+    let shaded = sh9_ggx_light(world, normal, ao, bent, vertex_vec3(v, VERTEX_TINT), vertex_sun_values[v]);
+    vertex_light[2u * v] = vec4<f32>(shaded.lit, 0.0);
+    vertex_light[2u * v + 1u] = vec4<f32>(shaded.specular, 0.0);
 }
 
 fn vertex_out(vertex: VertexIn) -> VertexOut {

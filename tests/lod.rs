@@ -146,7 +146,14 @@ fn shadow_and_ground_passes_run_only_when_needed() {
         c.render(gpu(), p, Layer::Composite).unwrap();
         c.passes_run()
     };
-    let passes = |shadow, shadow_drawn, ground| PassesRun { shadow, shadow_drawn, vertex_sun: false, ground, ground_sun: false };
+    let passes = |shadow, shadow_drawn, ground| PassesRun {
+        shadow,
+        shadow_drawn,
+        vertex_sun: false,
+        ground,
+        ground_sun: false,
+        vertex_light: false,
+    };
     let mut up = p;
     up.lighting.sun_dir = glam::Vec3::new(0.3, -0.6, 0.7);
     up.lighting.sunlight = 1.0;

@@ -189,3 +189,56 @@ fn bench_vertex_light_dragon() {
     println!("light from the vertices vs full detail: {:?}", flip(&full.rgba, &per_vertex.rgba));
     println!("light from the vertices vs per pixel: {:?}", flip(&per_pixel.rgba, &per_vertex.rgba));
 }
+
+/// The light at the vertices computed by the vertex-light pass is the vertex stage's: the first
+/// frame of a view computes it in the vertex stage, the second (the same view) runs the pass
+/// and reads its buffer, and later frames read that buffer while the camera only turns, with
+/// no pass; each frame within one 8-bit level of the vertex stage's light, a turned frame of a
+/// fresh compositor's. A camera that moves computes the light in the vertex stage again, and
+/// the pass runs once it stops. The glossy sphere (48 rings) and the default material (both
+/// untextured: the whole colour from the vertices).
+#[test]
+fn the_light_kept_from_the_vertex_light_pass_is_the_vertex_stages() {
+    for (name, material) in [materials()[1].clone(), materials()[3].clone()] {
+        let compositor = || set_up(common::uv_sphere(48, material.clone()), 320, 0.5, true);
+        let ([mut c, _], p) = compositor();
+        let frame = |c: &mut Compositor, p: &FrameParams| {
+            let r = c.render(gpu(), p, Layer::Composite).unwrap();
+            assert!(c.light_per_mesh()[0].1, "{name}: not lit from its vertices");
+            (r.rgba, c.passes_run().vertex_light)
+        };
+        let close = |a: &[u8], b: &[u8], what: &str| {
+            let worst = a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap();
+            let differ = a.chunks_exact(4).zip(b.chunks_exact(4)).filter(|(x, y)| x != y).count();
+            println!("{name}, {what}: {differ} pixels differ, by at most {worst} levels");
+            assert!(worst <= 1, "{name}, {what}: a channel differs by {worst} levels");
+        };
+        let (vertex_stage, ran) = frame(&mut c, &p);
+        assert!(!ran, "{name}: the pass ran on a view's first frame");
+        let (computed, ran) = frame(&mut c, &p);
+        assert!(ran, "{name}: the pass did not run on the view's second frame");
+        close(&vertex_stage, &computed, "the pass's light against the vertex stage's");
+        let (kept, ran) = frame(&mut c, &p);
+        assert!(!ran && kept == computed, "{name}: a frame of the same view ran the pass again or drew another image");
+        // The camera turns 3° about its own vertical axis: the light is kept.
+        let mut turned = p;
+        turned.camera.pose *= glam::Quat::from_rotation_y(3f32.to_radians());
+        let (turned_kept, ran) = frame(&mut c, &turned);
+        assert!(!ran, "{name}: the pass ran for a turn of the camera");
+        assert_ne!(turned_kept, kept, "{name}: the turn moved nothing");
+        let ([mut fresh, _], _) = compositor();
+        let (turned_fresh, ran) = frame(&mut fresh, &turned);
+        assert!(!ran);
+        close(&turned_kept, &turned_fresh, "a turn with the light kept against a fresh compositor's");
+        // The camera steps sideways: the vertex stage lights the new view's first frame, the
+        // pass its second.
+        let mut moved = turned;
+        moved.camera.position += glam::Vec3::new(0.05, 0.0, 0.0);
+        let (moved_first, ran) = frame(&mut c, &moved);
+        assert!(!ran, "{name}: the pass ran on a moving camera's frame");
+        assert_ne!(moved_first, turned_kept, "{name}: the step moved nothing");
+        let (moved_second, ran) = frame(&mut c, &moved);
+        assert!(ran, "{name}: the pass did not run once the camera stopped");
+        close(&moved_first, &moved_second, "after a step");
+    }
+}

@@ -45,7 +45,8 @@ const FXAA_SLOT: u32 = 5;
 const SUN_LOOKUP_SLOT: u32 = 6;
 const SUN_SPLIT_SLOT: u32 = 7;
 const GROUND_SUN_SLOT: u32 = 8;
-const TIMER_SLOTS: u32 = 9;
+const VERTEX_LIGHT_SLOT: u32 = 9;
+const TIMER_SLOTS: u32 = 10;
 
 /// Milliseconds spent in each stage of a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -249,6 +250,29 @@ pub struct PassesRun {
     /// ground_sun): the map, the sun's size, the ground's region or the view's need of texels
     /// changed while the map was not moving.
     pub ground_sun: bool,
+    /// The vertex-light pass computed the light at the vertices of the meshes that take it from
+    /// them (render::passes::model::ModelPass::vertex_light_due): not while the camera only
+    /// turns.
+    pub vertex_light: bool,
+}
+
+/// The vertex-light pass's time in a frame that ran it (`run`): from the end of the pass before
+/// it (the vertex-sun pass's split, or the shadow pass; with `pass_timing` each has its own slot)
+/// to its own end. Run first, it starts at its own beginning timestamp, which lavapipe writes
+/// with its end (docs/PERFORMANCE.md, eleventh session): there the time is missed, and only
+/// the frame's wall time holds it.
+fn vertex_light_ms(gpu: &Gpu, timer: &GpuTimer, run: PassesRun, pass_timing: bool) -> Result<Option<f64>> {
+    if !run.vertex_light {
+        return Ok(None);
+    }
+    let (ticks, period_ns) = timer.read_ticks(gpu)?;
+    let end = |slot: u32| ticks[2 * slot as usize + 1];
+    let start = match (run.vertex_sun, run.shadow_drawn) {
+        (true, _) if pass_timing => end(SUN_SPLIT_SLOT),
+        (true, _) | (false, true) => end(SHADOW_SLOT),
+        (false, false) => ticks[2 * VERTEX_LIGHT_SLOT as usize],
+    };
+    Ok(Some(crate::gpu::timer::ticks_to_ms(start, end(VERTEX_LIGHT_SLOT), period_ns)))
 }
 
 impl Compositor {
@@ -904,6 +928,7 @@ impl Compositor {
             Some(timer) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
                 let run = self.passes_run;
+                let light = vertex_light_ms(gpu, timer, run, self.pass_timing)?.unwrap_or(0.0);
                 let mut shadow = (run.shadow_drawn || run.vertex_sun).then_some(ms[SHADOW_SLOT as usize]);
                 if self.pass_timing {
                     let steps = self.composite_steps(layer);
@@ -929,13 +954,13 @@ impl Compositor {
                         shadow,
                         vertex_sun,
                         background: ran(steps[0], BACKGROUND_SLOT),
-                        model: ran(steps[1], MODEL_SLOT),
+                        model: ran(steps[1], MODEL_SLOT).map(|m| m + light),
                         ground: ran(steps[2], GROUND_SLOT).map(|g| g + ran(run.ground_sun, GROUND_SUN_SLOT).unwrap_or(0.0)),
                         fxaa: ran(self.fxaa.is_some(), FXAA_SLOT),
                     };
                     (Some(passes.total()), shadow, Some(passes))
                 } else {
-                    (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow, None)
+                    (Some(ms[REST_SLOT as usize] + shadow.unwrap_or(0.0) + light), shadow, None)
                 }
             }
             None => (None, None, None),
@@ -945,7 +970,8 @@ impl Compositor {
             Some((timer, run)) => {
                 let ms = timer.read_ms(gpu, TIMER_SLOTS)?;
                 let shadow = (run.shadow_drawn || run.vertex_sun).then_some(ms[SHADOW_SLOT as usize]);
-                (gpu_ms.map(|g| g + ms[REST_SLOT as usize] + shadow.unwrap_or(0.0)), shadow)
+                let light = vertex_light_ms(gpu, timer, run, false)?.unwrap_or(0.0);
+                (gpu_ms.map(|g| g + ms[REST_SLOT as usize] + shadow.unwrap_or(0.0) + light), shadow)
             }
             None => (gpu_ms, shadow_gpu_ms),
         };
@@ -1097,11 +1123,13 @@ impl Compositor {
             self.update_ground_sky(gpu, sky)?;
         }
         let model = self.model.as_ref().ok_or_else(|| anyhow!("no model set"))?;
+        let mut vertices_written = false;
         if p.method == super::LightingMethod::Sh9Ggx {
             let vertices = self.model_sky(p)?;
             if !self.model_sky_uploaded.as_ref().is_some_and(|u| Arc::ptr_eq(u, &vertices)) {
                 model.write_vertices(&gpu.queue, &vertices);
                 self.model_sky_uploaded = Some(vertices);
+                vertices_written = true;
             }
         }
         let shadow_index = self.shadow.index_of(data.shadow_map_size);
@@ -1170,6 +1198,11 @@ impl Compositor {
         // the map moves).
         let held = wanted.is_some() && self.vertex_sun_held == wanted && self.vertex_sun_meshes == self.model_pass.vertex_sun_meshes();
         self.model_pass.vertex_sun_valid(held);
+        // The light at the vertices (sh9-ggx's light from them): computed again when the sun per
+        // vertex, the vertices or what else it reads changed; a camera that only turns reuses it.
+        let changed = self.vertex_sun_run.is_some() || vertices_written;
+        let uniforms = (&data.frame, &data.instance, &data.light);
+        let vertex_light = self.model_pass.vertex_light_due(model, uniforms, data.level, changed);
         // The ground's sun from the ground-sun texture (render::passes::ground_sun) for frames
         // drawn one after another, while the map is not moving (as the vertex sun above); drawn
         // again when the map, the sun's size, the region or the view's need of texels changed.
@@ -1199,6 +1232,7 @@ impl Compositor {
             vertex_sun: self.vertex_sun_run.is_some(),
             ground,
             ground_sun: self.ground_sun.pending(),
+            vertex_light,
         };
         Ok(data)
     }
@@ -1403,6 +1437,13 @@ impl Compositor {
             };
             let chosen = self.model_pass.vertex_sun_meshes();
             self.vertex_sun.encode(encoder, (model, chosen), (self.level, self.shadow_index, lookup), timestamps);
+        }
+        // 2b'. The light at the model's vertices from their sun (sh9-ggx's light from them), when
+        // what it depends on changed: timed alone, from the end of the pass before it
+        // (`vertex_light_ms`).
+        if self.passes_run.vertex_light {
+            let timestamps = timer.and_then(|t| t.compute_pass(VERTEX_LIGHT_SLOT, true, true));
+            self.model_pass.encode_vertex_light(encoder, model, (self.level, self.shadow_index), timestamps);
         }
         // 2c. The ground's sun visibility from the map, when this frame draws it: timed with the
         // ground (pass timing) or starting the rest of the frame.

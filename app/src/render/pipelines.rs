@@ -51,6 +51,11 @@ pub const TINT_LOCATION: u32 = 6;
 /// Shader location of the sun's visibility per vertex (shaders/model.wgsl `VertexIn.sun`), a
 /// second vertex buffer written by render::passes::vertex_sun.
 pub const SUN_LOCATION: u32 = 5;
+/// Shader locations of the light at a vertex (shaders/model.wgsl `LightIn`: what the albedo
+/// multiplies, what is added), a third vertex buffer written by the vertex-light pass
+/// (render::passes::model::ModelPass::encode_vertex_light).
+pub const LIGHT_LOCATION: u32 = 7;
+pub const LIGHT_SPECULAR_LOCATION: u32 = 8;
 
 pub(super) fn pipeline(device: &wgpu::Device, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
     pipeline_into(device, spec, COLOR_FORMAT)

@@ -61,25 +61,20 @@ pub fn source(t: Technique) -> String {
     let own = match t {
         Technique::Model => {
             format!(
-                "{FRAME_WGSL}\n{}const PREFILTER_LEVELS: f32 = {}.0;\n{}\n{}\n{SH9_GGX_WGSL}",
+                "{FRAME_WGSL}\n{}{}const PREFILTER_LEVELS: f32 = {}.0;\n{}\n{}\n{SH9_GGX_WGSL}",
+                vertex_consts(),
                 super::LightingMethod::wgsl_consts(),
                 crate::light::ggx::PREFILTER_LEVELS,
                 crate::colour::correction::COLOUR_CORRECT_WGSL,
                 t.file()
             )
         }
-        Technique::VertexSun => {
-            use super::pipelines::Vertex;
-            let floats = |bytes: usize| bytes / std::mem::size_of::<f32>();
-            format!(
-                "{FRAME_WGSL}\nconst VERTEX_FLOATS: u32 = {}u;\nconst VERTEX_POSITION: u32 = {}u;\nconst VERTEX_NORMAL: u32 = {}u;\nconst SPLIT_CULL_MARGIN: f32 = {:?};\n{}",
-                floats(std::mem::size_of::<Vertex>()),
-                floats(std::mem::offset_of!(Vertex, position)),
-                floats(std::mem::offset_of!(Vertex, normal)),
-                super::passes::vertex_sun::SPLIT_CULL_MARGIN,
-                t.file()
-            )
-        }
+        Technique::VertexSun => format!(
+            "{FRAME_WGSL}\n{}const SPLIT_CULL_MARGIN: f32 = {:?};\n{}",
+            vertex_consts(),
+            super::passes::vertex_sun::SPLIT_CULL_MARGIN,
+            t.file()
+        ),
         Technique::Ground => format!("{FRAME_WGSL}\n{}{}", super::passes::ground::SunOnGround::wgsl_consts(), t.file()),
         Technique::EnvViewEquirect => {
             format!("{FRAME_WGSL}\nconst ENV_VIEW_TAPS: u32 = {}u;\n{}", super::passes::background::ENV_VIEW_TAPS, t.file())
@@ -87,6 +82,26 @@ pub fn source(t: Technique) -> String {
         _ => format!("{FRAME_WGSL}\n{}", t.file()),
     };
     crate::gpu::wgsl::with_full_screen(&own)
+}
+
+/// The model's vertex (render::pipelines::Vertex) for compute shaders that read it as floats:
+/// VERTEX_FLOATS floats each, and where its fields start (VERTEX_POSITION, VERTEX_NORMAL,
+/// VERTEX_AO, VERTEX_BENT, VERTEX_TINT).
+fn vertex_consts() -> String {
+    use super::pipelines::Vertex;
+    use std::mem::{offset_of, size_of};
+    let floats = |bytes: usize| bytes / size_of::<f32>();
+    [
+        ("FLOATS", floats(size_of::<Vertex>())),
+        ("POSITION", floats(offset_of!(Vertex, position))),
+        ("NORMAL", floats(offset_of!(Vertex, normal))),
+        ("AO", floats(offset_of!(Vertex, ao))),
+        ("BENT", floats(offset_of!(Vertex, bent))),
+        ("TINT", floats(offset_of!(Vertex, tint))),
+    ]
+    .iter()
+    .map(|(name, value)| format!("const VERTEX_{name}: u32 = {value}u;\n"))
+    .collect()
 }
 
 #[cfg(test)]
@@ -107,17 +122,26 @@ mod tests {
         for method in crate::render::LightingMethod::ALL {
             for corrected in [0.0, 1.0] {
                 let m = f64::from(method.shader_id());
-                for (entries, vertex_sun) in [(["vs_main", "fs_main"], 0.0), (["vs_main", "fs_main"], 1.0), (["vs_light", "fs_light"], 1.0)]
-                {
+                let kinds = [
+                    (["vs_main", "fs_main"], 0.0, 0.0),
+                    (["vs_main", "fs_main"], 1.0, 0.0),
+                    (["vs_light", "fs_light"], 1.0, 0.0),
+                    (["vs_light", "fs_light"], 1.0, 1.0),
+                    (["vs_colour", "fs_colour"], 1.0, 0.0),
+                    (["vs_colour", "fs_colour"], 1.0, 1.0),
+                ];
+                for (entries, vertex_sun, kept) in kinds {
                     pipelines.push((
                         Technique::Model,
                         entries,
-                        vec![("METHOD", m), ("COLOUR_CORRECTION", corrected), ("VERTEX_SUN", vertex_sun)],
+                        vec![("METHOD", m), ("COLOUR_CORRECTION", corrected), ("VERTEX_SUN", vertex_sun), ("LIGHT_KEPT", kept)],
                     ));
                 }
             }
         }
         pipelines.push((Technique::Model, ["vs_main", "fs_depth"], vec![("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)]));
+        let sh9 = f64::from(crate::render::LightingMethod::Sh9Ggx.shader_id());
+        pipelines.push((Technique::Model, ["cs_light", "cs_light"], vec![("METHOD", sh9)]));
         for sun in [0.0, 1.0, 2.0] {
             pipelines.push((Technique::Ground, ["vs_main", "fs_main"], vec![("SUN", sun)]));
         }

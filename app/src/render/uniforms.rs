@@ -84,12 +84,19 @@ mod tests {
     use crate::render::shaders::{Technique, source};
 
     #[test]
-    fn the_vertex_ao_bent_and_sun_attributes_are_at_their_named_locations() {
+    fn the_vertex_ao_bent_sun_and_light_attributes_are_at_their_named_locations() {
         let module = crate::gpu::wgsl::validate(&source(Technique::Model)).unwrap();
         let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("VertexIn")).expect("struct VertexIn").1;
         let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("VertexIn is not a struct") };
         use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, SUN_LOCATION, TINT_LOCATION};
         for (name, at) in [("ao", AO_LOCATION), ("bent", BENT_LOCATION), ("sun", SUN_LOCATION), ("tint", TINT_LOCATION)] {
+            let m = members.iter().find(|m| m.name.as_deref() == Some(name)).expect(name);
+            assert!(matches!(m.binding, Some(naga::Binding::Location { location, .. }) if location == at), "{name}: {:?}", m.binding);
+        }
+        let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("LightIn")).expect("struct LightIn").1;
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("LightIn is not a struct") };
+        use crate::render::pipelines::{LIGHT_LOCATION, LIGHT_SPECULAR_LOCATION};
+        for (name, at) in [("lit", LIGHT_LOCATION), ("specular", LIGHT_SPECULAR_LOCATION)] {
             let m = members.iter().find(|m| m.name.as_deref() == Some(name)).expect(name);
             assert!(matches!(m.binding, Some(naga::Binding::Location { location, .. }) if location == at), "{name}: {:?}", m.binding);
         }

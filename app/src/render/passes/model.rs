@@ -12,9 +12,12 @@ use crate::render::mip_chain;
 use crate::render::model_cache::PreparedModel;
 use crate::render::params::MaterialTerms;
 use crate::render::passes::vertex_sun;
-use crate::render::pipelines::{AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, Pipelines, SUN_LOCATION, TINT_LOCATION, Vertex, depth_state};
+use crate::render::pipelines::{
+    AO_LOCATION, BENT_LOCATION, COLOR_FORMAT, LIGHT_LOCATION, LIGHT_SPECULAR_LOCATION, Pipelines, SUN_LOCATION, TINT_LOCATION, Vertex,
+    depth_state,
+};
 use crate::render::shaders::{Technique, source};
-use crate::render::uniforms::{MaterialUniforms, SplitLevelUniforms};
+use crate::render::uniforms::{FrameUniforms, InstanceUniforms, LightUniforms, MaterialUniforms, SplitLevelUniforms};
 use crate::scene::lod::IndexRange;
 use crate::scene::{Model, Sides};
 use anyhow::{Result, anyhow};
@@ -73,13 +76,47 @@ pub enum Shading {
     /// shadow-map lookup: [`super::vertex_sun`]).
     SunFromVertices,
     /// Back faces culled, the whole light computed at the vertices from their sun's visibility
-    /// and interpolated, the albedo per pixel (the shader's `vs_light` and `fs_light`; sh9-ggx
-    /// alone: the other methods' slots hold their [`Shading::SunFromVertices`] pipelines).
+    /// by the vertex stage and interpolated, the albedo per pixel (the shader's `vs_light` and
+    /// `fs_light`; sh9-ggx alone: the other methods' slots hold their
+    /// [`Shading::SunFromVertices`] pipelines).
     LightFromVertices,
+    /// As [`Shading::LightFromVertices`] for an untextured material: the whole colour at the
+    /// vertices, the albedo being the same at every pixel (`vs_colour`, `fs_colour`).
+    ColourFromVertices,
+    /// As [`Shading::LightFromVertices`], the light read from what the vertex-light pass
+    /// computed ([`ModelPass::encode_vertex_light`]; the shader's `LIGHT_KEPT`).
+    LightKept,
+    /// As [`Shading::ColourFromVertices`], the light read from what the vertex-light pass computed.
+    ColourKept,
 }
 
 impl Shading {
-    pub const ALL: [Shading; 4] = [Shading::EveryTriangle, Shading::Culled, Shading::SunFromVertices, Shading::LightFromVertices];
+    pub const ALL: [Shading; 7] = [
+        Shading::EveryTriangle,
+        Shading::Culled,
+        Shading::SunFromVertices,
+        Shading::LightFromVertices,
+        Shading::ColourFromVertices,
+        Shading::LightKept,
+        Shading::ColourKept,
+    ];
+
+    /// The kind that takes a mesh's whole light from its vertices: with a texture or without,
+    /// the light computed by the vertex-light pass (`kept`) or by the vertex stage.
+    pub fn light_from_vertices(textured: bool, kept: bool) -> Shading {
+        match (textured, kept) {
+            (true, false) => Shading::LightFromVertices,
+            (false, false) => Shading::ColourFromVertices,
+            (true, true) => Shading::LightKept,
+            (false, true) => Shading::ColourKept,
+        }
+    }
+
+    /// Whether it is one of [`Shading::light_from_vertices`]'s (its pipelines have the light
+    /// per vertex as a third vertex buffer, read or not).
+    fn reads_vertex_light(self) -> bool {
+        matches!(self, Shading::LightFromVertices | Shading::ColourFromVertices | Shading::LightKept | Shading::ColourKept)
+    }
 }
 
 /// What the model pass's pipelines share.
@@ -106,6 +143,12 @@ pub struct ModelPipelines {
     /// first), which costs less on lavapipe than drawing it twice (docs/PERFORMANCE.md, seventh
     /// and eighth sessions).
     pub prepass: wgpu::RenderPipeline,
+    /// The vertex-light pass (the shader's `cs_light`): bind groups 0 and 1 as the shading
+    /// pipelines', 2 per mesh and level ([`ModelPipelines::light_mesh_layout`]).
+    pub light: wgpu::ComputePipeline,
+    /// Bind group 2 of the vertex-light pass: a mesh's vertices, its level's vertex list, its
+    /// sun per vertex and its light per vertex (written).
+    pub light_mesh_layout: wgpu::BindGroupLayout,
 }
 
 /// The index in [`ModelPipelines::shading`] of `method`'s pipeline with or without colour
@@ -117,31 +160,38 @@ pub fn shading_index(method: LightingMethod, corrected: bool, shading: Shading) 
 /// The model pipelines (one per method, `samples` per pixel) and their layouts.
 pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
     let fs = ShaderStages::FRAGMENT;
-    // What sh9-ggx's light reads, which its vertex stage computes too (`vs_light`).
     let vs_fs = ShaderStages::VERTEX | fs;
+    // What sh9-ggx's light reads, which the vertex-light pass computes too (`cs_light`).
+    let all = vs_fs | ShaderStages::COMPUTE;
     let layout = build::layout(
         device,
         "model",
         &[
-            build::uniform(0, vs_fs),
-            build::uniform(1, vs_fs),
+            build::uniform(0, all),
+            build::uniform(1, all),
             build::texture_entry(2, fs, Cube, true),
-            build::sampler_entry(3, vs_fs, Filtering),
+            build::sampler_entry(3, all, Filtering),
             build::texture_entry(4, fs, D2, true),
-            build::sampler_entry(5, vs_fs, Filtering),
+            build::sampler_entry(5, all, Filtering),
             build::depth_texture_entry(6, fs),
             build::sampler_entry(7, fs, Comparison),
-            build::uniform(8, fs),
-            build::uniform(9, vs_fs),
-            build::texture_entry(10, vs_fs, Cube, true),
-            build::texture_entry(11, vs_fs, D2, true),
+            build::uniform(8, vs_fs),
+            build::uniform(9, all),
+            build::texture_entry(10, all, Cube, true),
+            build::texture_entry(11, all, D2, true),
             build::sampler_entry(12, fs, NonFiltering),
         ],
     );
     let material_layout = build::layout(
         device,
         "material",
-        &[build::uniform(0, vs_fs), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
+        &[build::uniform(0, all), build::texture_entry(1, fs, D2, true), build::sampler_entry(2, fs, Filtering)],
+    );
+    let cs = ShaderStages::COMPUTE;
+    let light_mesh_layout = build::layout(
+        device,
+        "vertex light mesh",
+        &[build::storage(0, cs, true), build::storage(1, cs, true), build::storage(2, cs, true), build::storage(3, cs, false)],
     );
     let module = build::shader(device, "model", source(Technique::Model));
     let mut shading: Vec<wgpu::RenderPipeline> = Vec::new();
@@ -154,7 +204,7 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
                 // start-up time, docs/PERFORMANCE.md, tenth session).
                 let instead = match kind {
                     Shading::SunFromVertices if vertex_sun::SunLookup::of(m).is_none() => Some(Shading::Culled),
-                    Shading::LightFromVertices if m != LightingMethod::Sh9Ggx => Some(Shading::SunFromVertices),
+                    k if k.reads_vertex_light() && m != LightingMethod::Sh9Ggx => Some(Shading::SunFromVertices),
                     _ => None,
                 };
                 let pipeline = match instead {
@@ -166,7 +216,22 @@ pub fn pipelines(device: &wgpu::Device, samples: u32) -> ModelPipelines {
         }
     }
     let prepass = prepass_pipeline(device, &module, (&layout, &material_layout), samples);
-    ModelPipelines { layout, material_layout, shading, prepass }
+    let light = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("vertex light"),
+        layout: Some(&device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("vertex light"),
+            bind_group_layouts: &[Some(&layout), Some(&material_layout), Some(&light_mesh_layout)],
+            immediate_size: 0,
+        })),
+        module: &module,
+        entry_point: Some("cs_light"),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: &[("METHOD", f64::from(LightingMethod::Sh9Ggx.shader_id()))],
+            ..Default::default()
+        },
+        cache: None,
+    });
+    ModelPipelines { layout, material_layout, shading, prepass, light, light_mesh_layout }
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
@@ -184,6 +249,17 @@ fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
 fn sun_layout() -> wgpu::VertexBufferLayout<'static> {
     const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![SUN_LOCATION => Float32];
     wgpu::VertexBufferLayout { array_stride: 4, step_mode: wgpu::VertexStepMode::Vertex, attributes: &ATTRIBUTES }
+}
+
+/// The bytes of the light per vertex (two RGBA32F: what the albedo multiplies, what is added).
+const LIGHT_STRIDE: u64 = 32;
+
+/// The third vertex buffer of the light from the vertices: the light per vertex the
+/// vertex-light pass computed ([`ModelPass::encode_vertex_light`]).
+fn light_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRIBUTES: [wgpu::VertexAttribute; 2] =
+        wgpu::vertex_attr_array![LIGHT_LOCATION => Float32x4, LIGHT_SPECULAR_LOCATION => Float32x4];
+    wgpu::VertexBufferLayout { array_stride: LIGHT_STRIDE, step_mode: wgpu::VertexStepMode::Vertex, attributes: &ATTRIBUTES }
 }
 
 /// One model pipeline per method (indexed by [`LightingMethod::shader_id`]) with bind-group
@@ -213,25 +289,37 @@ fn method_pipeline(
     // Every fragment of the model is opaque (alpha 1): written, not blended over what is behind.
     let colour = wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL };
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
-    let vertex_sun = matches!(kind, Shading::SunFromVertices | Shading::LightFromVertices);
-    let constants = [("METHOD", f64::from(m.shader_id())), ("COLOUR_CORRECTION", flag(corrected)), ("VERTEX_SUN", flag(vertex_sun))];
+    let vertex_sun = kind == Shading::SunFromVertices || kind.reads_vertex_light();
+    let kept = matches!(kind, Shading::LightKept | Shading::ColourKept);
+    let constants = [
+        ("METHOD", f64::from(m.shader_id())),
+        ("COLOUR_CORRECTION", flag(corrected)),
+        ("VERTEX_SUN", flag(vertex_sun)),
+        ("LIGHT_KEPT", flag(kept)),
+    ];
     // The light from the vertices has its own entry points, which interpolate only what its
-    // fragment reads (model.wgsl LightOut).
-    let (vs, fs) = if kind == Shading::LightFromVertices { ("vs_light", "fs_light") } else { ("vs_main", "fs_main") };
-    model_pipeline(device, (m.name(), module), (vs, Some((fs, colour))), layouts, samples, (&constants, kind != Shading::EveryTriangle))
+    // fragment reads (model.wgsl LightOut, ColourOut).
+    let (vs, fs) = match kind {
+        Shading::LightFromVertices | Shading::LightKept => ("vs_light", "fs_light"),
+        Shading::ColourFromVertices | Shading::ColourKept => ("vs_colour", "fs_colour"),
+        _ => ("vs_main", "fs_main"),
+    };
+    let cull = kind != Shading::EveryTriangle;
+    model_pipeline(device, (m.name(), module), (vs, Some((fs, colour))), layouts, samples, (&constants, cull, kind.reads_vertex_light()))
 }
 
 /// A model pipeline: the model shader's vertex entry point `vs` with override `constants` and,
 /// when `fragment` gives one, the fragment entry point drawing into its colour target (none:
 /// depth only), `samples` per pixel with depth written and tested, culling back faces
-/// (counter-clockwise fronts) or not.
+/// (counter-clockwise fronts) or not, reading the light per vertex (a third vertex buffer) or
+/// not.
 fn model_pipeline(
     device: &wgpu::Device,
     (label, module): (&str, &wgpu::ShaderModule),
     (vs, fragment): (&str, Option<(&str, wgpu::ColorTargetState)>),
     (layout, material_layout): (&wgpu::BindGroupLayout, &wgpu::BindGroupLayout),
     samples: u32,
-    (constants, cull): (&[(&str, f64)], bool),
+    (constants, cull, light): (&[(&str, f64)], bool, bool),
 ) -> wgpu::RenderPipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
@@ -240,6 +328,7 @@ fn model_pipeline(
     });
     let options = wgpu::PipelineCompilationOptions { constants, ..Default::default() };
     let targets: Vec<Option<wgpu::ColorTargetState>> = fragment.iter().map(|(_, colour)| Some(colour.clone())).collect();
+    let buffers = [Some(vertex_layout()), Some(sun_layout()), Some(light_layout())];
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(&layout),
@@ -247,7 +336,7 @@ fn model_pipeline(
             module,
             entry_point: Some(vs),
             compilation_options: options.clone(),
-            buffers: &[Some(vertex_layout()), Some(sun_layout())],
+            buffers: &buffers[..if light { 3 } else { 2 }],
         },
         primitive: wgpu::PrimitiveState { cull_mode: cull.then_some(wgpu::Face::Back), ..Default::default() },
         depth_stencil: depth_state(true, wgpu::DepthBiasState::default()),
@@ -274,7 +363,14 @@ fn prepass_pipeline(
 ) -> wgpu::RenderPipeline {
     let constants = [("METHOD", 0.0), ("COLOUR_CORRECTION", 0.0)];
     let colour = wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() };
-    model_pipeline(device, ("model depth pre-pass", module), ("vs_main", Some(("fs_depth", colour))), layouts, samples, (&constants, false))
+    model_pipeline(
+        device,
+        ("model depth pre-pass", module),
+        ("vs_main", Some(("fs_depth", colour))),
+        layouts,
+        samples,
+        (&constants, false, false),
+    )
 }
 
 /// The model's depth seen by the camera, single-sampled and without colour: the model pass's
@@ -289,7 +385,7 @@ pub fn depth_pipeline(device: &wgpu::Device, pipelines: &ModelPipelines, cull: b
         ("vs_main", None),
         (&pipelines.layout, &pipelines.material_layout),
         1,
-        (&constants, cull),
+        (&constants, cull, false),
     )
 }
 
@@ -342,6 +438,15 @@ struct MeshGpu {
     longest_edge: Vec<f32>,
     /// Per level, how far the normal turns across its triangles (radians; [`mean_normal_turn`]).
     normal_turn: Vec<f32>,
+    /// The light per vertex (written by the vertex-light pass, [`ModelPass::encode_vertex_light`];
+    /// read as attributes [`LIGHT_LOCATION`] and [`LIGHT_SPECULAR_LOCATION`]).
+    light: wgpu::Buffer,
+    /// Per level, the vertex-light pass's bind group 2 (vertices, the level's vertex indices,
+    /// `sun`, `light`) and how many vertices the level has.
+    light_groups: Vec<(wgpu::BindGroup, u32)>,
+    /// Whether its material has a texture (else the light from the vertices carries its whole
+    /// colour: [`Shading::ColourFromVertices`]).
+    textured: bool,
 }
 
 /// Which back faces a frame may cull (`FrameData::cull`).
@@ -360,6 +465,9 @@ pub enum Culling {
 
 /// A model on the GPU.
 pub struct ModelGpu {
+    /// Which upload this is (one number per process): what the vertex-light pass computed for
+    /// one model is not another's ([`LightKey`]).
+    id: u64,
     meshes: Vec<MeshGpu>,
     /// Each mesh's material buffer and its values as loaded, rewritten each frame with the
     /// frame's material terms.
@@ -451,11 +559,20 @@ impl MeshGpu {
     }
 
     /// Draw the level the vertex-sun pass last split: its triangles whose sunlit vertices agree
-    /// with `per_vertex` (the sun interpolated), the others with `per_pixel`.
-    fn draw_split(&self, pass: &mut wgpu::RenderPass<'_>, (per_vertex, per_pixel): (&wgpu::RenderPipeline, &wgpu::RenderPipeline)) {
+    /// with `per_vertex` (the sun interpolated; with the light per vertex when `light`), the
+    /// others with `per_pixel`.
+    fn draw_split(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        (per_vertex, per_pixel): (&wgpu::RenderPipeline, &wgpu::RenderPipeline),
+        light: bool,
+    ) {
         pass.set_bind_group(1, &self.material, &[]);
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.set_vertex_buffer(1, self.sun.slice(..));
+        if light {
+            pass.set_vertex_buffer(2, self.light.slice(..));
+        }
         pass.set_index_buffer(self.split.slice(..), wgpu::IndexFormat::Uint32);
         pass.set_pipeline(per_vertex);
         pass.draw_indexed_indirect(&self.split_draws, 0);
@@ -510,7 +627,65 @@ pub struct ModelPass {
     /// Bind group 0 per shadow map (in the order of `ShadowPass::maps`), once there is an
     /// environment.
     bind_groups: Vec<wgpu::BindGroup>,
+    /// The vertex-light pass ([`ModelPipelines::light`]) and its bind group 2 layout.
+    light: wgpu::ComputePipeline,
+    light_mesh_layout: wgpu::BindGroupLayout,
+    /// Each mesh's material as the last frame wrote it (what the vertex light reads of it).
+    material_values: Vec<MaterialUniforms>,
+    /// What the light buffers were last computed for (None: nothing, or not known) ...
+    light_key: Option<LightKey>,
+    /// ... what the last frame's light depended on ...
+    last_light_key: Option<LightKey>,
+    /// ... and whether this frame reads them (else its vertex stage computes the light).
+    light_kept: bool,
 }
+
+/// What the vertex-light pass's light depends on besides the model's own buffers (whose
+/// changes the compositor reports: a vertex-sun pass, new vertices): the model uploaded, the
+/// frame's uniforms but its view and the shadow camera's (a camera that only turns computes
+/// nothing; the shadow camera reaches the light through the sun per vertex alone), the model's
+/// placement, the measured light, the materials as the frame writes them, the level of detail
+/// and which meshes read it. Compared whole: equal keys, equal light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightKey(Vec<u8>);
+
+impl LightKey {
+    pub fn new(
+        model: u64,
+        (frame, instance, light): (&FrameUniforms, &InstanceUniforms, &LightUniforms),
+        materials: &[MaterialUniforms],
+        (level, meshes): (usize, &[bool]),
+    ) -> LightKey {
+        let frame = FrameUniforms { view_proj: [[0.0; 4]; 4], view: [[0.0; 4]; 4], light_view_proj: [[0.0; 4]; 4], ..*frame };
+        let mut bytes = Vec::new();
+        bytes.extend_from_slice(&model.to_le_bytes());
+        bytes.extend_from_slice(bytemuck::bytes_of(&frame));
+        bytes.extend_from_slice(bytemuck::bytes_of(instance));
+        bytes.extend_from_slice(bytemuck::bytes_of(light));
+        bytes.extend_from_slice(bytemuck::cast_slice(materials));
+        bytes.extend_from_slice(&(level as u64).to_le_bytes());
+        bytes.extend(meshes.iter().map(|&m| u8::from(m)));
+        LightKey(bytes)
+    }
+}
+
+/// Whether the vertex-light pass runs and whether the frame reads its buffers (the pair), for a
+/// frame whose light depends on `key` (None: no mesh takes its light from its vertices), the last
+/// frame's having depended on `last`, and the buffers holding the light for `held`: read while
+/// they hold the frame's; computed and read when the key is the last frame's (the view stopped
+/// changing); otherwise neither (the vertex stage computes the light).
+pub fn light_plan(key: Option<&LightKey>, last: Option<&LightKey>, held: Option<&LightKey>) -> (bool, bool) {
+    match key {
+        None => (false, false),
+        Some(k) if held == Some(k) => (false, true),
+        Some(k) if last == Some(k) => (true, true),
+        Some(_) => (false, false),
+    }
+}
+
+/// The fields of the frame's uniform that [`LightKey`] leaves out, which the vertex-light pass
+/// must therefore not read (render::shaders' test checks `cs_light`).
+pub const LIGHT_IGNORES: [&str; 3] = ["view_proj", "view", "light_view_proj"];
 
 impl ModelPass {
     pub fn new(gpu: &Gpu, pipelines: &Pipelines) -> ModelPass {
@@ -546,6 +721,12 @@ impl ModelPass {
                 bytemuck::cast_slice(brdf_lut_texels()),
             ),
             bind_groups: Vec::new(),
+            light: pipelines.model.light.clone(),
+            light_mesh_layout: pipelines.model.light_mesh_layout.clone(),
+            material_values: Vec::new(),
+            light_key: None,
+            last_light_key: None,
+            light_kept: false,
         }
     }
 
@@ -586,6 +767,8 @@ impl ModelPass {
     /// Bind group 0 for each shadow map, from [`ModelPass::bind_group`].
     pub fn set_bind_groups(&mut self, bind_groups: Vec<wgpu::BindGroup>) {
         self.bind_groups = bind_groups;
+        // A new environment: its prefiltered reflection lights the vertices.
+        self.light_key = None;
     }
 
     /// Upload a prepared model (render/model_cache.rs): one vertex/index buffer and material
@@ -690,6 +873,31 @@ impl ModelPass {
                 contents: &level_bytes,
                 usage: wgpu::BufferUsages::UNIFORM,
             });
+            let light = build::buffer(
+                device,
+                "light per vertex",
+                LIGHT_STRIDE * vertices.len().max(1) as u64,
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            );
+            let light_groups = offsets
+                .iter()
+                .zip(&counts)
+                .map(|(&offset, &count)| {
+                    let size = wgpu::BufferSize::new(4 * u64::from(count.max(1)));
+                    let group = build::bind_group(
+                        device,
+                        "vertex light mesh",
+                        &self.light_mesh_layout,
+                        &[
+                            vertex_buf.as_entire_binding(),
+                            wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &lists, offset, size }),
+                            sun.as_entire_binding(),
+                            light.as_entire_binding(),
+                        ],
+                    );
+                    (group, count)
+                })
+                .collect();
             let sun_groups = offsets
                 .iter()
                 .zip(&counts)
@@ -735,10 +943,15 @@ impl ModelPass {
                 split_draws,
                 longest_edge,
                 normal_turn,
+                light,
+                light_groups,
+                textured: material.texture.is_some(),
             });
             materials.push((material_buf, uniforms));
         }
-        Ok(ModelGpu { meshes, materials, prepared })
+        static UPLOADS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let id = UPLOADS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(ModelGpu { id, meshes, materials, prepared })
     }
 
     /// This frame's colour correction and material terms; a frame without correction draws
@@ -768,10 +981,12 @@ impl ModelPass {
         self.sun_chosen.clear();
         self.light_chosen.clear();
         self.light_turns.clear();
+        self.material_values.clear();
         // One material buffer per mesh (ModelGpu::materials).
         for (mesh, (buf, base)) in model.meshes.iter().zip(&model.materials) {
             let uniforms = material_uniforms(base, terms);
             queue.write_buffer(buf, 0, bytemuck::bytes_of(&uniforms));
+            self.material_values.push(uniforms);
             let turn_limit = light_turn_limit(&uniforms);
             let edge_px = sun_px.map(|px| px * mesh.longest_edge[level.min(mesh.longest_edge.len() - 1)]);
             let within = |limit: f32| limit > 0.0 && edge_px.is_some_and(|e| e <= limit);
@@ -797,6 +1012,63 @@ impl ModelPass {
 
     /// Per mesh, whether the last frame written draws it with the sun from its vertices (what
     /// [`ModelGpu::sun_groups`] takes: the vertex-sun pass runs for these meshes alone).
+    /// Whether the vertex-light pass must run this frame (after [`ModelPass::write`] and
+    /// [`ModelPass::vertex_sun_valid`]), and notes whether the frame reads its buffers. Those
+    /// hold the light for the [`LightKey`] they were computed for, unless `changed` (the sun per
+    /// vertex was looked up again, or the vertices rewritten, this frame). A frame whose key is
+    /// the last frame's, while the buffers hold another, runs the pass and reads them; one whose
+    /// key changed since the last frame (a camera moving, a sun turning) computes the light in
+    /// the vertex stage instead, as a pass run every frame costs more (docs/PERFORMANCE.md,
+    /// twenty-seventh session). `uniforms`: the frame's, as written.
+    pub fn vertex_light_due(
+        &mut self,
+        model: &ModelGpu,
+        uniforms: (&FrameUniforms, &InstanceUniforms, &LightUniforms),
+        level: usize,
+        changed: bool,
+    ) -> bool {
+        if changed {
+            self.light_key = None;
+        }
+        let key = self
+            .light_chosen
+            .contains(&true)
+            .then(|| LightKey::new(model.id, uniforms, &self.material_values, (level, &self.light_chosen)));
+        let (run, kept) = light_plan(key.as_ref(), self.last_light_key.as_ref(), self.light_key.as_ref());
+        if run {
+            self.light_key = key.clone();
+        }
+        self.last_light_key = key;
+        self.light_kept = kept;
+        run
+    }
+
+    /// The vertex-light pass: the light at every vertex of the drawn level (`level`) of each
+    /// mesh that takes its light from its vertices, into its light buffer ([`LIGHT_STRIDE`] bytes
+    /// a vertex), with the frame's bind group 0 for shadow map `shadow_index`. Run when
+    /// [`ModelPass::vertex_light_due`] says so, after the vertex-sun pass.
+    pub fn encode_vertex_light(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        model: &ModelGpu,
+        (level, shadow_index): (usize, usize),
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        let Some(bind_group) = self.bind_groups.get(shadow_index) else { return };
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("vertex light"), timestamp_writes: timestamps });
+        pass.set_pipeline(&self.light);
+        pass.set_bind_group(0, bind_group, &[]);
+        for (mesh, _) in model.meshes.iter().zip(&self.light_chosen).filter(|(_, c)| **c) {
+            let (group, count) = &mesh.light_groups[level.min(mesh.light_groups.len() - 1)];
+            if *count > 0 {
+                pass.set_bind_group(1, &mesh.material, &[]);
+                pass.set_bind_group(2, group, &[]);
+                pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+            }
+        }
+    }
+
     pub fn vertex_sun_meshes(&self) -> &[bool] {
         &self.sun_chosen
     }
@@ -861,8 +1133,11 @@ impl ModelPass {
             let per_pixel = &self.shading[shading_index(method, self.corrected, per_pixel)];
             if self.sun_chosen.get(k).is_some_and(|&c| c) {
                 let light = self.light_chosen.get(k).is_some_and(|&c| c);
-                let per_vertex = if light { Shading::LightFromVertices } else { Shading::SunFromVertices };
-                mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, per_vertex)], per_pixel));
+                let per_vertex = match light {
+                    false => Shading::SunFromVertices,
+                    true => Shading::light_from_vertices(mesh.textured, self.light_kept),
+                };
+                mesh.draw_split(pass, (&self.shading[shading_index(method, self.corrected, per_vertex)], per_pixel), light);
             } else {
                 pass.set_pipeline(per_pixel);
                 mesh.draw(pass, Some(1), level);
@@ -961,6 +1236,7 @@ pub fn light_turn_limit(material: &MaterialUniforms) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bytemuck::Zeroable;
 
     #[test]
     fn the_edge_over_a_share_of_the_area() {
@@ -1002,6 +1278,117 @@ mod tests {
         assert!((light_turn_limit(&material(0.5, 100.0, 1.0)) - k * 0.37420 / 0.5f32.sqrt()).abs() < 1e-4);
         // A weak, rough one keeps the matte limit.
         assert_eq!(light_turn_limit(&material(0.04, 0.0, 0.3)), MAX_MATTE_LIGHT_TURN);
+    }
+
+    #[test]
+    fn the_light_key_follows_what_the_vertex_light_reads() {
+        let frame = FrameUniforms::zeroed();
+        let (instance, light) = (InstanceUniforms::zeroed(), LightUniforms::zeroed());
+        let material = MaterialUniforms { albedo: [0.5; 4], specular: [0.04, 0.04, 0.04, 25.0], terms: [1.0, 1.0, 1.0, 0.0] };
+        let key = |f: &FrameUniforms, i: &InstanceUniforms, l: &LightUniforms, m: &MaterialUniforms, level: usize| {
+            LightKey::new(3, (f, i, l), std::slice::from_ref(m), (level, &[true]))
+        };
+        let k = key(&frame, &instance, &light, &material, 2);
+        // A camera that only turns (its view, and the shadow camera fitted to it) keeps the key.
+        let turned = FrameUniforms { view_proj: [[1.0; 4]; 4], view: [[2.0; 4]; 4], light_view_proj: [[3.0; 4]; 4], ..frame };
+        assert_eq!(key(&turned, &instance, &light, &material, 2), k);
+        // Its position, the sun, the daylight, the placement, the sky, the material, the level,
+        // the model and the meshes drawn so change it.
+        assert_ne!(key(&FrameUniforms { camera_pos: [0.0, 0.0, 1e-6], ..frame }, &instance, &light, &material, 2), k);
+        assert_ne!(key(&FrameUniforms { sun_dir: [0.0, 0.6, 0.8], ..frame }, &instance, &light, &material, 2), k);
+        assert_ne!(key(&FrameUniforms { daylight: 0.5, ..frame }, &instance, &light, &material, 2), k);
+        let moved = InstanceUniforms { model: [[0.0, 0.0, 0.0, 0.0], [0.0; 4], [0.0; 4], [1.0, 0.0, 0.0, 1.0]], ..instance };
+        assert_ne!(key(&frame, &moved, &light, &material, 2), k);
+        let mut sky = light;
+        sky.sh[4][1] = 0.25;
+        assert_ne!(key(&frame, &instance, &sky, &material, 2), k);
+        assert_ne!(key(&frame, &instance, &light, &MaterialUniforms { terms: [1.0, 0.5, 1.0, 0.0], ..material }, 2), k);
+        assert_ne!(key(&frame, &instance, &light, &material, 1), k);
+        assert_ne!(LightKey::new(4, (&frame, &instance, &light), &[material], (2, &[true])), k);
+        assert_ne!(LightKey::new(3, (&frame, &instance, &light), &[material, material], (2, &[true, false])), k);
+    }
+
+    #[test]
+    fn the_light_is_computed_once_the_view_stops_changing_and_read_while_it_holds() {
+        let key = |x: u8| LightKey(vec![x]);
+        let (a, b) = (key(1), key(2));
+        // No mesh lit from its vertices: nothing to do.
+        assert_eq!(light_plan(None, Some(&a), Some(&a)), (false, false));
+        // A new view (the camera moving): the vertex stage computes the light.
+        assert_eq!(light_plan(Some(&b), Some(&a), Some(&a)), (false, false));
+        assert_eq!(light_plan(Some(&a), None, None), (false, false));
+        // The same view a second frame: the pass runs and the frame reads it ...
+        assert_eq!(light_plan(Some(&b), Some(&b), Some(&a)), (true, true));
+        assert_eq!(light_plan(Some(&b), Some(&b), None), (true, true));
+        // ... and then frames read it while the key holds, whatever came between.
+        assert_eq!(light_plan(Some(&b), Some(&b), Some(&b)), (false, true));
+        assert_eq!(light_plan(Some(&b), Some(&a), Some(&b)), (false, true));
+    }
+
+    /// The vertex-light pass (`cs_light` and every function it calls) reads no field of the
+    /// frame's uniform that [`LightKey`] leaves out ([`LIGHT_IGNORES`]): a turn of the camera
+    /// that keeps the key keeps its light. Reads are member accesses on the `frame` global, on a
+    /// load of it, or on a function argument of type Frame (how the shaders pass it).
+    #[test]
+    fn the_vertex_light_reads_no_frame_field_its_key_leaves_out() {
+        use naga::{Expression, Statement};
+        let module = crate::gpu::wgsl::validate(&source(Technique::Model)).unwrap();
+        let frame_ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("Frame")).expect("struct Frame").0;
+        let naga::TypeInner::Struct { members, .. } = &module.types[frame_ty].inner else { panic!("Frame is not a struct") };
+        let global = module.global_variables.iter().find(|(_, g)| g.name.as_deref() == Some("frame")).expect("global frame").0;
+        fn calls(block: &naga::Block, out: &mut Vec<naga::Handle<naga::Function>>) {
+            for s in block.iter() {
+                match s {
+                    Statement::Call { function, .. } => out.push(*function),
+                    Statement::Block(b) => calls(b, out),
+                    Statement::If { accept, reject, .. } => {
+                        calls(accept, out);
+                        calls(reject, out);
+                    }
+                    Statement::Switch { cases, .. } => cases.iter().for_each(|c| calls(&c.body, out)),
+                    Statement::Loop { body, continuing, .. } => {
+                        calls(body, out);
+                        calls(continuing, out);
+                    }
+                    _ => {}
+                }
+            }
+        }
+        let entry = module.entry_points.iter().find(|e| e.name == "cs_light").expect("cs_light");
+        let mut todo = Vec::new();
+        calls(&entry.function.body, &mut todo);
+        let mut reached: Vec<&naga::Function> = vec![&entry.function];
+        let mut seen = std::collections::HashSet::new();
+        while let Some(f) = todo.pop() {
+            if seen.insert(f) {
+                calls(&module.functions[f].body, &mut todo);
+                reached.push(&module.functions[f]);
+            }
+        }
+        assert!(reached.len() > 3, "cs_light calls sh9-ggx's light");
+        let mut read = std::collections::BTreeSet::new();
+        for f in reached {
+            let is_frame = |e: naga::Handle<Expression>| match f.expressions[e] {
+                Expression::GlobalVariable(g) => g == global,
+                Expression::Load { pointer } => matches!(f.expressions[pointer], Expression::GlobalVariable(g) if g == global),
+                Expression::FunctionArgument(i) => f.arguments[i as usize].ty == frame_ty,
+                _ => false,
+            };
+            for (_, e) in f.expressions.iter() {
+                if let Expression::AccessIndex { base, index } = *e
+                    && is_frame(base)
+                {
+                    read.insert(members[index as usize].name.clone().unwrap_or_default());
+                }
+            }
+        }
+        assert!(read.contains("camera_pos") && read.contains("env_rotation"), "{read:?}");
+        for ignored in LIGHT_IGNORES {
+            assert!(!read.contains(ignored), "cs_light reads frame.{ignored}, which LightKey leaves out");
+        }
+        // The key zeroes exactly these fields.
+        let names: Vec<&str> = members.iter().filter_map(|m| m.name.as_deref()).collect();
+        assert!(LIGHT_IGNORES.iter().all(|f| names.contains(f)));
     }
 
     #[test]

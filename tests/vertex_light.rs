@@ -195,11 +195,15 @@ fn bench_vertex_light_dragon() {
 /// and reads its buffer, and later frames read that buffer while the camera only turns, with
 /// no pass; each frame within one 8-bit level of the vertex stage's light, a turned frame of a
 /// fresh compositor's. A camera that moves computes the light in the vertex stage again, and
-/// the pass runs once it stops. The glossy sphere (48 rings) and the default material (both
-/// untextured: the whole colour from the vertices).
+/// the pass runs once it stops. The sphere of 48 rings, glossy and of the default material
+/// (untextured: the whole colour from the vertices), and of the default material under an 8×8
+/// checker texture (the light from the vertices, the albedo per pixel).
 #[test]
 fn the_light_kept_from_the_vertex_light_pass_is_the_vertex_stages() {
-    for (name, material) in [materials()[1].clone(), materials()[3].clone()] {
+    let checker: Vec<u8> = (0..64).flat_map(|i| if (i % 8 + i / 8) % 2 == 0 { [230, 200, 60, 255] } else { [40, 90, 200, 255] }).collect();
+    let texture = previz::scene::Rgba8Image { width: 8, height: 8, pixels: checker };
+    let textured = ("textured", Material { texture: Some(texture), ..Material::default() });
+    for (name, material) in [materials()[1].clone(), materials()[3].clone(), textured] {
         let compositor = || set_up(common::uv_sphere(48, material.clone()), 320, 0.5, true);
         let ([mut c, _], p) = compositor();
         let frame = |c: &mut Compositor, p: &FrameParams| {

@@ -684,7 +684,8 @@ pub fn light_plan(key: Option<&LightKey>, last: Option<&LightKey>, held: Option<
 }
 
 /// The fields of the frame's uniform that [`LightKey`] leaves out, which the vertex-light pass
-/// must therefore not read (render::shaders' test checks `cs_light`).
+/// must therefore not read (this module's tests check both: `cs_light` on naga's IR, the key
+/// on frames that differ in these fields alone).
 pub const LIGHT_IGNORES: [&str; 3] = ["view_proj", "view", "light_view_proj"];
 
 impl ModelPass {

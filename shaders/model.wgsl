@@ -163,12 +163,12 @@ fn fs_colour(in: ColourOut) -> @location(0) vec4<f32> {
     return vec4<f32>(in.colour, 1.0);
 }
 
-// The vertex-light pass (render::passes::model::VertexLightPass): sh9-ggx's light at each vertex
+// The vertex-light pass (render::passes::model::ModelPass::encode_vertex_light): sh9-ggx's light at each vertex
 // of a mesh's drawn level (`level_vertices`, each once), from the mesh's vertices
 // (render::pipelines::Vertex, VERTEX_FLOATS floats each) and its sun per vertex (vertex_sun.wgsl),
 // written to `vertex_light` (two vec4 per vertex: what the albedo multiplies, what is added) for
 // vs_light and vs_colour. It reads the frame's camera position but not its view: a camera that
-// only turns keeps the buffer (render::passes::model::LightKey; the shaders test checks which
+// only turns keeps the buffer (render::passes::model::LightKey; that module's tests check which
 // fields of Frame it reads).
 @group(2) @binding(0) var<storage, read> mesh_vertices: array<f32>;
 @group(2) @binding(1) var<storage, read> level_vertices: array<u32>;

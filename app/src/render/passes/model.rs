@@ -880,41 +880,25 @@ impl ModelPass {
                 LIGHT_STRIDE * vertices.len().max(1) as u64,
                 wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
             );
-            let light_groups = offsets
-                .iter()
-                .zip(&counts)
-                .map(|(&offset, &count)| {
-                    let size = wgpu::BufferSize::new(4 * u64::from(count.max(1)));
-                    let group = build::bind_group(
-                        device,
-                        "vertex light mesh",
-                        &self.light_mesh_layout,
-                        &[
-                            vertex_buf.as_entire_binding(),
-                            wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &lists, offset, size }),
-                            sun.as_entire_binding(),
-                            light.as_entire_binding(),
-                        ],
-                    );
-                    (group, count)
-                })
-                .collect();
-            let sun_groups = offsets
+            // Per level, the vertex-sun pass's and the vertex-light pass's bind groups, both over
+            // the level's list of vertices.
+            let (sun_groups, light_groups): (Vec<_>, Vec<_>) = offsets
                 .iter()
                 .zip(&counts)
                 .zip(&lods.levels)
                 .enumerate()
                 .map(|(l, ((&offset, &count), r))| {
                     let size = wgpu::BufferSize::new(4 * u64::from(count.max(1)));
+                    let list = || wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &lists, offset, size });
                     let level =
                         wgpu::BufferBinding { buffer: &split_levels, offset: l as u64 * uniform_align, size: wgpu::BufferSize::new(16) };
-                    let group = build::bind_group(
+                    let sun_group = build::bind_group(
                         device,
                         "vertex sun mesh",
                         &self.sun_mesh_layout,
                         &[
                             vertex_buf.as_entire_binding(),
-                            wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &lists, offset, size }),
+                            list(),
                             sun.as_entire_binding(),
                             indices.as_entire_binding(),
                             split.as_entire_binding(),
@@ -922,9 +906,15 @@ impl ModelPass {
                             wgpu::BindingResource::Buffer(level),
                         ],
                     );
-                    (group, count, r.count / 3)
+                    let light_group = build::bind_group(
+                        device,
+                        "vertex light mesh",
+                        &self.light_mesh_layout,
+                        &[vertex_buf.as_entire_binding(), list(), sun.as_entire_binding(), light.as_entire_binding()],
+                    );
+                    ((sun_group, count, r.count / 3), (light_group, count))
                 })
-                .collect();
+                .unzip();
             let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
             let normals: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.normal)).collect();
             let level = |r: &IndexRange| &lods.indices[r.first as usize..][..r.count as usize];
